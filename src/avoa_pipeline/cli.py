@@ -1,0 +1,105 @@
+"""Command line: ``python -m avoa_pipeline {fit,generate} ...``.
+
+Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
+traceback, and write no output file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
+
+from .errors import UserError  # noqa: E402
+
+ALGORITHM_NAMES = ("nelder_mead", "quasi_newton", "ga", "gwo", "run", "avoa", "gto")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
+        raise UserError(f"{self.prog}: {message}")
+
+
+def _int_in(name: str, allowed):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
+        if allowed is not None and value not in allowed:
+            raise argparse.ArgumentTypeError(
+                f"unknown {name} {value}; choose from {', '.join(map(str, allowed))}")
+        return value
+
+    return parse
+
+
+def _algorithm(text: str) -> str:
+    if text not in ALGORITHM_NAMES:
+        raise argparse.ArgumentTypeError(
+            f"unknown algorithm {text!r}; choose from {', '.join(ALGORITHM_NAMES)}")
+    return text
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="avoa_pipeline", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    f = sub.add_parser("fit", help="identify the parameters of one scenario × case")
+    f.add_argument("--scenario", type=_int_in("scenario", (1, 2, 3, 4)), required=True)
+    f.add_argument("--case", type=_int_in("case", (1, 2, 3, 4)), required=True)
+    f.add_argument("--algorithm", type=_algorithm, required=True)
+    f.add_argument("--seed", type=_int_in("seed", None), required=True)
+    f.add_argument("--out", required=True, help="record file (JSON)")
+    f.add_argument("--config", default=None, help="config file (default config/config.yaml)")
+    f.add_argument("--data", default=None, help="dataset CSV (default: generated in memory)")
+    f.add_argument("--pop-size", type=_int_in("pop-size", None), default=None)
+    f.add_argument("--iterations", type=_int_in("iterations", None), default=None)
+    f.add_argument("--max-nfe", type=_int_in("max-nfe", None), default=None)
+    f.add_argument("--noise-free", action="store_true", help="generated data without noise")
+    f.add_argument("--threads", type=_int_in("threads", None), default=None)
+
+    g = sub.add_parser("generate", help="write the synthetic dataset of one scenario × case")
+    g.add_argument("--scenario", type=_int_in("scenario", (1, 2, 3, 4)), required=True)
+    g.add_argument("--case", type=_int_in("case", (1, 2, 3, 4)), required=True)
+    g.add_argument("--out", required=True, help="CSV path; the JSON sidecar goes beside it")
+    g.add_argument("--config", default=None)
+    g.add_argument("--noise-free", action="store_true")
+    return p
+
+
+def cmd_fit(args) -> None:
+    import numba
+
+    from . import config, fit, problem
+    from .io import write_json
+
+    cfg = config.load(args.config)
+    budget = fit.budget_from(cfg, args.pop_size, args.iterations, args.max_nfe)
+    if args.threads is not None:
+        if args.threads < 1:
+            raise UserError(f"--threads must be positive, got {args.threads}")
+        numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
+    prob = problem.build(cfg, args.scenario, args.case, args.data, noise=not args.noise_free)
+    record = fit.run(cfg, prob, args.algorithm, args.seed, budget)
+    write_json(record, args.out)
+
+
+def cmd_generate(args) -> None:
+    from . import config, synthetic
+
+    cfg = config.load(args.config)
+    synthetic.write(synthetic.generate(cfg, args.scenario, args.case, noise=not args.noise_free),
+                    args.out)
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        {"fit": cmd_fit, "generate": cmd_generate}[args.command](args)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,84 @@
+"""One identification run → one flat, JSON-serialisable record."""
+
+from __future__ import annotations
+
+import platform
+import sys
+from importlib import metadata
+
+import numpy as np
+
+from . import __version__, seeds
+from .errors import ConfigError
+from .optimizers import ALGORITHMS, Budget, minimize
+from .problem import Problem
+
+
+def versions() -> dict:
+    out = {"avoa_pipeline": __version__, "python": sys.version.split()[0],
+           "platform": platform.platform()}
+    for lib in ("numpy", "scipy", "numba", "pandas"):
+        try:
+            out[lib] = metadata.version(lib)
+        except metadata.PackageNotFoundError:  # pragma: no cover - all are dependencies
+            out[lib] = None
+    return out
+
+
+def budget_from(cfg: dict, pop_size=None, iterations=None, max_nfe=None) -> Budget:
+    b = cfg["budget"]
+    pop = b["pop_size"] if pop_size is None else pop_size
+    it = b["iterations"] if iterations is None else iterations
+    nfe = b.get("max_nfe") if max_nfe is None else max_nfe
+    for name, value in (("pop_size", pop), ("iterations", it), ("max_nfe", nfe)):
+        if value is not None and value < 1:
+            raise ConfigError(f"budget field {name}: must be positive, got {value}")
+    if pop < 2:
+        raise ConfigError(f"budget field pop_size: must be at least 2, got {pop}")
+    return Budget(pop_size=pop, iterations=it, max_nfe=nfe)
+
+
+def warm_up(problem: Problem, pop_size: int) -> None:
+    """Load the compiled kernels before the clock starts (wall_s is optimizer time only)."""
+    x = (problem.lb + problem.ub) / 2
+    problem.objective(np.tile(x, (max(pop_size, 1), 1)))
+    problem.objective(x[None, :])
+
+
+def run(cfg: dict, problem: Problem, algorithm: str, seed: int, budget: Budget) -> dict:
+    if algorithm not in ALGORITHMS:
+        raise ConfigError(f"unknown algorithm {algorithm!r}; choose from {', '.join(ALGORITHMS)}")
+    rng = seeds.stream(cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed)
+    warm_up(problem, budget.pop_size)
+    res = minimize(algorithm, problem.objective, problem.lb, problem.ub, budget, rng)
+    best = dict(zip(problem.names, map(float, res.best_x)))
+    truth = problem.true_free()
+    record = {
+        "scenario": problem.scenario,
+        "case": problem.case,
+        "algorithm": algorithm,
+        "seed": seed,
+        "param_names": list(problem.names),
+        "best_params": best,
+        "best_ise": res.best_f,
+        "true_params": None if truth is None else dict(zip(problem.names, map(float, truth))),
+        "true_ise": None if truth is None else float(problem.objective(truth[None, :])[0]),
+        "rel_error": None if truth is None else {
+            n: float((best[n] - t) / t) for n, t in zip(problem.names, truth)},
+        "lb": problem.lb.tolist(),
+        "ub": problem.ub.tolist(),
+        "nfe": res.nfe,
+        "iterations": res.iterations,
+        "n_samples": int(problem.time_s.size),
+        "wall_s": res.wall_s,
+        "budget": {"pop_size": budget.pop_size, "iterations": budget.iterations,
+                   "max_nfe": budget.max_nfe},
+        "history": {
+            "best_ise": res.history_best.tolist(),
+            "nfe": res.history_nfe.tolist(),
+            "wall_s": res.history_time.tolist(),
+        },
+        "seed_keys": [cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed],
+        "versions": versions(),
+    }
+    return record

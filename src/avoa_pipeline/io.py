@@ -1,0 +1,100 @@
+"""Reading measurement CSVs and writing outputs atomically.
+
+Every reader check fails with one line naming the file and the field; writers go through a
+temporary file in the target folder and an atomic rename, so an error never leaves half a file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .errors import DataError
+
+REQUIRED = ("time_s", "current_a", "voltage_v")
+OPTIONAL = ("temperature_c",)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temporary path beside ``path``; on success rename it onto ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+
+
+def write_json(obj, path: str | Path) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=1, sort_keys=False, allow_nan=False) + "\n")
+
+
+def sha256(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
+    """Read ``time_s, current_a, voltage_v[, temperature_c]`` and check what a fit relies on."""
+    path = Path(path)
+    try:
+        df = pd.read_csv(path)
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such file") from None
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DataError(f"{path}: not a readable CSV ({msg})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    for col in REQUIRED:
+        if col not in df.columns:
+            raise DataError(f"{path}: missing column {col!r} (need {', '.join(REQUIRED)})")
+    cols = [c for c in (*REQUIRED, *OPTIONAL) if c in df.columns]
+    for col in cols:
+        values = pd.to_numeric(df[col], errors="coerce")
+        bad = values.isna() & df[col].notna()
+        if bad.any():
+            row = int(np.flatnonzero(bad.to_numpy())[0])
+            raise DataError(f"{path}: column {col!r} row {row + 2}: not a number ({df[col].iloc[row]!r})")
+        if values.isna().any():
+            row = int(np.flatnonzero(values.isna().to_numpy())[0])
+            raise DataError(f"{path}: column {col!r} row {row + 2}: missing value (NaN)")
+        if not np.isfinite(values.to_numpy()).all():
+            row = int(np.flatnonzero(~np.isfinite(values.to_numpy()))[0])
+            raise DataError(f"{path}: column {col!r} row {row + 2}: not finite")
+        df[col] = values.astype(float)
+    df = df[cols]
+    if len(df) < min_samples:
+        raise DataError(f"{path}: {len(df)} samples; need at least {min_samples}")
+    dt = np.diff(df["time_s"].to_numpy())
+    if (dt == 0).any():
+        row = int(np.flatnonzero(dt == 0)[0]) + 1
+        raise DataError(f"{path}: column 'time_s' row {row + 2}: duplicate time")
+    if (dt < 0).any():
+        row = int(np.flatnonzero(dt < 0)[0]) + 1
+        raise DataError(f"{path}: column 'time_s' row {row + 2}: time goes backwards")
+    return df
+
+
+def uniform_step(path, time_s: np.ndarray, rtol: float = 1e-6) -> float:
+    """The sampling step of a uniformly sampled record (the ISE kernel needs one)."""
+    dt = np.diff(time_s)
+    ts = float(np.median(dt))
+    if np.max(np.abs(dt - ts)) > rtol * max(ts, 1.0):
+        raise DataError(f"{path}: column 'time_s': not uniformly sampled (resample first)")
+    return ts

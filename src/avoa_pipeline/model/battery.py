@@ -1,0 +1,170 @@
+"""The paper's battery model: parameters, scenarios, cases, fade, and simulation.
+
+Scenarios (Sec. 4): 1 neither load nor fade, 2 fade, 3 load, 4 load and fade.
+Cases (Sec. 4, Tables 4-7): 1 T1 without charge dynamics, 2 T1 with, 3 T2 without, 4 T2 with.
+Which parameters each case identifies follows the paper's Tables 4-7; the others are held at the
+cell's known (true) values. Fade, eqs. 7-9: the cell is at cycle ``n`` of ``N``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from . import kernel
+
+PARAM_NAMES = ("vnom", "q", "vdis", "r0", "rtr", "tau")
+"""Column order of every full parameter vector."""
+
+PARAM_LABELS = {
+    "vnom": ("V_nom", "V"),
+    "q": ("Q", "Ah"),
+    "vdis": ("V_dis", "V"),
+    "r0": ("R_o", "Ω"),
+    "rtr": ("R_tr", "Ω"),
+    "tau": ("τ_tr", "s"),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    number: int
+    temperature: str  # "T1" or "T2"
+    dynamics: bool
+    free: tuple[str, ...]  # identified parameters, in the row order of the paper's table
+
+
+CASES = {
+    1: Case(1, "T1", False, ("vnom", "r0", "q", "vdis")),  # Table 4
+    2: Case(2, "T1", True, ("vnom", "r0", "vdis", "rtr", "tau")),  # Table 5
+    3: Case(3, "T2", False, ("vnom", "r0", "vdis")),  # Table 6
+    4: Case(4, "T2", True, ("vnom", "r0", "vdis", "rtr", "tau")),  # Table 7
+}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    number: int
+    fade: bool
+    load: bool
+
+
+SCENARIOS = {
+    1: Scenario(1, fade=False, load=False),
+    2: Scenario(2, fade=True, load=False),
+    3: Scenario(3, fade=False, load=True),
+    4: Scenario(4, fade=True, load=True),
+}
+
+
+@dataclass(frozen=True)
+class FadeLaw:
+    """δ percentages of eqs. 7-9, derived from Table 2's values after N cycles."""
+
+    n_ref: int
+    delta_q_pct: float
+    delta_r0_pct: float
+    delta_rtr_pct: float
+    delta_vdis_pct: float
+    delta_vnom_pct: float = 0.0  # Table 2 gives no Vnom after N cycles
+
+    @classmethod
+    def from_constants(cls, constants: dict) -> FadeLaw:
+        after, ref = constants["after_n"], constants["fade_reference"]
+        d_q = 100.0 * (after["capacity_ah"] / ref["capacity_ah"] - 1.0)
+        d_r0 = 100.0 * (after["r0_ohm"] / ref["r0_ohm"] - 1.0)
+        d_vdis = 100.0 * (after["vdis_v"] / ref["vdis_v"] - 1.0)
+        return cls(
+            n_ref=int(constants["n_cycles_ref"]),
+            delta_q_pct=d_q,
+            delta_r0_pct=d_r0,
+            delta_rtr_pct=d_r0 if constants.get("fade_rtr_like_r0", True) else 0.0,
+            delta_vdis_pct=d_vdis,
+        )
+
+    def factors(self, n: float) -> np.ndarray:
+        """Multipliers of (vnom, q, vdis, r0, rtr, tau) at cycle ``n``."""
+        lin = n / self.n_ref  # eq. 7: voltages fade linearly in n
+        root = np.sqrt(n / self.n_ref)  # eqs. 8-9: capacity and resistances with √n
+        return np.array(
+            [
+                1.0 + self.delta_vnom_pct / 100.0 * lin,
+                1.0 + self.delta_q_pct / 100.0 * root,
+                1.0 + self.delta_vdis_pct / 100.0 * lin,
+                1.0 + self.delta_r0_pct / 100.0 * root,
+                1.0 + self.delta_rtr_pct / 100.0 * root,
+                1.0,
+            ]
+        )
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Everything but the parameters that the simulation needs."""
+
+    dynamics: bool
+    fade_factors: np.ndarray  # shape (6,), ones without fade
+    load_ohm: float | None  # None = no load
+    soc0: float
+    qdis_ah: float
+
+    @property
+    def g_load(self) -> float:
+        return 0.0 if self.load_ohm is None else 1.0 / self.load_ohm
+
+    @classmethod
+    def for_scenario_case(cls, constants: dict, scenario: int, case: int, dynamics=None):
+        sc, cs = SCENARIOS[scenario], CASES[case]
+        fade = FadeLaw.from_constants(constants)
+        factors = fade.factors(constants["cycle_n"]) if sc.fade else np.ones(6)
+        return cls(
+            dynamics=cs.dynamics if dynamics is None else dynamics,
+            fade_factors=factors,
+            load_ohm=float(constants["load_ohm"]) if sc.load else None,
+            soc0=float(constants["soc0"]),
+            qdis_ah=float(constants["qdis_ah"]),
+        )
+
+
+def _n_blocks(n_candidates: int) -> int:
+    # a block per numba thread, but blocks of at least 4 candidates (smaller ones lose the
+    # interleaving that makes the population kernel fast)
+    return max(1, min(numba.get_num_threads(), n_candidates // 4))
+
+
+def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float, spec: ModelSpec):
+    """ISE (eq. 13) of each row of fresh-cell parameters ``P_full`` (columns = PARAM_NAMES)."""
+    P = np.ascontiguousarray(np.atleast_2d(P_full) * spec.fade_factors, dtype=float)
+    return kernel.ise_population(
+        P,
+        np.ascontiguousarray(current, dtype=float),
+        np.ascontiguousarray(voltage, dtype=float),
+        float(ts),
+        spec.soc0,
+        spec.qdis_ah,
+        spec.g_load,
+        spec.dynamics,
+        _n_blocks(P.shape[0]),
+    )
+
+
+def simulate(p_full: np.ndarray, current: np.ndarray, ts: float, spec: ModelSpec) -> dict:
+    """Terminal voltage, battery current (load included), SOC and Vtr of one parameter vector."""
+    p = np.ascontiguousarray(np.asarray(p_full, dtype=float) * spec.fade_factors)
+    tr = kernel.simulate_one(
+        p,
+        np.ascontiguousarray(current, dtype=float),
+        float(ts),
+        spec.soc0,
+        spec.qdis_ah,
+        spec.g_load,
+        spec.dynamics,
+    )
+    return {"voltage_v": tr[0], "battery_current_a": tr[1], "soc": tr[2], "vtr_v": tr[3]}
+
+
+def vector(params: dict) -> np.ndarray:
+    """Full parameter vector (PARAM_NAMES order) from a name → value mapping."""
+    return np.array([float(params[n]) for n in PARAM_NAMES])

@@ -1,0 +1,83 @@
+"""One identification problem: a dataset, the model of a scenario × case, the searched box.
+
+The objective maps a population of *free* parameter vectors (the case's identified parameters,
+in the paper's table order) to ISE values (eq. 13); parameters a case does not identify are held
+at the cell's known values.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import config as config_mod
+from . import synthetic
+from .errors import DataError
+from .io import read_measurement, uniform_step
+from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
+
+
+@dataclass
+class Problem:
+    scenario: int
+    case: int
+    names: tuple[str, ...]
+    lb: np.ndarray
+    ub: np.ndarray
+    fixed: np.ndarray  # full vector; free entries are overwritten by candidates
+    truth: np.ndarray | None  # full fresh-cell truth, when known
+    spec: ModelSpec
+    time_s: np.ndarray
+    current_a: np.ndarray
+    voltage_v: np.ndarray
+
+    @property
+    def ts(self) -> float:
+        return float(self.time_s[1] - self.time_s[0])
+
+    @property
+    def free_index(self) -> list[int]:
+        return [PARAM_NAMES.index(n) for n in self.names]
+
+    def full(self, X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        P = np.tile(self.fixed, (X.shape[0], 1))
+        P[:, self.free_index] = X
+        return P
+
+    def objective(self, X: np.ndarray) -> np.ndarray:
+        return ise(self.full(X), self.current_a, self.voltage_v, self.ts, self.spec)
+
+    def simulate(self, x_free) -> dict:
+        return simulate(self.full(x_free)[0], self.current_a, self.ts, self.spec)
+
+    def true_free(self) -> np.ndarray | None:
+        return None if self.truth is None else self.truth[self.free_index]
+
+
+def build(cfg: dict, scenario: int, case: int, data: str | Path | None = None,
+          noise: bool = True) -> Problem:
+    """The problem of ``scenario`` × ``case`` on ``data`` (default: generated in memory)."""
+    c = CASES[case]
+    if data is None:
+        ds = synthetic.generate(cfg, scenario, case, noise=noise)
+        t, i, v, meta = ds.time_s, ds.current_a, ds.voltage_v, ds.meta
+    else:
+        df = read_measurement(data, min_samples=3)
+        t, i, v = (df[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
+        uniform_step(data, t)
+        side = synthetic.sidecar(data)
+        meta = json.loads(side.read_text()) if side.exists() else {}
+        if meta and (meta.get("scenario"), meta.get("case")) != (scenario, case):
+            raise DataError(f"{side}: field scenario/case: is {meta.get('scenario')}/"
+                            f"{meta.get('case')}, the fit asked for {scenario}/{case}")
+    truth_cfg = cfg["true_params"][c.temperature]
+    truth = vector(meta["true_params"]) if "true_params" in meta else None
+    fixed = truth.copy() if truth is not None else vector(truth_cfg)
+    names, lb, ub = config_mod.bounds(cfg, case)
+    spec = ModelSpec.for_scenario_case(cfg["constants"], scenario, case)
+    return Problem(scenario, case, names, np.array(lb), np.array(ub), fixed, truth, spec,
+                   np.asarray(t), np.asarray(i), np.asarray(v))
