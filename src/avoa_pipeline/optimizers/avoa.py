@@ -1,0 +1,214 @@
+"""African Vultures Optimization Algorithm (AVOA).
+
+Reference: B. Abdollahzadeh, F. S. Gharehchopogh, S. Mirjalili, "African vultures optimization
+algorithm: A new nature-inspired metaheuristic algorithm for global optimization problems",
+Computers & Industrial Engineering 158 (2021) 107408, doi:10.1016/j.cie.2021.107408.
+The algorithm here follows the authors' reference MATLAB code (``AVOA.m`` with ``exploration``,
+``exploitation``, ``random_select``, ``levyFlight``, ``boundaryCheck``; MathWorks File Exchange
+94820), not the equations as printed in Fahmy et al. 2023 (Mathematics 11, 2215, Section 3,
+eqs. 14-31), which differ from that code in several places (listed below).
+
+Pseudo-code (one iteration = one population evaluation; ``t`` = completed iterations, 0..T-1)::
+
+    X <- uniform in [lb, ub]^D (P vultures); evaluate; update the best-two memories B1, B2
+    while budget left:
+        g  = U(-2, 2) * (sin(pi/2 t/T)^gamma + cos(pi/2 t/T) - 1)          # Fahmy eq. 18
+        P1 = (2 rand + 1) (1 - t/T) + g                                     # once per iteration
+        for each vulture i (vectorised):
+            F = P1 * (2 rand_i - 1)                                         # hunger, eq. 17
+            R = B1 with probability alpha, else B2                          # eq. 15
+            if |F| >= 1:                                                    # exploration, eq. 19
+                if rand < p1:  X = R - |2 rand R - X| F                     # eq. 19a/20
+                else:          X = R - F + rand ((ub - lb) rand + lb)       # eq. 19b
+            elif |F| >= 0.5:                                                # medium exploitation
+                if rand < p3:  X = |2 rand R - X| (F + rand) - (R - X)      # eq. 21-22
+                else:          X = R - (S1 + S2),                           # eq. 23-25
+                               S1 = R (rand X / 2pi) cos X, S2 = R (rand X / 2pi) sin X
+            else:                                                           # late exploitation
+                if rand < p2:  X = (A1 + A2) / 2,                           # eq. 26-28
+                               Ak = Bk - (Bk X) / (Bk - X^2) F
+                else:          X = R - |R - X| F Levy(D)                    # eq. 29-31
+        X <- clip(X, lb, ub); evaluate; update B1, B2 (sequentially, in index order)
+
+    Levy(D) = u sigma / |v|^(1/beta), u, v ~ N(0, 1)^D, beta = 1.5, and
+    sigma = (Gamma(1 + beta) sin(pi beta / 2)
+             / (Gamma((1 + beta) / 2) beta 2^((beta - 1) / 2)))^(1/beta) = 0.6966
+
+All "rand" inside a move are one scalar per vulture (as in the MATLAB code), Levy is per dimension.
+There is no greedy selection: every vulture moves every iteration; B1/B2 keep the elite.
+
+Differences between (a) the authors' code, (b) the original AVOA paper, (c) Fahmy et al.'s printed
+equations and (d) mealpy 3.0.2 ``OriginalAVOA``; **choice** = what this module does.
+(b) is the paper's printed form as widely reproduced; it was not re-checked against the PDF here.
+
+1.  Guide selection R (Fahmy eqs. 15-16). (a) roulette over the constants [alpha, beta] = [0.8, 0.2]
+    per vulture; (b), (c) p_i = f_i / sum f (roulette on the fitness of the two best -- for
+    minimisation this favours the *worse* one and is undefined for mixed-sign f); (d) as (a).
+    **choice: (a).** ``beta`` is the complement of ``alpha`` (the code picks B1 iff rand <= alpha).
+2.  B1/B2. (a) running memories: B1 = best-so-far; B2 is replaced only by a value strictly between
+    B1 and B2 (an old B1 is never demoted to B2), starting at the origin with f = inf; (b), (c)
+    best and second best of the current population; (d) two best of the current population.
+    **choice: (a)**, except that while B2 was never set, B1 is used instead of the origin (the
+    origin is arbitrary, may be infeasible, and is the optimum of the sphere test function).
+3.  Hunger F (eqs. 17-18). (a) F_i = [(2 rand + 1)(1 - t/T) + g] (2 rand_i - 1): rand and h (in g)
+    once per iteration, the sign factor z = 2 rand_i - 1 per vulture, so z also multiplies g;
+    (b), (c) F = (2 rand + 1) z (1 - t/T) + g (z multiplies only the first term; Fahmy indexes
+    rand per vulture and z per iteration); (d) as (a) but t = 1..T where (a) uses t = 0..T-1.
+    **choice: (a)** with t = 0..T-1. Fahmy's k is the code's gamma (= 2.5).
+4.  Exploration branch (eq. 19). (a), (b), (d) first branch iff rand < p1 (eq. 19's own condition
+    p1 >= rand agrees); Fahmy's text says the reverse ("if rand >= p1 the first part"). In the
+    second branch rand2 and rand3 are scalars (the same fraction in every dimension) in (a), (d).
+    **choice: (a).**
+5.  Medium exploitation, 0.5 <= |F| < 1 (eqs. 21-25). (a), (d) use **p3**: competition (eq. 21)
+    iff rand < p3, else rotation (eq. 23); (b) uses p2 (competition iff p2 >= rand); (c) text uses
+    p2 with competition iff rand >= p2. With p2 = 0.4, p3 = 0.6 the competition probability is
+    0.6 in (a), (c), (d) and 0.4 in (b). **choice: (a).**
+6.  Late exploitation, |F| < 0.5 (eqs. 26-30). (a), (d) use **p2**: aggregation (eq. 26) iff
+    rand < p2, else Levy attack (eq. 29); (b) uses p3 (aggregation iff p3 >= rand); (c) text:
+    aggregation iff rand >= p3. Aggregation probability 0.4 in (a), (c), (d), 0.6 in (b).
+    **choice: (a).**
+7.  Aggregation A1, A2 (eqs. 27-28). (a) Bk - (Bk X) / (Bk - X^2) F, elementwise -- the same as
+    Fahmy's printed eq. 27 (eq. 28 misprints BestVulture_21 for BestVulture_2); (d) adds 1e-9 to
+    the denominator. **choice: (a)**; a 0/0 coordinate (NaN) keeps the vulture's current value
+    (the MATLAB code would carry the NaN on), +-inf is clipped to the bound.
+8.  Levy flight (eqs. 30-31). (a) u sigma / |v|^(1/beta) with u, v ~ N(0, 1), no 0.01 factor,
+    Gamma((1 + beta)/2) in sigma's denominator (sigma = 0.6966 for beta = 1.5); (b) prints a 0.01
+    factor; (c) eq. 30: 0.01 r1 sigma / |r2|^(1/sigma) with r1, r2 ~ U(0, 1) and exponent 1/sigma,
+    eq. 31: Gamma(1 + delta) in the denominator (sigma = 0.5396); (d) no 0.01 factor and the
+    reference sigma, but draws u ~ N(0, sigma^2) with numpy's *scale* = sigma^2, i.e. std 0.485
+    instead of 0.697. **choice: (a).**
+9.  Bounds: (a) clips the whole population after each iteration (boundaryCheck); (d) clips each new
+    position; (b), (c) silent. **choice: clip**, same effect as (a), (d).
+10. Evaluation count: (a) evaluates at the start of each of its max_iter iterations, so its last
+    move is never evaluated (max_iter * P evaluations); ours and (d) evaluate the initial
+    population (iteration 0 of the history) and then once per iteration ((T + 1) * P
+    evaluations for T iterations, the convention of :mod:`.base`).
+11. Parameters: (a), (d) p1 = 0.6, p2 = 0.4, p3 = 0.6, alpha (L1) = 0.8, beta (L2) = 0.2,
+    gamma (w, Fahmy's k) = 2.5; Fahmy gives no values (only P = 20, T = 500). **choice: (a).**
+12. Horizon T for t/T: the budget's ``iterations``; under a pure evaluation budget the number of
+    iterations that fit, ceil((max_nfe - P) / P) (the smaller of the two if both are set).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .base import Tracker, register
+
+LEVY_BETA = 1.5
+"""Levy-flight exponent (fixed at 3/2 in the reference code; Fahmy's delta)."""
+
+
+def levy_sigma(beta: float = LEVY_BETA) -> float:
+    """Mantegna's sigma of the reference code (Gamma((1+beta)/2) in the denominator)."""
+    num = math.gamma(1.0 + beta) * math.sin(math.pi * beta / 2.0)
+    den = math.gamma((1.0 + beta) / 2.0) * beta * 2.0 ** ((beta - 1.0) / 2.0)
+    return (num / den) ** (1.0 / beta)
+
+
+def planned_iterations(tracker: Tracker, pop_size: int, evals_per_iteration: int) -> int:
+    """Iteration horizon T of the t/T schedules: the iteration budget, or what max_nfe allows."""
+    budget = tracker.budget
+    horizon = budget.iterations
+    if budget.max_nfe is not None:
+        by_nfe = max(1, math.ceil((budget.max_nfe - pop_size) / evals_per_iteration))
+        horizon = by_nfe if horizon is None else min(horizon, by_nfe)
+    return int(horizon)
+
+
+def update_best_two(f, X, best1, best2):
+    """Reference update of the best-two memories, vulture by vulture in index order.
+
+    ``best1``/``best2`` are ``[f, x]`` lists, updated in place: B1 takes any strictly better value;
+    B2 takes a value strictly between B1 (as updated so far) and B2. An old B1 is not demoted.
+    """
+    for k in range(len(f)):
+        fk = f[k]
+        if fk < best1[0]:
+            best1[0], best1[1] = fk, X[k].copy()
+        if best1[0] < fk < best2[0]:
+            best2[0], best2[1] = fk, X[k].copy()
+
+
+@register("avoa")
+def avoa(
+    tracker: Tracker,
+    rng: np.random.Generator,
+    pop_size: int,
+    p1: float = 0.6,
+    p2: float = 0.4,
+    p3: float = 0.6,
+    alpha: float = 0.8,
+    beta: float = 0.2,
+    gamma: float = 2.5,
+) -> None:
+    """AVOA as in the authors' MATLAB code (see the module docstring for every deviation)."""
+    for name, value in (("p1", p1), ("p2", p2), ("p3", p3), ("alpha", alpha), ("beta", beta)):
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f"{name} must be in [0, 1], got {value}")
+    if not math.isclose(alpha + beta, 1.0):
+        raise ValueError(f"alpha + beta must be 1 (L1 + L2 = 1), got {alpha} + {beta}")
+    if gamma <= 0:
+        raise ValueError(f"gamma must be positive, got {gamma}")
+
+    P, D = pop_size, tracker.dim
+    lb, ub = tracker.lb, tracker.ub
+    sigma = levy_sigma()
+
+    X = tracker.random_uniform(rng, P)
+    best1: list = [np.inf, None]
+    best2: list = [np.inf, None]
+    update_best_two(tracker.evaluate(X), X, best1, best2)
+    tracker.end_iteration()
+    T = planned_iterations(tracker, P, P)
+
+    while not tracker.done:
+        t = tracker.iteration  # the reference's current_iter (0..T-1)
+        b1 = best1[1] if best1[1] is not None else X[0]  # only if every value was NaN/inf
+        b2 = best2[1] if best2[1] is not None else b1
+        frac = t / T
+        g = rng.uniform(-2.0, 2.0) * (
+            math.sin(math.pi / 2.0 * frac) ** gamma + math.cos(math.pi / 2.0 * frac) - 1.0
+        )
+        P1 = (2.0 * rng.random() + 1.0) * (1.0 - frac) + g
+
+        # per-vulture draws (one scalar each, as the MATLAB rand() calls), Levy per dimension
+        F = (P1 * (2.0 * rng.random(P) - 1.0))[:, None]
+        R = np.where((rng.random(P) <= alpha)[:, None], b1, b2)
+        u = rng.random(P)  # the branch draw: rand < p1 / p3 / p2
+        r1 = rng.random((P, 1))
+        r2 = rng.random((P, 1))
+        levy = (
+            rng.standard_normal((P, D))
+            * sigma
+            / np.abs(rng.standard_normal((P, D))) ** (1.0 / LEVY_BETA)
+        )
+
+        absF = np.abs(F[:, 0])
+        explore = absF >= 1.0
+        late = absF < 0.5
+        medium = ~explore & ~late
+        new = np.empty_like(X)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            m = explore & (u < p1)  # eq. 19a with D = |C R - X|, C = 2 rand
+            new[m] = R[m] - np.abs(2.0 * r1[m] * R[m] - X[m]) * F[m]
+            m = explore & ~(u < p1)  # eq. 19b
+            new[m] = R[m] - F[m] + r1[m] * ((ub - lb) * r2[m] + lb)
+            m = medium & (u < p3)  # competition, eqs. 21-22
+            new[m] = np.abs(2.0 * r1[m] * R[m] - X[m]) * (F[m] + r2[m]) - (R[m] - X[m])
+            m = medium & ~(u < p3)  # rotating flight, eqs. 23-25
+            s1 = R[m] * (r1[m] * X[m] / (2.0 * np.pi)) * np.cos(X[m])
+            s2 = R[m] * (r2[m] * X[m] / (2.0 * np.pi)) * np.sin(X[m])
+            new[m] = R[m] - (s1 + s2)
+            m = late & (u < p2)  # aggregation, eqs. 26-28
+            a1 = b1 - (b1 * X[m]) / (b1 - X[m] ** 2) * F[m]
+            a2 = b2 - (b2 * X[m]) / (b2 - X[m] ** 2) * F[m]
+            new[m] = (a1 + a2) / 2.0
+            m = late & ~(u < p2)  # attack with Levy flight, eq. 29
+            new[m] = R[m] - np.abs(R[m] - X[m]) * F[m] * levy[m]
+        X = tracker.clip(np.where(np.isnan(new), X, new))
+
+        update_best_two(tracker.evaluate(X), X, best1, best2)
+        tracker.end_iteration()
