@@ -12,7 +12,7 @@ import sys
 
 os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
 
-from .errors import UserError  # noqa: E402
+from .errors import UserError
 
 ALGORITHM_NAMES = ("nelder_mead", "quasi_newton", "ga", "gwo", "run", "avoa", "gto")
 
@@ -30,7 +30,8 @@ def _int_in(name: str, allowed):
             raise argparse.ArgumentTypeError(f"{name} must be an integer, got {text!r}") from None
         if allowed is not None and value not in allowed:
             raise argparse.ArgumentTypeError(
-                f"unknown {name} {value}; choose from {', '.join(map(str, allowed))}")
+                f"unknown {name} {value}; choose from {', '.join(map(str, allowed))}"
+            )
         return value
 
     return parse
@@ -39,7 +40,8 @@ def _int_in(name: str, allowed):
 def _algorithm(text: str) -> str:
     if text not in ALGORITHM_NAMES:
         raise argparse.ArgumentTypeError(
-            f"unknown algorithm {text!r}; choose from {', '.join(ALGORITHM_NAMES)}")
+            f"unknown algorithm {text!r}; choose from {', '.join(ALGORITHM_NAMES)}"
+        )
     return text
 
 
@@ -67,6 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", required=True, help="CSV path; the JSON sidecar goes beside it")
     g.add_argument("--config", default=None)
     g.add_argument("--noise-free", action="store_true")
+    r = sub.add_parser("recovery", help="every algorithm on noise-free data: parameter errors")
+    r.add_argument("--scenario", type=_int_in("scenario", (1, 2, 3, 4)), required=True)
+    r.add_argument("--case", type=_int_in("case", (1, 2, 3, 4)), required=True)
+    r.add_argument("--seeds", type=_int_in("seeds", None), default=5, help="seeds 1..N")
+    r.add_argument("--iterations", type=_int_in("iterations", None), default=None)
+    r.add_argument("--out", required=True, help="CSV of runs; a .md summary goes beside it")
+    r.add_argument("--config", default=None)
     return p
 
 
@@ -91,14 +100,35 @@ def cmd_generate(args) -> None:
     from . import config, synthetic
 
     cfg = config.load(args.config)
-    synthetic.write(synthetic.generate(cfg, args.scenario, args.case, noise=not args.noise_free),
-                    args.out)
+    synthetic.write(
+        synthetic.generate(cfg, args.scenario, args.case, noise=not args.noise_free), args.out
+    )
+
+
+def cmd_recovery(args) -> None:
+    from pathlib import Path
+
+    from . import config, fit, recovery
+    from .io import atomic_path
+
+    cfg = config.load(args.config)
+    if args.seeds < 1:
+        raise UserError(f"--seeds must be positive, got {args.seeds}")
+    budget = fit.budget_from(cfg, iterations=args.iterations)
+    runs = recovery.run(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
+    table = recovery.summary(runs)
+    md = recovery.to_markdown(table)
+    with atomic_path(args.out) as tmp:
+        runs.to_csv(tmp, index=False)
+    with atomic_path(Path(args.out).with_suffix(".md")) as tmp:
+        tmp.write_text(md + "\n")
+    print(md)
 
 
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
-        {"fit": cmd_fit, "generate": cmd_generate}[args.command](args)
+        {"fit": cmd_fit, "generate": cmd_generate, "recovery": cmd_recovery}[args.command](args)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -15,8 +15,11 @@ from .problem import Problem
 
 
 def versions() -> dict:
-    out = {"avoa_pipeline": __version__, "python": sys.version.split()[0],
-           "platform": platform.platform()}
+    out = {
+        "avoa_pipeline": __version__,
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+    }
     for lib in ("numpy", "scipy", "numba", "pandas"):
         try:
             out[lib] = metadata.version(lib)
@@ -51,7 +54,7 @@ def run(cfg: dict, problem: Problem, algorithm: str, seed: int, budget: Budget) 
     rng = seeds.stream(cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed)
     warm_up(problem, budget.pop_size)
     res = minimize(algorithm, problem.objective, problem.lb, problem.ub, budget, rng)
-    best = dict(zip(problem.names, map(float, res.best_x)))
+    best = dict(zip(problem.names, map(float, res.best_x), strict=False))
     truth = problem.true_free()
     record = {
         "scenario": problem.scenario,
@@ -61,18 +64,24 @@ def run(cfg: dict, problem: Problem, algorithm: str, seed: int, budget: Budget) 
         "param_names": list(problem.names),
         "best_params": best,
         "best_ise": res.best_f,
-        "true_params": None if truth is None else dict(zip(problem.names, map(float, truth))),
+        "true_params": None
+        if truth is None
+        else dict(zip(problem.names, map(float, truth), strict=False)),
         "true_ise": None if truth is None else float(problem.objective(truth[None, :])[0]),
-        "rel_error": None if truth is None else {
-            n: float((best[n] - t) / t) for n, t in zip(problem.names, truth)},
+        "rel_error": None
+        if truth is None
+        else {n: float((best[n] - t) / t) for n, t in zip(problem.names, truth, strict=False)},
         "lb": problem.lb.tolist(),
         "ub": problem.ub.tolist(),
         "nfe": res.nfe,
         "iterations": res.iterations,
         "n_samples": int(problem.time_s.size),
         "wall_s": res.wall_s,
-        "budget": {"pop_size": budget.pop_size, "iterations": budget.iterations,
-                   "max_nfe": budget.max_nfe},
+        "budget": {
+            "pop_size": budget.pop_size,
+            "iterations": budget.iterations,
+            "max_nfe": budget.max_nfe,
+        },
         "history": {
             "best_ise": res.history_best.tolist(),
             "nfe": res.history_nfe.tolist(),

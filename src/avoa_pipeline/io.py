@@ -70,7 +70,9 @@ def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
         bad = values.isna() & df[col].notna()
         if bad.any():
             row = int(np.flatnonzero(bad.to_numpy())[0])
-            raise DataError(f"{path}: column {col!r} row {row + 2}: not a number ({df[col].iloc[row]!r})")
+            raise DataError(
+                f"{path}: column {col!r} row {row + 2}: not a number ({df[col].iloc[row]!r})"
+            )
         if values.isna().any():
             row = int(np.flatnonzero(values.isna().to_numpy())[0])
             raise DataError(f"{path}: column {col!r} row {row + 2}: missing value (NaN)")

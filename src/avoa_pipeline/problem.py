@@ -58,8 +58,9 @@ class Problem:
         return None if self.truth is None else self.truth[self.free_index]
 
 
-def build(cfg: dict, scenario: int, case: int, data: str | Path | None = None,
-          noise: bool = True) -> Problem:
+def build(
+    cfg: dict, scenario: int, case: int, data: str | Path | None = None, noise: bool = True
+) -> Problem:
     """The problem of ``scenario`` × ``case`` on ``data`` (default: generated in memory)."""
     c = CASES[case]
     if data is None:
@@ -72,12 +73,25 @@ def build(cfg: dict, scenario: int, case: int, data: str | Path | None = None,
         side = synthetic.sidecar(data)
         meta = json.loads(side.read_text()) if side.exists() else {}
         if meta and (meta.get("scenario"), meta.get("case")) != (scenario, case):
-            raise DataError(f"{side}: field scenario/case: is {meta.get('scenario')}/"
-                            f"{meta.get('case')}, the fit asked for {scenario}/{case}")
+            raise DataError(
+                f"{side}: field scenario/case: is {meta.get('scenario')}/"
+                f"{meta.get('case')}, the fit asked for {scenario}/{case}"
+            )
     truth_cfg = cfg["true_params"][c.temperature]
     truth = vector(meta["true_params"]) if "true_params" in meta else None
     fixed = truth.copy() if truth is not None else vector(truth_cfg)
     names, lb, ub = config_mod.bounds(cfg, case)
     spec = ModelSpec.for_scenario_case(cfg["constants"], scenario, case)
-    return Problem(scenario, case, names, np.array(lb), np.array(ub), fixed, truth, spec,
-                   np.asarray(t), np.asarray(i), np.asarray(v))
+    return Problem(
+        scenario,
+        case,
+        names,
+        np.array(lb),
+        np.array(ub),
+        fixed,
+        truth,
+        spec,
+        np.asarray(t),
+        np.asarray(i),
+        np.asarray(v),
+    )

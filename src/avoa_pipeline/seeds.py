@@ -18,4 +18,6 @@ def _key(k) -> int:
 
 
 def stream(base_seed: int, *keys) -> np.random.Generator:
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([base_seed, *map(_key, keys)])))
+    return np.random.Generator(
+        np.random.PCG64(np.random.SeedSequence([base_seed, *map(_key, keys)]))
+    )

@@ -52,8 +52,14 @@ def profile(cfg: dict) -> tuple[np.ndarray, np.ndarray, list[dict]]:
     for seg in cfg["profile"]["segments"]:
         n = round(seg["duration_s"] / ts)
         currents.append(np.full(n, float(seg["current_a"])))
-        table.append({"name": seg["name"], "start_s": t0, "end_s": t0 + n * ts,
-                      "current_a": float(seg["current_a"])})
+        table.append(
+            {
+                "name": seg["name"],
+                "start_s": t0,
+                "end_s": t0 + n * ts,
+                "current_a": float(seg["current_a"]),
+            }
+        )
         t0 += n * ts
     current = np.concatenate([*currents, [0.0]])  # one closing sample at the end of the rest
     return np.arange(current.size) * ts, current, table
@@ -93,18 +99,24 @@ def generate(cfg: dict, scenario: int, case: int, noise: bool = True) -> Dataset
         "temperature": c.temperature,
         "temperature_c": temp,
         "true_params": {n: float(truth[n]) for n in PARAM_NAMES},
-        "effective_params": dict(zip(PARAM_NAMES, map(float, vector(truth) * spec.fade_factors))),
+        "effective_params": dict(
+            zip(PARAM_NAMES, map(float, vector(truth) * spec.fade_factors), strict=False)
+        ),
         "cell_has_charge_dynamics": spec.dynamics,
         "load_ohm": spec.load_ohm,
         "cycle_n": cfg["constants"]["cycle_n"] if spec.fade_factors[1] != 1.0 else 0,
-        "fade_factors": dict(zip(PARAM_NAMES, map(float, spec.fade_factors))),
+        "fade_factors": dict(zip(PARAM_NAMES, map(float, spec.fade_factors), strict=False)),
         "soc0": spec.soc0,
         "qdis_ah": spec.qdis_ah,
         "sample_s": ts,
         "segments": segments,
         "noise": bool(noise),
-        "sensor": {k: dcfg[k] for k in ("voltage_noise_v", "voltage_lsb_v",
-                                         "current_noise_a", "current_lsb_a")} if noise else None,
+        "sensor": {
+            k: dcfg[k]
+            for k in ("voltage_noise_v", "voltage_lsb_v", "current_noise_a", "current_lsb_a")
+        }
+        if noise
+        else None,
         "seed_keys": [cfg["base_seed"], "data", scenario, case],
         "generator": f"avoa_pipeline {__version__}",
     }

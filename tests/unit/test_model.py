@@ -47,9 +47,10 @@ def test_population_ise_matches_reference_loop(cfg, scenario, case):
     rng = np.random.default_rng(scenario * 10 + case)
     X = prob.lb + rng.random((7, len(prob.names))) * (prob.ub - prob.lb)
     got = prob.objective(X)
-    for x, g in zip(X, got):
-        ref = reference_ise(prob.full(x)[0], prob.current_a, prob.voltage_v, prob.ts, cfg,
-                            scenario, case)
+    for x, g in zip(X, got, strict=False):
+        ref = reference_ise(
+            prob.full(x)[0], prob.current_a, prob.voltage_v, prob.ts, cfg, scenario, case
+        )
         assert g == pytest.approx(ref, rel=1e-9)
     # one candidate alone goes through a different block layout: same numbers
     assert prob.objective(X[:1])[0] == pytest.approx(got[0], rel=1e-12)
@@ -114,5 +115,6 @@ def test_dataset_deterministic_and_csv_round_trip(cfg, tmp_path):
 def test_profile_follows_figure2(cfg):
     t, ip, segs = synthetic.profile(cfg)
     assert [s["name"] for s in segs] == ["i0", "i1", "i2", "i3", "i4"]
-    assert ip.max() <= 2.0 and ip.min() >= -1.75  # Table 1 limits
+    assert ip.max() <= 2.0
+    assert ip.min() >= -1.75
     assert np.all(np.diff(t) == 1.0)

@@ -22,19 +22,32 @@ def clean_s1c2(cfg):
 
 def test_avoa_recovers_scenario1_case2_within_1pct(clean_s1c2):
     prob = clean_s1c2
-    res = minimize("avoa", prob.objective, prob.lb, prob.ub, Budget(20, 10_000),
-                   seeds.stream(20230508, "fit", 1, 2, "avoa", 1))
+    res = minimize(
+        "avoa",
+        prob.objective,
+        prob.lb,
+        prob.ub,
+        Budget(20, 10_000),
+        seeds.stream(20230508, "fit", 1, 2, "avoa", 1),
+    )
     rel = np.abs(res.best_x / prob.true_free() - 1.0)
-    assert rel.max() < 0.01, dict(zip(prob.names, rel))
+    assert rel.max() < 0.01, dict(zip(prob.names, rel, strict=False))
 
 
 def test_paper_budget_pins_the_voltages(clean_s1c2):
     """At 20 × 500 the OCV parameters are already tight; the resistances are what lag."""
     prob = clean_s1c2
-    res = minimize("avoa", prob.objective, prob.lb, prob.ub, Budget(20, 500),
-                   seeds.stream(20230508, "fit", 1, 2, "avoa", 1))
-    rel = dict(zip(prob.names, np.abs(res.best_x / prob.true_free() - 1.0)))
-    assert rel["vnom"] < 1e-3 and rel["vdis"] < 1e-3, rel
+    res = minimize(
+        "avoa",
+        prob.objective,
+        prob.lb,
+        prob.ub,
+        Budget(20, 500),
+        seeds.stream(20230508, "fit", 1, 2, "avoa", 1),
+    )
+    rel = dict(zip(prob.names, np.abs(res.best_x / prob.true_free() - 1.0), strict=False))
+    assert rel["vnom"] < 1e-3, rel
+    assert rel["vdis"] < 1e-3, rel
     # far better than a random point of the box: the objective is informative
     rand = prob.lb + np.random.default_rng(0).random((50, len(prob.names))) * (prob.ub - prob.lb)
     assert res.best_f < 1e-3 * np.median(prob.objective(rand))

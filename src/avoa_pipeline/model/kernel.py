@@ -98,9 +98,7 @@ def ise_population(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, n_blocks):
         lo = j * size
         hi = min(m, lo + size)
         if lo < hi:
-            _run_block(
-                P[lo:hi], ip, vmeas, ts, soc0, qdis, g_load, dynamics, out[lo:hi], no_traces
-            )
+            _run_block(P[lo:hi], ip, vmeas, ts, soc0, qdis, g_load, dynamics, out[lo:hi], no_traces)
     return out
 
 
