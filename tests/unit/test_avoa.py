@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from avoa_pipeline.optimizers import REGISTRY, Budget, minimize
-from avoa_pipeline.optimizers.avoa import levy_sigma, planned_iterations, update_best_two
+from avoa_pipeline.optimizers.avoa import levy_sigma, update_best_two
 from avoa_pipeline.optimizers.base import Tracker
 from avoa_pipeline.optimizers.testfunctions import rastrigin, sphere
 
@@ -123,9 +123,9 @@ def test_both_budgets_stop_at_the_first_reached():
 
 def test_horizon_under_an_evaluation_budget():
     t = Tracker(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=None, max_nfe=10020))
-    assert planned_iterations(t, 20, 20) == 500
+    assert t.planned_iterations(20) == 500
     t = Tracker(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=100, max_nfe=10020))
-    assert planned_iterations(t, 20, 20) == 100
+    assert t.planned_iterations(20) == 100
 
 
 def test_same_seed_same_result_different_seed_different_result():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from avoa_pipeline.optimizers import REGISTRY, Budget, Tracker, minimize
-from avoa_pipeline.optimizers.gwo import _update_leaders, planned_iterations
+from avoa_pipeline.optimizers.gwo import _update_leaders
 from avoa_pipeline.optimizers.testfunctions import FUNCTIONS, rosenbrock, sphere
 
 LB = np.array([-5.0, 0.0, 10.0, -1.0])
@@ -95,11 +95,11 @@ def test_schedule_length():
     def tracker(budget):
         return Tracker(sphere, LB, UB, budget)
 
-    assert planned_iterations(tracker(Budget(pop_size=20, iterations=500)), 20, 20) == 500
-    assert planned_iterations(tracker(Budget(20, iterations=None, max_nfe=2000)), 20, 20) == 99
-    assert planned_iterations(tracker(Budget(20, iterations=None, max_nfe=2010)), 20, 20) == 100
-    assert planned_iterations(tracker(Budget(20, iterations=50, max_nfe=10**6)), 20, 20) == 50
-    assert planned_iterations(tracker(Budget(20, iterations=None, max_nfe=5)), 20, 20) == 1
+    assert tracker(Budget(pop_size=20, iterations=500)).planned_iterations(20) == 500
+    assert tracker(Budget(20, iterations=None, max_nfe=2000)).planned_iterations(20) == 99
+    assert tracker(Budget(20, iterations=None, max_nfe=2010)).planned_iterations(20) == 100
+    assert tracker(Budget(20, iterations=50, max_nfe=10**6)).planned_iterations(20) == 50
+    assert tracker(Budget(20, iterations=None, max_nfe=5)).planned_iterations(20) == 1
 
 
 def test_leader_update_is_the_reference_rule():

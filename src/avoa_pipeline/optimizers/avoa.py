@@ -85,7 +85,8 @@ equations and (d) mealpy 3.0.2 ``OriginalAVOA``; **choice** = what this module d
     evaluations for T iterations, the convention of :mod:`.base`).
 11. Parameters: (a), (d) p1 = 0.6, p2 = 0.4, p3 = 0.6, alpha (L1) = 0.8, beta (L2) = 0.2,
     gamma (w, Fahmy's k) = 2.5; Fahmy gives no values (only P = 20, T = 500). **choice: (a).**
-12. Horizon T for t/T: the budget's ``iterations``; under a pure evaluation budget the number of
+12. Horizon T for t/T: :meth:`.base.Tracker.planned_iterations` with P evaluations per
+    iteration: the budget's ``iterations``; under a pure evaluation budget the number of
     iterations that fit, ceil((max_nfe - P) / P) (the smaller of the two if both are set).
 """
 
@@ -106,16 +107,6 @@ def levy_sigma(beta: float = LEVY_BETA) -> float:
     num = math.gamma(1.0 + beta) * math.sin(math.pi * beta / 2.0)
     den = math.gamma((1.0 + beta) / 2.0) * beta * 2.0 ** ((beta - 1.0) / 2.0)
     return (num / den) ** (1.0 / beta)
-
-
-def planned_iterations(tracker: Tracker, pop_size: int, evals_per_iteration: int) -> int:
-    """Iteration horizon T of the t/T schedules: the iteration budget, or what max_nfe allows."""
-    budget = tracker.budget
-    horizon = budget.iterations
-    if budget.max_nfe is not None:
-        by_nfe = max(1, math.ceil((budget.max_nfe - pop_size) / evals_per_iteration))
-        horizon = by_nfe if horizon is None else min(horizon, by_nfe)
-    return int(horizon)
 
 
 def update_best_two(f, X, best1, best2):
@@ -162,7 +153,7 @@ def avoa(
     best2: list = [np.inf, None]
     update_best_two(tracker.evaluate(X), X, best1, best2)
     tracker.end_iteration()
-    T = planned_iterations(tracker, P, P)
+    T = tracker.planned_iterations(P)
 
     while not tracker.done:
         t = tracker.iteration  # the reference's current_iter (0..T-1)

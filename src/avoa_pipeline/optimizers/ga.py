@@ -77,18 +77,6 @@ from .base import Tracker, register
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
 
-def _schedule(tracker: Tracker, t: int, nfe_prev_iter: int) -> float:
-    """Fraction ``t/T`` of the run at generation ``t`` (1-based) under the tracker's budget."""
-    frac = 0.0
-    T = tracker.budget.iterations
-    if T is not None:
-        frac = t / T
-    N = tracker.budget.max_nfe
-    if N is not None:
-        frac = max(frac, min(1.0, (tracker.nfe + nfe_prev_iter) / N))
-    return frac
-
-
 def _rank_expectation(score: np.ndarray, n_parents: int) -> tuple[np.ndarray, np.ndarray]:
     """``fitscalingrank``: expectation ∝ 1/sqrt(rank), summing to ``n_parents``; also the order."""
     order = np.argsort(score, kind="stable")
@@ -159,7 +147,6 @@ def ga(
     delta = 1.0
 
     t = 0
-    nfe_prev = P
     while not tracker.done:
         t += 1
         nfe_start = tracker.nfe
@@ -179,7 +166,7 @@ def ga(
                 delta = min(1.0, 4.0 * delta) if improved else max(_SQRT_EPS, delta / 4.0)
             mut_kids = _adaptive_feasible(rng, mut_parents, delta, lb, ub)
         else:
-            sigma = scale * (1.0 - shrink * _schedule(tracker, t, nfe_prev))
+            sigma = scale * (1.0 - shrink * tracker.progress())  # t/T
             noise = rng.standard_normal(mut_parents.shape) * (ub - lb) * sigma
             mut_kids = np.clip(mut_parents + noise, lb, ub)
 
@@ -190,5 +177,4 @@ def ga(
         best_hist.append(float(np.min(score)))
         if tracker.nfe - nfe_start < kids.shape[0]:
             break  # the evaluation budget ended inside this generation
-        nfe_prev = tracker.nfe - nfe_start
         tracker.end_iteration()

@@ -67,7 +67,8 @@ the unrelated Giant Trevally Optimizer); **choice** = what this module does.
     candidate; (b) silent. **choice: clip** after each phase.
 9.  Evaluations: 2 P per iteration plus P for the initial population in (a) and (d) and here.
 10. Parameters: p = 0.03, beta = 3, w = 0.8 in (a), (b); (d) names them p1, beta, p2.
-11. Horizon T for It/T: the budget's ``iterations``; under a pure evaluation budget the number of
+11. Horizon T for It/T: :meth:`.base.Tracker.planned_iterations` with 2 P evaluations per
+    iteration: the budget's ``iterations``; under a pure evaluation budget the number of
     iterations that fit, ceil((max_nfe - P) / (2 P)) (the smaller of the two if both are set).
 """
 
@@ -78,16 +79,6 @@ import math
 import numpy as np
 
 from .base import Tracker, register
-
-
-def _planned_iterations(tracker: Tracker, pop_size: int, evals_per_iteration: int) -> int:
-    """Iteration horizon T of the It/T schedule: the iteration budget, or what max_nfe allows."""
-    budget = tracker.budget
-    horizon = budget.iterations
-    if budget.max_nfe is not None:
-        by_nfe = max(1, math.ceil((budget.max_nfe - pop_size) / evals_per_iteration))
-        horizon = by_nfe if horizon is None else min(horizon, by_nfe)
-    return int(horizon)
 
 
 class _Troop:
@@ -130,7 +121,7 @@ def gto(
     troop = _Troop(X, tracker.evaluate(X))
     GX = X.copy()
     tracker.end_iteration()
-    T = _planned_iterations(tracker, P, 2 * P)
+    T = tracker.planned_iterations(2 * P)
 
     while not tracker.done:
         It = tracker.iteration + 1

@@ -43,8 +43,9 @@ its last move is never evaluated. Here the initial population is iteration 0 (``
 and each of the ``T`` iterations evaluates one moved population, with the move of iteration ``t``
 using the reference's ``l = t - 1``. So ``Budget(iterations=500)`` gives the reference's run with
 ``Max_iter = 501`` evaluation rounds and the ``a``-schedule of ``Max_iter = 500``. Under a pure
-evaluation budget ``Budget(max_nfe=N, iterations=None)``, ``T = ceil((N - P) / P)``; the last,
-possibly partial population is cut by the tracker.
+evaluation budget ``Budget(max_nfe=N, iterations=None)``, ``T = ceil((N - P) / P)``
+(:meth:`.base.Tracker.planned_iterations`); the last, possibly partial population is cut by the
+tracker.
 
 Differences vs mealpy 3.0.2 ``GWO.OriginalGWO``:
 
@@ -65,27 +66,9 @@ Differences vs mealpy 3.0.2 ``GWO.OriginalGWO``:
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .base import Tracker, register
-
-
-def planned_iterations(tracker: Tracker, pop_size: int, evals_per_iteration: int) -> int:
-    """Number of iterations ``T`` the schedule (``a`` from 2 to 0) is stretched over.
-
-    ``Budget(iterations=T)`` gives ``T``; a pure evaluation budget ``N`` gives the number of
-    iterations that ``N`` evaluations allow after the initial population (rounded up, the last
-    one possibly partial); with both, the smaller.
-    """
-    budget = tracker.budget
-    candidates = []
-    if budget.iterations is not None:
-        candidates.append(budget.iterations)
-    if budget.max_nfe is not None:
-        candidates.append(math.ceil(max(budget.max_nfe - pop_size, 0) / evals_per_iteration))
-    return max(1, min(candidates))
 
 
 def _update_leaders(X, f, leader_pos, leader_score) -> None:
@@ -109,7 +92,7 @@ def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -
     if settings:
         raise TypeError(f"gwo takes no settings, got {sorted(settings)}")
     P, D = pop_size, tracker.dim
-    T = planned_iterations(tracker, P, P)
+    T = tracker.planned_iterations(P)  # the a-schedule's horizon
 
     leader_pos = np.zeros((3, D))  # alpha, beta, delta (reference: zeros(1, dim))
     leader_score = np.full(3, np.inf)

@@ -64,6 +64,7 @@ this is ``τ = (t+1)/(T+1)``, which reaches 1 in the last iteration exactly as t
 With an evaluation budget, τ is the fraction of the budget that will have been spent by the end of
 the iteration, estimated from the evaluations of the previous iteration
 (``min(1, (nfe + nfe_prev_iteration)/max_nfe)``); with both budgets the larger fraction is used.
+Both are :meth:`.base.Tracker.progress` with ``count_initial=True``.
 
 Differences between (a) the reference code, (b) the paper and (c) mealpy 3.0.2 ``OriginalRUN``
 --------------------------------------------------------------------------------------------------
@@ -103,18 +104,6 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Tracker, register
-
-
-def _schedule(tracker: Tracker, t: int, nfe_prev_iter: int) -> float:
-    """Reference ``it/MaxIt`` for iteration ``t`` (1-based) under the tracker's budget."""
-    frac = 0.0
-    T = tracker.budget.iterations
-    if T is not None:
-        frac = (t + 1) / (T + 1)
-    N = tracker.budget.max_nfe
-    if N is not None:
-        frac = max(frac, min(1.0, (tracker.nfe + nfe_prev_iter) / N))
-    return frac
 
 
 def _three_partners(rng: np.random.Generator, P: int) -> np.ndarray:
@@ -163,12 +152,8 @@ def run(
     def evaluate_one(x: np.ndarray) -> float:
         return float(tracker.evaluate(x[None, :])[0])
 
-    t = 0
-    nfe_prev = P
     while not tracker.done:
-        t += 1
-        nfe_start = tracker.nfe
-        tau = _schedule(tracker, t, nfe_prev)
+        tau = tracker.progress(count_initial=True)  # the reference's it/MaxIt
         f_amp = 20.0 * np.exp(-12.0 * tau)
         x_mean = X.mean(axis=0)
         SF = 2.0 * (0.5 - rng.random(P)) * f_amp
@@ -213,7 +198,7 @@ def run(
                 x_new = xc + r * sf * g * xc + sf * sm + mu * (xm - xc)
             else:
                 x_new = xm + r * sf * g * xm + sf * sm + mu * (X[a] - X[b])
-            x_new = np.clip(x_new, lb, ub)
+            x_new = tracker.clip(x_new)
             f_new = evaluate_one(x_new)
             if f_new < cost[i]:
                 X[i], cost[i] = x_new, f_new
@@ -238,7 +223,7 @@ def run(
                     x1 + r_esq * w * np.abs((x1 - x_avg3) + n),
                     (x1 - x_avg3) + r_esq * w * np.abs((u * x1 - x_avg3) + n),
                 )
-                x2 = np.clip(x2, lb, ub)
+                x2 = tracker.clip(x2)
                 f2 = evaluate_one(x2)
                 if f2 < cost[i]:
                     X[i], cost[i] = x2, f2
@@ -248,7 +233,7 @@ def run(
                         break
                     sm = _runge_kutta(rng, X[i], x2, delx)
                     x3 = (x2 - rng.random() * x2) + sf * (sm + (2.0 * rng.random(D) * best_x - x2))
-                    x3 = np.clip(x3, lb, ub)
+                    x3 = tracker.clip(x3)
                     f3 = evaluate_one(x3)
                     if f3 < cost[i]:
                         X[i], cost[i] = x3, f3
@@ -258,7 +243,6 @@ def run(
 
         if not complete:
             break
-        nfe_prev = tracker.nfe - nfe_start
         tracker.end_iteration()
 
 
