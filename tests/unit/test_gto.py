@@ -1,32 +1,22 @@
 """GTO (reference MATLAB semantics): bounds, budgets, 2 P evaluations per iteration, convergence."""
 
-import random
-
 import numpy as np
 import pytest
+from optim_helpers import (
+    Recorder,
+    assert_global_generators_untouched,
+    assert_history_consistent,
+    assert_seed_determines_result,
+    runner,
+    shifted,
+)
 
-from avoa_pipeline.optimizers import REGISTRY, Budget, minimize
+from avoa_pipeline.optimizers import REGISTRY, Budget
 from avoa_pipeline.optimizers.base import Tracker
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 
 NAME = "gto"
 SHIFT = np.array([12.3, -45.6, 7.8, -1.9, 33.3])  # sphere optimum away from the origin
-
-
-class Recorder:
-    """Objective wrapper that keeps every evaluated population."""
-
-    def __init__(self, f):
-        self.f = f
-        self.calls: list[np.ndarray] = []
-
-    def __call__(self, X):
-        self.calls.append(np.array(X, dtype=float, copy=True))
-        return self.f(X)
-
-    @property
-    def points(self) -> np.ndarray:
-        return np.vstack(self.calls)
 
 
 class StrictTracker(Tracker):
@@ -37,21 +27,8 @@ class StrictTracker(Tracker):
         return super().evaluate(X)
 
 
-def shifted_sphere(X):
-    X = np.atleast_2d(X)
-    return sphere(X - SHIFT[: X.shape[1]])
-
-
-def run(f, lb, ub, budget, seed=0, **settings):
-    return minimize(
-        NAME,
-        f,
-        np.asarray(lb, float),
-        np.asarray(ub, float),
-        budget,
-        np.random.default_rng(seed),
-        **settings,
-    )
+shifted_sphere = shifted(sphere, SHIFT)
+run = runner(NAME)
 
 
 def test_registered():
@@ -69,7 +46,7 @@ def test_registered():
 def test_every_evaluated_point_is_finite_and_within_bounds(f, lb, ub):
     rec = Recorder(f)
     res = run(rec, lb, ub, Budget(pop_size=20, iterations=200), seed=3)
-    pts = rec.points
+    pts = rec.all
     assert pts.shape == (res.nfe, len(lb))
     assert np.all(np.isfinite(pts))
     assert np.all(pts >= np.asarray(lb))
@@ -84,7 +61,7 @@ def test_evaluation_budget_is_respected_exactly(max_nfe):
     REGISTRY[NAME](tracker, np.random.default_rng(0), 20)
     res = tracker.result()
     assert res.nfe == max_nfe
-    assert rec.points.shape[0] == max_nfe
+    assert rec.all.shape[0] == max_nfe
     assert res.history_nfe[-1] == max_nfe
 
 
@@ -142,11 +119,7 @@ def replay(calls, f):
                 yield it, X.copy(), S.copy(), GX, calls[2 * it]
 
 
-SHIFT_R = np.array([0.61, -1.37, 2.05, -0.42, 1.11])
-
-
-def small_shifted_sphere(X):
-    return sphere(np.atleast_2d(X) - SHIFT_R)
+small_shifted_sphere = shifted(sphere, [0.61, -1.37, 2.05, -0.42, 1.11])
 
 
 def test_follow_silverback_uses_the_sequentially_updated_mean_of_gx():
@@ -192,32 +165,20 @@ def test_competition_is_centred_on_the_silverback():
 
 def test_same_seed_same_result_different_seed_different_result():
     b = Budget(pop_size=20, iterations=50)
-    r1 = run(rastrigin, [-5.12] * 5, [5.12] * 5, b, seed=11)
-    r2 = run(rastrigin, [-5.12] * 5, [5.12] * 5, b, seed=11)
-    r3 = run(rastrigin, [-5.12] * 5, [5.12] * 5, b, seed=12)
-    assert np.array_equal(r1.best_x, r2.best_x)
-    assert r1.best_f == r2.best_f
-    assert np.array_equal(r1.history_best, r2.history_best)
-    assert not np.array_equal(r1.best_x, r3.best_x)
+    r1, r2, r3 = (run(rastrigin, [-5.12] * 5, [5.12] * 5, b, seed=s) for s in (11, 11, 12))
+    assert_seed_determines_result(r1, r2, r3)
 
 
 def test_uses_only_the_given_generator():
     # the legacy global generators must be left untouched
-    np.random.seed(0)  # noqa: NPY002
-    random.seed(0)
-    before = (np.random.get_state()[1].copy(), random.getstate())  # noqa: NPY002
-    run(sphere, [-10.0] * 3, [10.0] * 3, Budget(pop_size=10, iterations=20))
-    assert np.array_equal(np.random.get_state()[1], before[0])  # noqa: NPY002
-    assert random.getstate() == before[1]
+    assert_global_generators_untouched(
+        lambda: run(sphere, [-10.0] * 3, [10.0] * 3, Budget(pop_size=10, iterations=20))
+    )
 
 
 def test_history_is_consistent():
     res = run(rastrigin, [-5.12] * 5, [5.12] * 5, Budget(pop_size=20, iterations=100), seed=5)
-    assert np.all(np.diff(res.history_best) <= 0)
-    assert np.all(np.diff(res.history_nfe) > 0)
-    assert np.all(np.diff(res.history_time) >= 0)
-    assert res.history_best[-1] == res.best_f
-    assert rastrigin(res.best_x[None])[0] == res.best_f
+    assert_history_consistent(res, rastrigin)
 
 
 def test_converges_on_sphere_5d():
@@ -237,11 +198,7 @@ def test_converges_on_shifted_sphere_5d(seed):
 
 
 def test_beats_random_search_on_shifted_rastrigin():
-    shift = np.array([0.61, -1.37, 2.05, -0.42, 1.11])
-
-    def f(X):
-        return rastrigin(np.atleast_2d(X) - shift)
-
+    f = shifted(rastrigin, [0.61, -1.37, 2.05, -0.42, 1.11])
     lb, ub, budget = [-5.12] * 5, [5.12] * 5, Budget(pop_size=20, iterations=500)
     ours = [run(f, lb, ub, budget, seed=s).best_f for s in range(5)]
     nfe = 20 * (1 + 2 * 500)

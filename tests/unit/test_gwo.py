@@ -4,6 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from optim_helpers import (
+    Recorder,
+    assert_history_consistent,
+    assert_seed_determines_result,
+    shifted,
+)
 
 from avoa_pipeline.optimizers import REGISTRY, Budget, Tracker, minimize
 from avoa_pipeline.optimizers.gwo import _update_leaders
@@ -11,22 +17,6 @@ from avoa_pipeline.optimizers.testfunctions import FUNCTIONS, rosenbrock, sphere
 
 LB = np.array([-5.0, 0.0, 10.0, -1.0])
 UB = np.array([5.0, 1.0, 20.0, 3.0])
-
-
-class Recorder:
-    """An objective that remembers every evaluated point."""
-
-    def __init__(self, fn=sphere):
-        self.fn = fn
-        self.points: list[np.ndarray] = []
-
-    def __call__(self, X):
-        self.points.append(np.array(X, copy=True))
-        return self.fn(X)
-
-    @property
-    def all(self) -> np.ndarray:
-        return np.vstack(self.points)
 
 
 def run(objective=sphere, lb=LB, ub=UB, budget=None, seed=0):
@@ -40,7 +30,7 @@ def test_registered():
 
 def test_every_evaluated_point_is_inside_the_box():
     # the optimum of the shifted sphere lies outside the box, so moves overshoot the bounds
-    rec = Recorder(lambda X: sphere(X - 100.0))
+    rec = Recorder(shifted(sphere, 100.0))
     run(rec, budget=Budget(pop_size=10, iterations=40))
     X = rec.all
     assert X.shape == (10 * 41, 4)
@@ -62,30 +52,23 @@ def test_iteration_budget():
     res = run(rec, budget=Budget(pop_size=8, iterations=25))
     assert res.iterations == 25
     assert res.nfe == 8 * 26  # initial population + 25 moved populations
-    assert len(rec.points) == 26
+    assert len(rec.calls) == 26
     np.testing.assert_array_equal(res.history_nfe, 8 * np.arange(1, 27))
 
 
 def test_same_seed_identical_different_seed_different():
     a, b, c = run(seed=3), run(seed=3), run(seed=4)
-    np.testing.assert_array_equal(a.history_best, b.history_best)
-    np.testing.assert_array_equal(a.best_x, b.best_x)
+    assert_seed_determines_result(a, b, c)
     assert a.best_f != c.best_f
-    assert not np.array_equal(a.best_x, c.best_x)
 
 
 def test_history_consistency():
     rec = Recorder()
     res = run(rec, budget=Budget(pop_size=10, iterations=None, max_nfe=255))
-    assert res.history_best.shape == res.history_nfe.shape == res.history_time.shape
-    assert np.all(np.diff(res.history_best) <= 0)  # best-so-far never gets worse
-    assert np.all(np.diff(res.history_nfe) > 0)
-    assert res.history_nfe[-1] == res.nfe == 255
-    assert res.history_best[-1] == res.best_f
-    # the reported best is the best point actually evaluated, with its true value
-    f_all = sphere(rec.all)
-    assert res.best_f == pytest.approx(f_all.min())
-    assert sphere(res.best_x[None])[0] == pytest.approx(res.best_f)
+    assert_history_consistent(res, sphere)
+    assert res.nfe == 255
+    # the reported best is the best point actually evaluated
+    assert res.best_f == pytest.approx(sphere(rec.all).min())
     # initial population (10), 24 full iterations, then a partial one (5 of 10 wolves)
     assert res.iterations == 25
     assert res.history_nfe[-2:].tolist() == [250, 255]
@@ -135,7 +118,7 @@ def test_converges_on_shifted_sphere():
     shift = np.array([31.0, -47.0, 12.5, 60.0, -8.0])
     finals = [
         run(
-            lambda X: sphere(X - shift),
+            shifted(sphere, shift),
             np.full(5, -100.0),
             np.full(5, 100.0),
             Budget(pop_size=20, iterations=100),
@@ -150,12 +133,12 @@ def test_converges_on_shifted_sphere():
 def test_moves_match_the_reference_step():
     """Two iterations recomputed with the reference's scalar loops and the same random numbers."""
     P, D, T = 6, 4, 10
-    rec = Recorder(lambda X: sphere(X - 0.5))
+    rec = Recorder(shifted(sphere, 0.5))
     run(rec, budget=Budget(pop_size=P, iterations=T), seed=11)
 
     rng = np.random.default_rng(11)
     X = LB + rng.random((P, D)) * (UB - LB)
-    np.testing.assert_array_equal(rec.points[0], X)
+    np.testing.assert_array_equal(rec.calls[0], X)
     alpha = beta = delta = np.zeros(D)
     s_alpha = s_beta = s_delta = np.inf
     for t in (1, 2):
@@ -179,7 +162,7 @@ def test_moves_match_the_reference_step():
                     parts.append(leader[j] - A * abs(C * leader[j] - X[i, j]))
                 new[i, j] = (parts[0] + parts[1] + parts[2]) / 3
         X = np.clip(new, LB, UB)
-        np.testing.assert_allclose(rec.points[t], X, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(rec.calls[t], X, rtol=1e-12, atol=1e-12)
 
 
 def test_converges_on_rosenbrock():

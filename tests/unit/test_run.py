@@ -2,6 +2,12 @@
 
 import numpy as np
 import pytest
+from optim_helpers import (
+    Recorder,
+    assert_history_consistent,
+    assert_seed_determines_result,
+    shifted,
+)
 
 from avoa_pipeline.optimizers import REGISTRY, Budget, minimize
 from avoa_pipeline.optimizers.testfunctions import rastrigin, sphere
@@ -11,25 +17,7 @@ UB = np.array([5.0, 1.0, 3.0, 4.0, 20.0])
 CENTRE = np.array([7.0, -2.0, 2.5, 0.0, 25.0])  # partly outside the box: pushes points to bounds
 
 
-class Recorder:
-    """Objective wrapper that keeps every evaluated point."""
-
-    def __init__(self, f):
-        self.f = f
-        self.points = []
-
-    def __call__(self, X):
-        X = np.atleast_2d(X)
-        self.points.append(X.copy())
-        return self.f(X)
-
-    @property
-    def all(self):
-        return np.vstack(self.points)
-
-
-def shifted_sphere(X):
-    return sphere(np.atleast_2d(X) - CENTRE)
+shifted_sphere = shifted(sphere, CENTRE)
 
 
 def test_registered():
@@ -87,11 +75,7 @@ def test_same_seed_identical_different_seed_different():
     a = minimize(*args, np.random.default_rng(42))
     b = minimize(*args, np.random.default_rng(42))
     c = minimize(*args, np.random.default_rng(43))
-    assert np.array_equal(a.best_x, b.best_x)
-    assert a.best_f == b.best_f
-    assert np.array_equal(a.history_best, b.history_best)
-    assert np.array_equal(a.history_nfe, b.history_nfe)
-    assert not np.array_equal(a.best_x, c.best_x)
+    assert_seed_determines_result(a, b, c)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -110,15 +94,7 @@ def test_history_consistent():
     r = minimize(
         "run", rastrigin, [-5.12] * 4, [5.12] * 4, Budget(10, 40), np.random.default_rng(5)
     )
-    n = r.history_best.size
-    assert r.history_nfe.size == n
-    assert r.history_time.size == n
-    assert np.all(np.diff(r.history_best) <= 0)
-    assert np.all(np.diff(r.history_nfe) > 0)
-    assert np.all(np.diff(r.history_time) >= 0)
-    assert r.history_best[-1] == r.best_f
-    assert r.history_nfe[-1] == r.nfe
-    assert rastrigin(r.best_x[None, :])[0] == pytest.approx(r.best_f)
+    assert_history_consistent(r, rastrigin)
 
 
 def test_nan_objective_is_never_accepted():
