@@ -137,7 +137,7 @@ def _n_blocks(n_candidates: int) -> int:
 def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float, spec: ModelSpec):
     """ISE (eq. 13) of each row of fresh-cell parameters ``P_full`` (columns = PARAM_NAMES)."""
     P = np.ascontiguousarray(np.atleast_2d(P_full) * spec.fade_factors, dtype=float)
-    return kernel.ise_population(
+    args = (
         P,
         np.ascontiguousarray(current, dtype=float),
         np.ascontiguousarray(voltage, dtype=float),
@@ -146,8 +146,11 @@ def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
         spec.qdis_ah,
         spec.g_load,
         spec.dynamics,
-        _n_blocks(P.shape[0]),
     )
+    n_blocks = _n_blocks(P.shape[0])
+    if n_blocks == 1:  # no thread pool: cheaper, and safe to run from several Python threads
+        return kernel.ise_serial(*args)
+    return kernel.ise_population(*args, n_blocks)
 
 
 def simulate(p_full: np.ndarray, current: np.ndarray, ts: float, spec: ModelSpec) -> dict:

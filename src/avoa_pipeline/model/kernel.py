@@ -52,7 +52,7 @@ def _coefficients(P, ts, qdis, g_load, dynamics):
     return C
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, traces):
     """Step the candidates of ``P`` through the record.
 
@@ -87,7 +87,7 @@ def _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, traces):
     out[:] = acc
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, nogil=True)
 def ise_population(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, n_blocks):
     """Integral square error, eq. 13, of every row of ``P`` against ``vmeas``."""
     m = P.shape[0]
@@ -99,6 +99,14 @@ def ise_population(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, n_blocks):
         hi = min(m, lo + size)
         if lo < hi:
             _run_block(P[lo:hi], ip, vmeas, ts, soc0, qdis, g_load, dynamics, out[lo:hi], no_traces)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def ise_serial(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
+    """As :func:`ise_population` on the calling thread only (no thread pool, GIL released)."""
+    out = np.empty(P.shape[0])
+    _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, np.empty((0, 0)))
     return out
 
 

@@ -1,0 +1,27 @@
+# Reproduces Fahmy et al. 2023 (Mathematics 11, 2215): datasets → fits → aggregates → tables,
+# figures, claims. Wiring only; every rule calls into src/avoa_pipeline.
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, schema="workflow/schemas/config.schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/data.smk"
+include: "workflow/rules/identify.smk"
+include: "workflow/rules/aggregate.smk"
+# include: "workflow/rules/tables.smk"
+# include: "workflow/rules/figures.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        all_tables(),
+        all_figures(),
+        "results/tables/claims.csv",

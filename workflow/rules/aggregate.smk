@@ -1,0 +1,26 @@
+rule aggregate_case:
+    """All fits of one scenario × case → runs and histories tables."""
+    input:
+        lambda w: fits_of(w.scenario, w.case),
+    output:
+        runs="results/aggregate/s{scenario}/c{case}/runs.parquet",
+        histories="results/aggregate/s{scenario}/c{case}/histories.parquet",
+    log:
+        "logs/aggregate/s{scenario}/c{case}.log",
+    run:
+        wf.aggregate_runs(input, output.runs, output.histories, log[0])
+
+
+rule aggregate_all:
+    """Every scenario × case of this config in one pair of tables."""
+    input:
+        runs=expand("results/aggregate/s{s}/c{c}/runs.parquet", s=SCENARIOS, c=CASE_LIST),
+        histories=expand("results/aggregate/s{s}/c{c}/histories.parquet", s=SCENARIOS, c=CASE_LIST),
+    output:
+        runs="results/aggregate/runs.parquet",
+        histories="results/aggregate/histories.parquet",
+    log:
+        "logs/aggregate/all.log",
+    run:
+        wf.concat_parquet(input.runs, output.runs, log[0])
+        wf.concat_parquet(input.histories, output.histories, log[0])

@@ -1,0 +1,25 @@
+rule dataset:
+    """The synthetic "measured" record of one scenario × case (CSV + JSON sidecar)."""
+    output:
+        csv="results/data/s{scenario}/c{case}.csv",
+        meta="results/data/s{scenario}/c{case}.json",
+    log:
+        "logs/data/s{scenario}/c{case}.log",
+    params:
+        data=config["data"],
+        truth=config["true_params"],
+        profile=config["profile"],
+    run:
+        wf.dataset(config, wildcards.scenario, wildcards.case, output.csv, log[0])
+
+
+rule effective_config:
+    """The configuration of this run, as notebooks read it."""
+    output:
+        EFFECTIVE_CONFIG,
+    params:
+        cfg=config,
+    log:
+        "logs/config.log",
+    run:
+        wf.effective_config(config, output[0])
