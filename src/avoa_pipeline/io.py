@@ -18,6 +18,9 @@ import pandas as pd
 
 from .errors import DataError
 
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
 REQUIRED = ("time_s", "current_a", "voltage_v")
 OPTIONAL = ("temperature_c",)
 
@@ -31,6 +34,7 @@ def atomic_path(path: str | Path):
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp creates 0600; outputs are ordinary files
         os.replace(tmp, path)
     finally:
         with contextlib.suppress(FileNotFoundError):

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -37,7 +36,6 @@ from ..model.battery import CASES, PARAM_LABELS, PARAM_NAMES
 from ..optimizers import ALGORITHMS, PAPER_LABELS
 from ..optimizers import avoa as avoa_mod
 
-FILE_MODE = 0o644
 """Permissions of the written figures (the temporary files :func:`..io.atomic_path` makes are
 private, 0600)."""
 
@@ -109,8 +107,6 @@ def _save(fig: Figure, stem) -> None:
         fig.savefig(tmp_png, format="png", dpi=DPI)
         # no creation date: the same inputs give the same PDF bytes
         fig.savefig(tmp_pdf, format="pdf", metadata={"CreationDate": None})
-        for tmp in (tmp_png, tmp_pdf):  # mkstemp makes 0600 files; figures are for sharing
-            os.chmod(tmp, FILE_MODE)
 
 
 _MATH_SYMBOLS = {
