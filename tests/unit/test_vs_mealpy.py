@@ -23,18 +23,25 @@ Equal budgets, exactly:
 Decision rule: one-sided Mann–Whitney U on the best values (``scipy.stats.mannwhitneyu``),
 ``p_worse`` for "ours > mealpy" and ``p_better`` for "ours < mealpy", at ``ALPHA = 0.01``:
 
-- ``not_worse`` (both implement the same reference code): fail if ``p_worse < ALPHA``.
+- ``not_worse`` (both implement the same reference code): fail if ``p_worse_holm < ALPHA``, where
+  ``p_worse_holm`` is ``p_worse`` Holm-adjusted over the ``not_worse`` cells of the same pair
+  (``m`` cells, p-values sorted ``p_(1) <= ... <= p_(m)``: ``p_worse_holm`` of the ``k``-th is
+  ``max over j <= k of min(1, (m - j + 1) p_(j))``).
 - ``worse`` / ``better`` (a deliberate difference with a predictable effect): assert
-  ``p_worse < ALPHA`` / ``p_better < ALPHA``.
-- ``none`` (a deliberate difference with no honest prior direction): record only.
+  ``p_worse < ALPHA`` / ``p_better < ALPHA`` (unadjusted: asserting an effect).
+- ``none`` (a deliberate difference with no honest prior direction, or one too weak to assert
+  reliably at this number of seeds): record only.
 
 Every cell also asserts sanity: both medians beat the median of pure random search with the same
 ``N`` evaluations, and every value is finite.
 
-The 30 cells are tested separately at ``ALPHA`` each, without a multiplicity correction; for two
-*identical* algorithms about 1 - 0.99^18 = 17 % of the 18 ``not_worse`` cells would still flag once
-by chance for some seed set. Seeds are fixed, so the outcome is deterministic for given code; a
-failure should be confirmed with ``benchmarks/compare_mealpy.py --seeds 30`` before acting on it.
+Multiplicity: without a correction, two *identical* algorithms would flag at least one of a pair's
+six ``not_worse`` cells by chance for about 1 - 0.99^6 = 6 % of seed sets (about 15 % over all 16
+``not_worse`` cells). Holm's step-down correction keeps that chance at most ``ALPHA`` per pair,
+whatever the dependence between the cells, and rejects at least what Bonferroni would. Seeds are
+fixed, so the outcome is deterministic for given code; a failure should still be confirmed with
+``benchmarks/compare_mealpy.py --seeds 30`` before acting on it. A cell's test computes the other
+``not_worse`` cells of its pair too (cached for the session), since its verdict depends on them.
 
 Pairs whose algorithm is not (yet) registered are skipped with the reason; once registered they run.
 """
@@ -94,8 +101,15 @@ PAIRS = (
         "run",
         "mealpy.math_based.RUN:OriginalRUN",
         1.55,
-        _same("not_worse"),
-        "both follow Ahmadianfar et al. 2021's MATLAB RUN",
+        {"sphere": "not_worse", "rosenbrock": "none", "rastrigin": "not_worse"},
+        "both follow Ahmadianfar et al. 2021's MATLAB RUN, except that mealpy draws Eq. 18's "
+        "mu = 0.5 + U(0, 1) where the reference draws 0.5 + 0.1 randn (mean 1.0 instead of 0.5: "
+        "longer steps towards the best and between random agents). On Rosenbrock this makes ours "
+        "worse (30 seeds: medians 1.34 vs 0.92 in 5-D, p = 8e-4; 7.55 vs 6.94 in 10-D, p = 4e-7); "
+        "with mealpy's mu in our code ours is better than mealpy instead (p(ours better) = 6e-7 / "
+        "4e-6), so mu explains the gap. At this test's 10 seeds the direction is stable but the "
+        "significance is not (5-D p < 0.01 in 2 of 4 disjoint seed sets, 10-D in 3 of 4), so "
+        "Rosenbrock is recorded, not asserted",
     ),
     Pair(
         "gwo",
@@ -170,7 +184,18 @@ def random_search(fn: str, dim: int, seed: int, n_evals: int = N_EVALS) -> float
     return float(np.min(f(rng.uniform(lo, hi, (n_evals, dim)))))
 
 
+def holm(pvalues: dict) -> dict:
+    """Holm-adjusted p-values (same keys): compare each with ``ALPHA``."""
+    adjusted, running = {}, 0.0
+    m = len(pvalues)
+    for j, key in enumerate(sorted(pvalues, key=pvalues.get)):
+        running = max(running, min(1.0, (m - j) * pvalues[key]))
+        adjusted[key] = running
+    return adjusted
+
+
 def compare(pair: Pair, fn: str, dim: int, seeds=None, n_evals: int = N_EVALS) -> dict:
+    """One cell: both sides' best values, the p-values and sanity; ``judge`` adds the verdict."""
     if seeds is None:
         seeds = tuple(range(pair.n_seeds))
     ours = np.array([run_ours(pair.ours, fn, dim, s, n_evals) for s in seeds])
@@ -178,15 +203,6 @@ def compare(pair: Pair, fn: str, dim: int, seeds=None, n_evals: int = N_EVALS) -
     rand = np.array([random_search(fn, dim, s, n_evals) for s in seeds])
     p_worse = float(mannwhitneyu(ours, theirs, alternative="greater").pvalue)
     p_better = float(mannwhitneyu(ours, theirs, alternative="less").pvalue)
-    expect = pair.expect[fn]
-    if expect == "not_worse":
-        ok = p_worse >= ALPHA
-    elif expect == "worse":
-        ok = p_worse < ALPHA
-    elif expect == "better":
-        ok = p_better < ALPHA
-    else:
-        ok = True
     sane = bool(
         np.all(np.isfinite(ours))
         and np.all(np.isfinite(theirs))
@@ -205,11 +221,41 @@ def compare(pair: Pair, fn: str, dim: int, seeds=None, n_evals: int = N_EVALS) -
         "random": rand,
         "p_worse": p_worse,
         "p_better": p_better,
-        "expect": expect,
+        "expect": pair.expect[fn],
         "observed": observed,
-        "ok": ok,
         "sane": sane,
     }
+
+
+def judge(cells: dict) -> None:
+    """Add ``ok`` (and ``p_worse_holm`` for ``not_worse``) to one pair's cells, keyed (fn, dim).
+
+    The Holm family is the ``not_worse`` cells among ``cells``: pass all of the pair's.
+    """
+    family = {k: r["p_worse"] for k, r in cells.items() if r["expect"] == "not_worse"}
+    adjusted = holm(family)
+    for k, r in cells.items():
+        expect = r["expect"]
+        if expect == "not_worse":
+            r["p_worse_holm"] = adjusted[k]
+            r["ok"] = adjusted[k] >= ALPHA
+        elif expect == "worse":
+            r["ok"] = r["p_worse"] < ALPHA
+        elif expect == "better":
+            r["ok"] = r["p_better"] < ALPHA
+        else:
+            r["ok"] = True
+
+
+_CELLS: dict = {}
+
+
+def ci_cell(pair: Pair, fn: str, dim: int) -> dict:
+    """``compare`` on the CI grid, computed once per session."""
+    key = (pair.ours, fn, dim)
+    if key not in _CELLS:
+        _CELLS[key] = compare(pair, fn, dim)
+    return _CELLS[key]
 
 
 CELLS = [
@@ -224,12 +270,18 @@ CELLS = [
 def test_against_mealpy(pair: Pair, fn: str, dim: int):
     if pair.ours not in REGISTRY:
         pytest.skip(f"{pair.ours!r} is not registered yet (its module has not landed)")
-    r = compare(pair, fn, dim)
+    family = [(f, d) for f in FUNCTION_NAMES for d in DIMS if pair.expect[f] == "not_worse"]
+    cells = {k: ci_cell(pair, *k) for k in {*family, (fn, dim)}}
+    judge(cells)
+    r = cells[(fn, dim)]
+    holm_note = (
+        f" (Holm over {len(family)} cells: {r['p_worse_holm']:.3g})" if "p_worse_holm" in r else ""
+    )
     summary = (
         f"{pair.ours} vs {pair.mealpy_class} on {fn} {dim}-D, {N_EVALS} evaluations, "
         f"{len(r['ours'])} seeds: median ours {np.median(r['ours']):.4g}, "
         f"mealpy {np.median(r['theirs']):.4g}, random search {np.median(r['random']):.4g}; "
-        f"p(ours worse) = {r['p_worse']:.3g}, p(ours better) = {r['p_better']:.3g}; "
+        f"p(ours worse) = {r['p_worse']:.3g}{holm_note}, p(ours better) = {r['p_better']:.3g}; "
         f"expected {r['expect']!r} ({pair.why}), observed {r['observed']}"
     )
     assert r["sane"], "sanity failed: " + summary
@@ -242,3 +294,11 @@ def test_pairs_cover_the_metaheuristics():
     for pair in PAIRS:
         assert set(pair.expect) == set(FUNCTION_NAMES)
         assert set(pair.expect.values()) <= {"not_worse", "worse", "better", "none"}
+
+
+def test_holm_adjustment():
+    # sorted: a 0.01 x 3 = 0.03; c 0.03 x 2 = 0.06; b 0.04 x 1 = 0.04, raised to the running 0.06
+    adjusted = holm({"a": 0.01, "b": 0.04, "c": 0.03})
+    assert adjusted == pytest.approx({"a": 0.03, "b": 0.06, "c": 0.06})
+    assert holm({"a": 0.5, "b": 0.9}) == {"a": 1.0, "b": 1.0}
+    assert holm({}) == {}

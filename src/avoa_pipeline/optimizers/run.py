@@ -73,6 +73,8 @@ from memory of the published equations and should be checked against the article
 
 1. ``μ`` in Eq. 18. (a) ``0.5 + 0.1·randn(D)``; (b) recalled: "μ·randn" in the printed equation;
    (c) ``0.5 + 1·U(0,1)^D`` (mean 1.0 instead of 0.5, never below 0.5). Choice: (a).
+   Effect: at equal evaluations ours is worse than (c) on Rosenbrock; with (c)'s μ it is better
+   (``tests/unit/test_vs_mealpy.py`` records the cell with the numbers).
 2. ``f`` in Eq. 17.6. (a) ``20·exp(−12·it/MaxIt)``; (b) recalled: ``a·exp(−b·rand·it/MaxIt)``
    (a random factor in the exponent); (c) as (a) but with ``epoch/self.epoch`` (epoch = 1..E; the
    reference's first update uses it = 2). Choice: (a) with the τ mapping above.
