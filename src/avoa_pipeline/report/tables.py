@@ -1,0 +1,530 @@
+"""Tables 1-24 of Fahmy et al. 2023 as DataFrames, set against our results; one writer for all.
+
+Every table function takes plain inputs (the config dict, the aggregate frames of
+``docs/records.md``, the paper's numbers of ``config/paper/*.csv`` read with pandas) and returns
+a DataFrame whose column headings are the ones shown; :func:`write_table` writes it as CSV
+(full precision), Markdown and LaTeX.
+
+- :func:`cell_table` — Table 1 (cell characteristics).
+- :func:`constants_table` — Table 2 (constants, budget, and the fade δ derived from them).
+- :func:`bounds_table` — Table 3 (bounds as printed and as searched, the truth).
+- :func:`param_table` — Tables 4-19 (parameters and ISE of one scenario × case).
+- :func:`objective_table` — Tables 20-23 (ISE and ranks of one scenario, with tests).
+- :func:`time_table` — Table 24 (time per iteration, scenario 4 case 4).
+
+For a table at equal evaluations, pass the frame of
+:func:`avoa_pipeline.report.stats.at_budget` (``by="nfe"``) as ``runs`` to
+:func:`objective_table`: it reads only ``best_ise`` and the key columns.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from numbers import Number
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tabulate import tabulate
+
+from ..io import atomic_path
+from ..model.battery import CASES, PARAM_LABELS, PARAM_NAMES, FadeLaw
+from ..optimizers import ALGORITHMS, PAPER_LABELS
+from . import stats
+
+TABLE_NUMBERS = {(s, c): 4 + 4 * (s - 1) + (c - 1) for s in range(1, 5) for c in range(1, 5)}
+"""The paper's table number of each (scenario, case) parameter table (4 = S1C1 … 19 = S4C4)."""
+
+OBJECTIVE_TABLE_NUMBERS = {1: 20, 2: 21, 3: 22, 4: 23}
+
+ISE_LABEL = "ISE (V²)"
+VERDICT_TEXT = {
+    "ref better": "AVOA lower",
+    "ref worse": "AVOA higher",
+    "no difference": "no difference",
+    "too few seeds": "too few seeds",
+}
+
+
+def param_label(name: str) -> str:
+    """``"V_nom (V)"`` etc. from ``PARAM_LABELS``."""
+    symbol, unit = PARAM_LABELS[name]
+    return f"{symbol} ({unit})"
+
+
+def _ratio(a: float, b: float) -> float:
+    """a / b, NaN when either is missing or b is zero."""
+    a, b = float(a), float(b)
+    return a / b if b != 0 and not (math.isnan(a) or math.isnan(b)) else np.nan
+
+
+def _paper(frame: pd.DataFrame | None) -> pd.DataFrame:
+    if frame is None:
+        return pd.DataFrame(columns=["scenario", "case", "algorithm"])
+    out = frame.copy()
+    if "algorithm" in out.columns:
+        out["algorithm"] = out["algorithm"].map(stats.algorithm_key)
+    return out
+
+
+# ------------------------------------------------------------------------------------ writer
+_LATEX_CHARS = {
+    "\\": r"\textbackslash{}",
+    "&": r"\&",
+    "%": r"\%",
+    "$": r"\$",
+    "#": r"\#",
+    "_": r"\_",
+    "{": r"\{",
+    "}": r"\}",
+    "~": r"\textasciitilde{}",
+    "^": r"\textasciicircum{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "|": r"\textbar{}",
+    "τ": r"$\tau$",
+    "Ω": r"$\Omega$",
+    "δ": r"$\delta$",
+    "β": r"$\beta$",
+    "α": r"$\alpha$",
+    "±": r"$\pm$",
+    "×": r"$\times$",
+    "≤": r"$\leq$",
+    "≥": r"$\geq$",
+    "≈": r"$\approx$",
+    "→": r"$\rightarrow$",
+    "−": "-",
+    "–": "--",
+    "—": "---",
+    "°": r"\textdegree{}",
+    "²": r"$^2$",
+    "…": r"\ldots{}",
+}
+
+
+def latex_escape(text: str) -> str:
+    """Escape LaTeX specials and map the few non-ASCII symbols the tables use to math."""
+    return "".join(_LATEX_CHARS.get(ch, ch) for ch in str(text))
+
+
+def _is_missing(v) -> bool:
+    if v is None or v is pd.NA or v is pd.NaT:
+        return True
+    return isinstance(v, float) and math.isnan(v)
+
+
+def _fmt(v, floatfmt: str, missing: str) -> str:
+    if _is_missing(v):
+        return missing
+    if isinstance(v, (bool, np.bool_)):
+        return str(bool(v))
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, Number):
+        return format(float(v), floatfmt)
+    return str(v)
+
+
+def _cells(df: pd.DataFrame, floatfmt: str, missing: str) -> list[list[str]]:
+    return [[_fmt(v, floatfmt, missing) for v in row] for row in df.itertuples(index=False)]
+
+
+def _md_escape(text: str) -> str:
+    return str(text).replace("|", "\\|")
+
+
+def _numeric_columns(df: pd.DataFrame) -> list[bool]:
+    return [pd.api.types.is_numeric_dtype(df[c]) for c in df.columns]
+
+
+def to_markdown(df: pd.DataFrame, caption: str, floatfmt: str = ".6g") -> str:
+    """The caption, a blank line, and a pipe table (tabulate); NaN shows as "—", "|" as "\\|"."""
+    body = tabulate(
+        [[_md_escape(v) for v in row] for row in _cells(df, floatfmt, "—")],
+        headers=[_md_escape(c) for c in df.columns],
+        tablefmt="pipe",
+        colalign=["right" if n else "left" for n in _numeric_columns(df)] or None,
+        disable_numparse=True,
+    )
+    return f"{caption}\n\n{body}\n"
+
+
+def to_latex(df: pd.DataFrame, caption: str, floatfmt: str = ".6g") -> str:
+    """A ``table`` float with a booktabs ``tabular`` (needs ``\\usepackage{booktabs}``)."""
+    align = "".join("r" if n else "l" for n in _numeric_columns(df)) or "l"
+    lines = [
+        r"\begin{table}[htbp]",
+        r"\centering",
+        rf"\caption{{{latex_escape(caption)}}}",
+        rf"\begin{{tabular}}{{{align}}}",
+        r"\toprule",
+        " & ".join(latex_escape(c) for c in df.columns) + r" \\",
+        r"\midrule",
+    ]
+    for row in _cells(df, floatfmt, "--"):
+        lines.append(" & ".join(latex_escape(v) for v in row) + r" \\")
+    lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
+    return "\n".join(lines) + "\n"
+
+
+def write_table(
+    df: pd.DataFrame, stem: str | Path, caption: str, floatfmt: str = ".6g"
+) -> list[Path]:
+    """Write ``stem.csv`` (full precision), ``stem.md`` and ``stem.tex``; return their paths.
+
+    All three are rendered before anything is written, then written to temporary files and
+    renamed together at the end, so an error leaves none of them (and never half of one).
+    ``floatfmt`` formats floats in the Markdown and LaTeX versions.
+    """
+    if not isinstance(df, pd.DataFrame):
+        raise TypeError(f"write_table needs a DataFrame, got {type(df).__name__}")
+    stem = Path(stem)
+    texts = {
+        ".csv": df.to_csv(index=False),
+        ".md": to_markdown(df, caption, floatfmt),
+        ".tex": to_latex(df, caption, floatfmt),
+    }
+    paths = [stem.with_name(stem.name + ext) for ext in texts]
+    with contextlib.ExitStack() as stack:
+        for path, text in zip(paths, texts.values(), strict=True):
+            tmp = stack.enter_context(atomic_path(path))
+            tmp.write_text(text, encoding="utf-8")
+    return paths
+
+
+# ---------------------------------------------------------------------------- Tables 1 to 3
+def cell_table(cfg: dict) -> pd.DataFrame:
+    """Table 1: the cell's characteristics (``cfg["cell"]``). Columns: Characteristic, Value."""
+    c = cfg["cell"]
+
+    def rng(v):
+        return f"{v[0]} to {v[1]}" if isinstance(v, (list, tuple)) else v
+
+    rows = [
+        ("Battery", c.get("name")),
+        ("Nominal voltage (V)", c.get("nominal_voltage_v")),
+        ("Minimum capacity (mAh)", c.get("minimum_capacity_mah")),
+        ("Typical capacity (mAh)", c.get("typical_capacity_mah")),
+        ("Internal resistance (Ω)", c.get("internal_resistance_ohm")),
+        (
+            "Max. current charging/discharging (A)",
+            f"{c.get('max_charge_current_a')}/{c.get('max_discharge_current_a')}",
+        ),
+        ("Charging CC/CV (mA, V)", f"{c.get('charge_cc_ma')}, {c.get('charge_cv_v')}"),
+        ("Charging time (h)", c.get("charge_time_h")),
+        ("Ambient temperature, charge (°C)", rng(c.get("charge_temperature_c"))),
+        ("Ambient temperature, discharge (°C)", rng(c.get("discharge_temperature_c"))),
+        ("Weight (g)", c.get("weight_g")),
+    ]
+    return pd.DataFrame(
+        [(k, "" if v is None else str(v)) for k, v in rows], columns=["Characteristic", "Value"]
+    )
+
+
+def constants_table(cfg: dict) -> pd.DataFrame:
+    """Table 2: the constants as printed, the budget, and what the pipeline derives from them.
+
+    Columns: Parameter, Value, Unit, Source ("Table 2" for printed values, "derived" for the δ
+    of eqs. 7-9 computed by ``FadeLaw``, "config" for choices the paper does not state).
+    """
+    k = cfg["constants"]
+    after, ref = k["after_n"], k["fade_reference"]
+    fade = FadeLaw.from_constants(k)
+    b = cfg["budget"]
+    rows = [
+        ("Battery discharge capacity Q_dis", k["qdis_ah"], "Ah", "Table 2"),
+        ("Number of discharge cycles N", k["n_cycles_ref"], "", "Table 2"),
+        ("Battery capacity Q_fade after N cycles", after["capacity_ah"], "Ah", "Table 2"),
+        ("Internal resistance R_o after N cycles", after["r0_ohm"], "Ω", "Table 2"),
+        ("Discharge voltage V_dis after N cycles", after["vdis_v"], "V", "Table 2"),
+        ("Population size", b["pop_size"], "", "Table 2"),
+        ("Number of iterations", b["iterations"], "", "Table 2"),
+        ("Fresh capacity (fade reference)", ref["capacity_ah"], "Ah", "config"),
+        ("Fresh R_o (fade reference)", ref["r0_ohm"], "Ω", "config"),
+        ("Fresh V_dis (fade reference)", ref["vdis_v"], "V", "config"),
+        ("δQ (eq. 8)", fade.delta_q_pct, "%", "derived"),
+        ("δR_o (eq. 9)", fade.delta_r0_pct, "%", "derived"),
+        ("δR_tr (eq. 9)", fade.delta_rtr_pct, "%", "derived"),
+        ("δV_dis (eq. 7 form)", fade.delta_vdis_pct, "%", "derived"),
+        ("δV_nom (eq. 7)", fade.delta_vnom_pct, "%", "derived"),
+        ("Cycle n of the faded cell", k["cycle_n"], "", "config"),
+        ("Load (scenarios 3, 4)", k["load_ohm"], "Ω", "config"),
+    ]
+    if b.get("max_nfe") is not None:
+        rows.insert(7, ("Evaluation cap", b["max_nfe"], "", "config"))
+    out = pd.DataFrame(rows, columns=["Parameter", "Value", "Unit", "Source"])
+    out["Value"] = out["Value"].astype(float)
+    return out
+
+
+def bounds_table(cfg: dict) -> pd.DataFrame:
+    """Table 3: bounds as printed and as searched, side by side, with the synthetic truth.
+
+    One row per temperature × parameter. Columns: Temperature, Parameter, Printed lower,
+    Printed upper, Used lower, Used upper, True, Note (why a used bound differs from the
+    printed one; the T2 V_nom box is widened, reproduction note B1).
+    """
+    temps = cfg.get("temperatures_c", {})
+    rows = []
+    for temp in cfg["bounds_printed"]:
+        printed, used = cfg["bounds_printed"][temp], cfg["bounds_used"][temp]
+        truth = cfg.get("true_params", {}).get(temp, {})
+        label = f"{temp} = {temps[temp]:g} °C" if temp in temps else temp
+        for p in PARAM_NAMES:
+            note = ""
+            if list(printed[p]) != list(used[p]):
+                note = "widened: every printed estimate lies outside the printed box"
+                if p == "vnom":
+                    note = (
+                        "widened: all printed T2 V_nom estimates lie in 3.90-3.98 V, and the "
+                        "printed box would make β > 1"
+                    )
+            rows.append(
+                (
+                    label,
+                    param_label(p),
+                    float(printed[p][0]),
+                    float(printed[p][1]),
+                    float(used[p][0]),
+                    float(used[p][1]),
+                    float(truth.get(p, np.nan)),
+                    note,
+                )
+            )
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "Temperature",
+            "Parameter",
+            "Printed lower",
+            "Printed upper",
+            "Used lower",
+            "Used upper",
+            "True",
+            "Note",
+        ],
+    )
+
+
+# -------------------------------------------------------------------------- Tables 4 to 19
+def median_run(sub: pd.DataFrame) -> pd.Series | None:
+    """The run of median ISE (for an even count the lower middle one, so it is a real run;
+    ties broken by seed)."""
+    r = sub[sub["best_ise"].notna()].sort_values(["best_ise", "seed"], kind="stable")
+    if r.empty:
+        return None
+    return r.iloc[(len(r) - 1) // 2]
+
+
+def param_table(
+    runs: pd.DataFrame, paper_params: pd.DataFrame | None, scenario: int, case: int
+) -> pd.DataFrame:
+    """Tables 4-19: identified parameters and ISE of one scenario × case, ours against the paper.
+
+    Wide, like the paper: one column per algorithm (paper headings, paper order), plus
+    ``Quantity`` (parameter with unit, or ISE), ``Row`` (what the row holds) and ``True`` (the
+    synthetic cell's value). Rows, for each identified parameter p (paper row order):
+
+    - ``ours (median-ISE run)``: p of the run whose ISE is the median over seeds (lower middle
+      for an even count) — one coherent parameter set, not a per-parameter median;
+    - ``paper``: the printed value;
+    - ``ours rel. err. (%)``: 100·(est − true)/true of that run;
+    - ``paper rel. err. (%)``: 100·(printed − true)/true. The paper's cell is not ours, so
+      this is only the distance of the printed value from our synthetic truth;
+    - ``ours median abs. rel. err. (%)``: the median over all seeds of 100·|est − true|/true.
+
+    Then the ISE rows (``True`` = ISE of the true parameters on the same noisy data, the noise
+    floor): ``ours mean``, ``ours sd`` (over seeds, ddof 1), ``ours median``, ``ours best``,
+    ``ours worst``, ``paper``; and ``seed of median run``, ``seeds`` (runs with an ISE).
+    Missing values are NaN (the paper's Table 12, S3/C1, prints no ISE row; Table 22 has it).
+    """
+    if case not in CASES:
+        raise ValueError(f"unknown case {case}")
+    free = CASES[case].free
+    sub = runs[(runs["scenario"] == scenario) & (runs["case"] == case)]
+    pp = _paper(paper_params)
+    paper = {}
+    if len(pp):
+        pp = pp[(pp["scenario"] == scenario) & (pp["case"] == case)]
+        paper = {
+            (a, p): float(v)
+            for a, p, v in zip(pp["algorithm"], pp["parameter"], pp["value"], strict=True)
+        }
+    algos = list(ALGORITHMS)
+    med = {a: median_run(sub[sub["algorithm"] == a]) for a in algos}
+
+    def true_of(col: str) -> float:
+        return float(sub[col].median()) if col in sub and sub[col].notna().any() else np.nan
+
+    rows = []
+
+    def add(quantity, row, true, values):
+        rows.append([quantity, row, true, *[values(a) for a in algos]])
+
+    for p in free:
+        q, t = param_label(p), true_of(f"true_{p}")
+
+        def est(a, p=p):
+            return np.nan if med[a] is None else float(med[a].get(f"est_{p}", np.nan))
+
+        def rel(a, p=p, t=t):
+            if med[a] is None:
+                return np.nan
+            v = med[a].get(f"relerr_{p}", np.nan)
+            return 100.0 * (float(v) if pd.notna(v) else _ratio(est(a), t) - 1.0)
+
+        def rel_all(a, p=p, t=t):
+            r = sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]
+            if r.empty:
+                return np.nan
+            e = r[f"relerr_{p}"] if f"relerr_{p}" in r else r[f"est_{p}"] / t - 1.0
+            return float(100.0 * e.abs().median())
+
+        add(q, "ours (median-ISE run)", t, est)
+        add(q, "paper", t, lambda a, p=p: paper.get((a, p), np.nan))
+        add(q, "ours rel. err. (%)", np.nan, rel)
+        add(
+            q,
+            "paper rel. err. (%)",
+            np.nan,
+            lambda a, p=p, t=t: 100.0 * (_ratio(paper.get((a, p), np.nan), t) - 1.0),
+        )
+        add(q, "ours median abs. rel. err. (%)", np.nan, rel_all)
+
+    g = {a: sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]["best_ise"] for a in algos}
+
+    def agg(fn):
+        return lambda a: float(fn(g[a])) if len(g[a]) else np.nan
+
+    t_ise = true_of("true_ise")
+    add(ISE_LABEL, "ours mean", t_ise, agg(np.mean))
+    add(
+        ISE_LABEL, "ours sd", np.nan, lambda a: float(g[a].std(ddof=1)) if len(g[a]) > 1 else np.nan
+    )
+    add(ISE_LABEL, "ours median", t_ise, agg(np.median))
+    add(ISE_LABEL, "ours best", t_ise, agg(np.min))
+    add(ISE_LABEL, "ours worst", t_ise, agg(np.max))
+    add(ISE_LABEL, "paper", np.nan, lambda a: paper.get((a, "ise"), np.nan))
+    add(
+        "Runs", "seed of median run", np.nan, lambda a: np.nan if med[a] is None else med[a]["seed"]
+    )
+    add("Runs", "seeds", np.nan, lambda a: float(len(g[a])))
+    cols = ["Quantity", "Row", "True", *[PAPER_LABELS[a] for a in algos]]
+    out = pd.DataFrame(rows, columns=cols)
+    for c in cols[2:]:
+        out[c] = out[c].astype(float)
+    return out
+
+
+# ------------------------------------------------------------------------- Tables 20 to 23
+def objective_table(
+    runs: pd.DataFrame, paper_objective: pd.DataFrame | None, scenario: int, alpha: float = 0.05
+) -> pd.DataFrame:
+    """Tables 20-23: ISE and ranks of one scenario, per case × algorithm, with the tests.
+
+    Long: one row per case × algorithm (paper order). Columns:
+
+    - ``Case``, ``Algorithm`` (paper heading), ``Seeds`` (runs with an ISE);
+    - ``Mean ISE``, ``Median ISE`` (ours, over seeds);
+    - ``Rank (mean)``, ``Rank (median)``: rank of the mean / median ISE (1 = lowest);
+    - ``Mean rank``: mean over seeds of the per-seed rank (Friedman-style; complete seeds);
+    - ``Paper ISE``, ``Paper rank (printed)`` (verbatim, e.g. "7 (Max.)"), ``Paper rank``;
+    - ``AVOA vs this``: Holm-Wilcoxon verdict of AVOA against this algorithm ("AVOA lower",
+      "AVOA higher", "no difference", "too few seeds"; empty on the AVOA row) and ``p (Holm)``
+      (two-sided, Holm over the six rivals);
+    - ``Friedman p``: the case's Friedman test over all algorithms (same on every row of a case).
+    """
+    sub = runs[runs["scenario"] == scenario]
+    po = _paper(paper_objective)
+    if len(po):
+        po = po[po["scenario"] == scenario]
+    cases = sorted(set(sub["case"].astype(int)) | set(po["case"].astype(int) if len(po) else []))
+    rk = stats.ranks(sub)
+    rows = []
+    for c in cases:
+        fr = stats.friedman(sub, scenario, c) if len(sub[sub["case"] == c]) else {"p": np.nan}
+        has_avoa = (
+            (sub["case"] == c) & (sub["algorithm"] == "avoa") & sub["best_ise"].notna()
+        ).any()
+        hw = stats.holm_wilcoxon(sub, scenario, c, "avoa", alpha) if has_avoa else pd.DataFrame()
+        hw = hw.set_index("other") if len(hw) else hw
+        rkc = rk[rk["case"] == c].set_index("algorithm")
+        poc = po[po["case"] == c].set_index("algorithm") if len(po) else po
+        for a in ALGORITHMS:
+            r = rkc.loc[a] if a in rkc.index else None
+            p = poc.loc[a] if len(poc) and a in poc.index else None
+            h = hw.loc[a] if len(hw) and a in hw.index else None
+            rows.append(
+                {
+                    "Case": int(c),
+                    "Algorithm": PAPER_LABELS[a],
+                    "Seeds": int(r["n_seeds"]) if r is not None else 0,
+                    "Mean ISE": r["mean_ise"] if r is not None else np.nan,
+                    "Median ISE": r["median_ise"] if r is not None else np.nan,
+                    "Rank (mean)": r["rank_by_mean"] if r is not None else pd.NA,
+                    "Rank (median)": r["rank_by_median"] if r is not None else pd.NA,
+                    "Mean rank": r["mean_rank"] if r is not None else np.nan,
+                    "Paper ISE": float(p["ise"]) if p is not None else np.nan,
+                    "Paper rank (printed)": str(p["rank_printed"]) if p is not None else "",
+                    "Paper rank": int(p["rank"]) if p is not None else pd.NA,
+                    "AVOA vs this": VERDICT_TEXT[h["verdict"]] if h is not None else "",
+                    "p (Holm)": h["p_holm"] if h is not None else np.nan,
+                    "Friedman p": fr["p"],
+                }
+            )
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    for col in ("Rank (mean)", "Rank (median)", "Paper rank"):
+        out[col] = out[col].astype("Int64")
+    for col in ("Mean ISE", "Median ISE", "Mean rank", "Paper ISE", "p (Holm)", "Friedman p"):
+        out[col] = out[col].astype(float)
+    return out
+
+
+# ---------------------------------------------------------------------------------- Table 24
+def time_table(
+    runs: pd.DataFrame, paper_time: pd.DataFrame | None, scenario: int = 4, case: int = 4
+) -> pd.DataFrame:
+    """Table 24: computation time of scenario 4 case 4 (by default), ours against the paper.
+
+    One row per algorithm. Columns: ``Algorithm``, ``Runs``; ours, means over seeds:
+    ``Time/iter (s)`` (``time_per_iter_s``; optimizer wall time / iterations) with
+    ``Time/iter sd (s)``, ``Evals/iter`` (objective evaluations per iteration after the initial
+    population), ``Time/eval (ms)`` (``time_per_eval_s`` × 1000), ``Ratio to AVOA (iter)`` and
+    ``Ratio to AVOA (eval)`` (this algorithm's mean over AVOA's); the paper's ``Paper time/iter
+    (s)`` and ``Paper ratio to AVOA``. A ratio > 1: slower than AVOA.
+    """
+    sub = runs[(runs["scenario"] == scenario) & (runs["case"] == case)]
+    pt = _paper(paper_time)
+    paper = dict(zip(pt["algorithm"], pt["seconds"].astype(float), strict=True)) if len(pt) else {}
+    g = sub.groupby("algorithm")
+    mean = g[["time_per_iter_s", "evals_per_iter", "time_per_eval_s"]].mean()
+    sd = g["time_per_iter_s"].std(ddof=1)
+    n = g.size()
+
+    def m(a, col):
+        return float(mean.loc[a, col]) if a in mean.index else np.nan
+
+    rows = []
+    for a in ALGORITHMS:
+        rows.append(
+            {
+                "Algorithm": PAPER_LABELS[a],
+                "Runs": int(n.get(a, 0)),
+                "Time/iter (s)": m(a, "time_per_iter_s"),
+                "Time/iter sd (s)": float(sd.get(a, np.nan)),
+                "Evals/iter": m(a, "evals_per_iter"),
+                "Time/eval (ms)": 1000.0 * m(a, "time_per_eval_s"),
+                "Ratio to AVOA (iter)": _ratio(
+                    m(a, "time_per_iter_s"), m("avoa", "time_per_iter_s")
+                ),
+                "Ratio to AVOA (eval)": _ratio(
+                    m(a, "time_per_eval_s"), m("avoa", "time_per_eval_s")
+                ),
+                "Paper time/iter (s)": paper.get(a, np.nan),
+                "Paper ratio to AVOA": _ratio(paper.get(a, np.nan), paper.get("avoa", np.nan)),
+            }
+        )
+    return pd.DataFrame(rows)
