@@ -58,7 +58,7 @@ Differences vs mealpy 3.0.2 ``GWO.OriginalGWO``:
   evaluations: ~100x lower median, p < 1e-5 at 20 seeds) and stagnate more on multimodal
   Rastrigin (observed: ours lower in every pilot seed set, p = 0.002-0.06); no clear prior and no
   significant difference on Rosenbrock. See ``tests/unit/test_vs_mealpy.py`` and
-  ``docs/notes/gwo_local.md``.
+  ``docs/reproduction-notes.md`` (section Optimizers).
 - mealpy's ``a = 2 - 2 epoch / epochs`` (``epoch = 1..epochs``) starts at ``2 - 2/epochs`` and ends
   at 0; ours starts at 2 and ends at ``2/T`` (the reference's schedule).
 - mealpy draws ``A``/``C`` per wolf as vectors; same distribution as ours.
