@@ -15,8 +15,8 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/data.smk"
 include: "workflow/rules/identify.smk"
 include: "workflow/rules/aggregate.smk"
-# include: "workflow/rules/tables.smk"
-# include: "workflow/rules/figures.smk"
+include: "workflow/rules/tables.smk"
+include: "workflow/rules/figures.smk"
 
 
 rule all:

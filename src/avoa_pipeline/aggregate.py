@@ -42,6 +42,34 @@ def run_row(rec: dict) -> dict:
     return row
 
 
+def run_row_columns() -> list[str]:
+    """The columns of runs.parquet, in order (for an empty table of a pair that did not run)."""
+    cols = [
+        *KEYS,
+        "best_ise",
+        "true_ise",
+        "nfe",
+        "iterations",
+        "n_samples",
+        "wall_s",
+        "time_per_iter_s",
+        "evals_per_iter",
+        "time_per_eval_s",
+    ]
+    return cols + [f"{k}_{p}" for p in PARAM_NAMES for k in ("est", "true", "relerr")]
+
+
+def empty_runs() -> pd.DataFrame:
+    """A typed runs table with no rows: a pair this configuration does not run."""
+    ints = {"scenario", "case", "seed", "nfe", "iterations", "n_samples"}
+    return pd.DataFrame(
+        {
+            c: pd.Series(dtype="int64" if c in ints else "str" if c == "algorithm" else "float64")
+            for c in run_row_columns()
+        }
+    )
+
+
 def history_frame(rec: dict) -> pd.DataFrame:
     h = rec["history"]
     n = len(h["best_ise"])

@@ -45,16 +45,20 @@ def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     _log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
 
 
-def fit_one(cfg, data_csv: str, scenario, case, algorithm: str, seed, out_json: str,
-            log: str | None = None) -> None:
+def fit_one(
+    cfg, data_csv: str, scenario, case, algorithm: str, seed, out_json: str, log: str | None = None
+) -> None:
     numba.set_num_threads(1)
     cfg = _checked(cfg)
     budget = fit.budget_from(cfg)
     prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
     rec = fit.run(cfg, prob, algorithm, int(seed), budget)
     write_json(rec, out_json)
-    _log(log, f"{algorithm} s{scenario} c{case} seed {seed}: ISE {rec['best_ise']:.6g}, "
-              f"nfe {rec['nfe']}, {rec['wall_s']:.3f} s")
+    _log(
+        log,
+        f"{algorithm} s{scenario} c{case} seed {seed}: ISE {rec['best_ise']:.6g}, "
+        f"nfe {rec['nfe']}, {rec['wall_s']:.3f} s",
+    )
 
 
 def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None) -> None:

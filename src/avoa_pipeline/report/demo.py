@@ -10,9 +10,14 @@ from ..optimizers import Budget
 DEMO_ALGORITHMS = ("nelder_mead", "avoa", "gto")
 
 
-def runs_and_histories(cfg: dict, pairs, algorithms=DEMO_ALGORITHMS, seeds=(1, 2),
-                       pop_size: int = 10, iterations: int = 20
-                       ) -> tuple[pd.DataFrame, pd.DataFrame]:
+def runs_and_histories(
+    cfg: dict,
+    pairs,
+    algorithms=DEMO_ALGORITHMS,
+    seeds=(1, 2),
+    pop_size: int = 10,
+    iterations: int = 20,
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Aggregates of a few short fits for each (scenario, case) in ``pairs``."""
     budget = Budget(pop_size=pop_size, iterations=iterations)
     records = []

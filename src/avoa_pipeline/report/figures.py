@@ -825,3 +825,13 @@ def fig21(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
         _save(fig, stem)
     finally:
         fig.clear()
+
+
+def not_run(stem, title: str, reason: str) -> None:
+    """A figure that says plainly why there is nothing to draw (e.g. not in this config)."""
+    fig = Figure(figsize=(8, 3))
+    ax = fig.add_subplot()
+    ax.axis("off")
+    ax.text(0.5, 0.62, title, ha="center", va="center", fontsize=12)
+    ax.text(0.5, 0.38, reason, ha="center", va="center", fontsize=10, color="0.35", wrap=True)
+    _save(fig, stem)
