@@ -68,3 +68,16 @@ def papermill(notebook, executed, log, **params):
     args = " ".join(f"-p {k} {v!r}" if isinstance(v, str) else f"-p {k} {v}" for k, v in params.items())
     return (f"{PY} -m papermill --no-progress-bar -k avoa-pipeline {notebook} {executed} "
             f"{args} > {log} 2>&1")
+
+
+def case_inputs(w):
+    s, c = scenario_case(w.nn)
+    if not ran(s, c):
+        return []
+    return [f"results/aggregate/s{s}/c{c}/runs.parquet",
+            f"results/aggregate/s{s}/c{c}/histories.parquet"]
+
+
+def scenario_runs(w):
+    s = int(w.nn) - 19
+    return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]

@@ -14,21 +14,13 @@ rule tables_config:
                   tables_dir="results/tables")
 
 
-def _case_inputs(w):
-    s, c = scenario_case(w.nn)
-    if not ran(s, c):
-        return []
-    return [f"results/aggregate/s{s}/c{c}/runs.parquet",
-            f"results/aggregate/s{s}/c{c}/histories.parquet"]
-
-
 rule case_report:
     """Table NN (parameters) and Figure NN (convergence) of one scenario × case, NN = 04..19."""
     input:
         nb="notebooks/case_report.ipynb",
         cfg=EFFECTIVE_CONFIG,
         paper=f"{PAPER}/params.csv",
-        agg=_case_inputs,
+        agg=case_inputs,
     output:
         report(ext("results/tables/table{nn}", TABLE_EXT), category="Tables",
                subcategory="Tables 4-19: parameters"),
@@ -51,18 +43,13 @@ rule case_report:
                   histories="{params.hist}", not_run="{params.not_run}")
 
 
-def _scenario_runs(w):
-    s = int(w.nn) - 19
-    return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]
-
-
 rule table_objective:
     """Tables 20-23: objective values, ranks and tests for one scenario."""
     input:
         nb="notebooks/table_objective.ipynb",
         cfg=EFFECTIVE_CONFIG,
         paper=f"{PAPER}/objective.csv",
-        runs=_scenario_runs,
+        runs=scenario_runs,
     output:
         report(ext("results/tables/table{nn}", TABLE_EXT), category="Tables",
                subcategory="Tables 20-23: objective values and ranks"),
