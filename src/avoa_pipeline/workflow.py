@@ -1,15 +1,22 @@
 """The functions Snakemake rules call: one per rule, arguments straight from the rule.
 
-Fit jobs run inside the Snakemake process (``run:`` with ``--force-use-threads``, set in the
-workflow profile), so a job costs no interpreter start and no re-import: at 3,360 fits that start
-would cost more than the fits. Each job's kernel runs single-threaded and releases the GIL, so
-``-j2`` runs two fits on two cores. Every function writes its outputs atomically and a one-line
-log.
+Fit jobs are ``run:`` blocks executed in Snakemake's own process (``force-use-threads`` in the
+workflow profile), so a job starts no interpreter: at 3,360 fits an interpreter start plus
+imports (about 1 s) would cost more than most fits. The fit itself does not run in that thread:
+Python-heavy optimizers in two threads of one process fight over the GIL (measured: fits 5-10x
+slower). Each job hands its fit to a pool of worker processes, started once per Snakemake run
+with the package already imported, and waits for it. The pool has as many workers as Snakemake
+has cores; each worker's kernel is single-threaded. Every function writes its outputs atomically
+and a one-line log.
 """
 
 from __future__ import annotations
 
 import copy
+import multiprocessing
+import os
+import threading
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numba
@@ -43,6 +50,36 @@ def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     ds = synthetic.generate(_checked(cfg), int(scenario), int(case))
     synthetic.write(ds, out_csv)
     _log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
+
+
+_POOL: ProcessPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _worker_init() -> None:
+    numba.set_num_threads(1)
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            # one BLAS thread per worker: scipy's L-BFGS-B calls BLAS on tiny vectors, and
+            # spinning BLAS threads on a busy 2-core machine made it 7x slower (measured)
+            for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+                os.environ[var] = "1"
+            # forkserver: never fork the multi-threaded Snakemake process itself
+            ctx = multiprocessing.get_context("forkserver")
+            _POOL = ProcessPoolExecutor(
+                max_workers=max(1, int(workers)), mp_context=ctx, initializer=_worker_init
+            )
+        return _POOL
+
+
+def fit_job(cfg, data_csv, scenario, case, algorithm, seed, out_json, log=None, workers=1):
+    """A Snakemake fit job: run :func:`fit_one` in the worker pool and wait for it."""
+    args = (dict(cfg), data_csv, scenario, case, algorithm, seed, out_json, log)
+    _pool(workers).submit(fit_one, *args).result()
 
 
 def fit_one(

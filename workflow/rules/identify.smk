@@ -1,13 +1,15 @@
 rule fit:
-    """One identification run: scenario × case × algorithm × seed → one JSON record."""
+    """One identification run: scenario × case × algorithm × seed → one JSON record.
+
+    No ``benchmark:``: the record holds the optimizer's own wall time per iteration, and a
+    benchmark thread per job (3,360 of them) costs the scheduler more than it tells.
+    """
     input:
         data="results/data/s{scenario}/c{case}.csv",
     output:
         "results/fits/s{scenario}/c{case}/{algorithm}/seed{seed}.json",
     log:
         "logs/fits/s{scenario}/c{case}/{algorithm}/seed{seed}.log",
-    benchmark:
-        "results/benchmarks/fits/s{scenario}/c{case}/{algorithm}/seed{seed}.tsv"
     params:  # what a fit depends on beyond its data: changing any of it reruns the fits
         budget=config["budget"],
         bounds=config["bounds_used"],
@@ -15,5 +17,6 @@ rule fit:
         base_seed=config["base_seed"],
     threads: 1
     run:
-        wf.fit_one(config, input.data, wildcards.scenario, wildcards.case,
-                   wildcards.algorithm, wildcards.seed, output[0], log[0])
+        wf.fit_job(config, input.data, wildcards.scenario, wildcards.case,
+                   wildcards.algorithm, wildcards.seed, output[0], log[0],
+                   workers=workflow.cores)
