@@ -1,6 +1,7 @@
-"""Helpers shared by the optimizer tests (test_avoa, test_gto, test_gwo, test_run, test_ga,
-test_local): an objective that records what it evaluates, shifted test functions, and the
-contract checks every optimizer must pass (history, seeding, global generators)."""
+"""Helpers shared by the optimizer tests (test_optimizer_contract, which holds the contract every
+optimizer must pass, and test_avoa, test_gto, test_gwo, test_run, test_ga, test_local): an
+objective that records what it evaluates, shifted test functions, and the contract checks
+(history, seeding, global generators)."""
 
 from __future__ import annotations
 

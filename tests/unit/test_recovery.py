@@ -20,32 +20,27 @@ def clean_s1c2(cfg):
     return prob
 
 
+def fit_avoa(prob, iterations: int):
+    """AVOA (20 agents) on ``prob``, with the random stream of fit 1 of scenario 1, case 2."""
+    rng = seeds.stream(20230508, "fit", 1, 2, "avoa", 1)
+    return minimize("avoa", prob.objective, prob.lb, prob.ub, Budget(20, iterations), rng)
+
+
+def relative_errors(prob, res) -> dict[str, float]:
+    """|fitted / true - 1| per free parameter."""
+    return dict(zip(prob.names, np.abs(res.best_x / prob.true_free() - 1.0), strict=True))
+
+
 def test_avoa_recovers_scenario1_case2_within_1pct(clean_s1c2):
-    prob = clean_s1c2
-    res = minimize(
-        "avoa",
-        prob.objective,
-        prob.lb,
-        prob.ub,
-        Budget(20, 10_000),
-        seeds.stream(20230508, "fit", 1, 2, "avoa", 1),
-    )
-    rel = np.abs(res.best_x / prob.true_free() - 1.0)
-    assert rel.max() < 0.01, dict(zip(prob.names, rel, strict=False))
+    rel = relative_errors(clean_s1c2, fit_avoa(clean_s1c2, 10_000))
+    assert max(rel.values()) < 0.01, rel
 
 
 def test_paper_budget_pins_the_voltages(clean_s1c2):
     """At 20 × 500 the OCV parameters are already tight; the resistances are what lag."""
     prob = clean_s1c2
-    res = minimize(
-        "avoa",
-        prob.objective,
-        prob.lb,
-        prob.ub,
-        Budget(20, 500),
-        seeds.stream(20230508, "fit", 1, 2, "avoa", 1),
-    )
-    rel = dict(zip(prob.names, np.abs(res.best_x / prob.true_free() - 1.0), strict=False))
+    res = fit_avoa(prob, 500)
+    rel = relative_errors(prob, res)
     assert rel["vnom"] < 1e-3, rel
     assert rel["vdis"] < 1e-3, rel
     # far better than a random point of the box: the objective is informative
