@@ -67,13 +67,16 @@ def _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, traces):
     acc = np.zeros(m)
     score = vmeas.shape[0] > 0
     record = traces.shape[0] > 0
+    # Without a load the current is the cycler's, so Vt leaves the SOC recursion; writing
+    # `ipk + vt * 0.0` would keep the division on the sample-to-sample chain.
+    load = g_load != 0.0
     for k in range(ip.shape[0]):
         ipk = ip[k]
         for c in range(m):
             s = soc[c]
             ocv = vnom[c] * s / (omb[c] + beta[c] * s)
             vt = (ocv - vtr[c] - r0[c] * ipk) * inv_den[c]
-            i = ipk + vt * g_load
+            i = ipk + vt * g_load if load else ipk
             if score:
                 e = vt - vmeas[k]
                 acc[c] += e * e
