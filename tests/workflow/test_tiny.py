@@ -126,3 +126,16 @@ def test_adding_a_seed_reruns_only_the_new_fits(runs):
     (wd / "more_seeds.yaml").write_text("seeds: [1, 2, 3]\n")
     plan = _planned(snakemake(wd, "-n", configs=("config/tiny.yaml", "more_seeds.yaml")))
     assert plan.get("fit") == 2 * 2 * 3  # 2 scenarios × 2 cases × 3 algorithms × the new seed
+
+
+def test_html_report_holds_every_table_and_figure(runs):
+    wd = runs["2"]
+    proc = snakemake(wd, "--report", "report.html")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    html = (wd / "report.html").read_text(errors="replace")
+    missing = [
+        Path(p).name
+        for p in [*TABLES, *FIGURES, "results/tables/claims.csv"]
+        if Path(p).name not in html
+    ]
+    assert not missing, missing
