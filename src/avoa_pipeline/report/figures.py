@@ -709,7 +709,9 @@ def _states(problem, x_free) -> dict:
 
 
 def _param_line(problem, x) -> str:
-    return ",  ".join(_label(n, v) for n, v in zip(problem.names, x, strict=True))
+    labels = [_label(n, v) for n, v in zip(problem.names, x, strict=True)]
+    # three per line: two panels side by side have room for no more
+    return "\n".join(",  ".join(labels[i : i + 3]) for i in range(0, len(labels), 3))
 
 
 def _subtitle(problem) -> str:
@@ -727,6 +729,20 @@ def _before_after(problem, after, before):
     return x_before, x_after, before_what
 
 
+def _before_after_panels(problem, after, before, after_label, **subplots):
+    """Figure and 2 × 2 axes of Figures 20-21, and per column (top, bottom, states, x, title)."""
+    x_before, x_after, before_what = _before_after(problem, after, before)
+    fig = Figure(figsize=(11.0, 6.8), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True, sharey="row", **subplots)
+    tags = (f"(a) before optimisation ({before_what})", f"(b) after {after_label}")
+    panels = []
+    for col, (x, tag) in enumerate(zip((x_before, x_after), tags, strict=True)):
+        st = _states(problem, x)
+        title = f"{tag}\n{_param_line(problem, x)}\nISE = {st['ise']:.4g} V²"
+        panels.append((axes[0, col], axes[1, col], st, x, title))
+    return fig, axes, panels
+
+
 def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
     """Figure 20: the model's voltage characteristics before (a) and after (b) optimisation.
 
@@ -739,24 +755,13 @@ def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
     Each column: terminal voltage V_t of the model with its open-circuit voltage Vocv(SOC)
     (top) and the transient voltage V_tr with the battery current (bottom), over the test.
     """
-    x_before, x_after, before_what = _before_after(problem, after, before)
     t = np.asarray(problem.time_s, dtype=float) / 60.0
-    states = [_states(problem, x_before), _states(problem, x_after)]
-    fig = Figure(figsize=(11.0, 6.4), layout="constrained")
+    fig, axes, panels = _before_after_panels(problem, after, before, after_label)
     try:
-        axes = fig.subplots(2, 2, sharex=True, sharey="row")
-        for col, (st, x, tag) in enumerate(
-            zip(
-                states,
-                (x_before, x_after),
-                (f"(a) before optimisation ({before_what})", f"(b) after {after_label}"),
-                strict=True,
-            )
-        ):
-            top, bottom = axes[0, col], axes[1, col]
+        for top, bottom, st, _x, title in panels:
             top.plot(t, st["ocv_v"], color="0.45", lw=1.0, ls="--", label=r"model $V_{ocv}(SOC)$")
             top.plot(t, st["voltage_v"], color="#a50f15", lw=1.2, label=r"model $V_t$")
-            top.set_title(f"{tag}\n{_param_line(problem, x)}\nISE = {st['ise']:.4g} V²", fontsize=9)
+            top.set_title(title, fontsize=9)
             bottom.plot(t, 1e3 * st["vtr_v"], color="#54278f", lw=1.1, label=r"$V_{tr}$")
             twin = bottom.twinx()
             twin.plot(t, st["battery_current_a"], color="#08519c", lw=0.8, alpha=0.6)
@@ -784,26 +789,17 @@ def fig21(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
     the measured voltage (``problem.voltage_v``) and the model's; bottom row: the error
     model − measured in mV, with its ISE (eq. 13) and RMS.
     """
-    x_before, x_after, before_what = _before_after(problem, after, before)
     t = np.asarray(problem.time_s, dtype=float) / 60.0
     v_meas = np.asarray(problem.voltage_v, dtype=float)
-    states = [_states(problem, x_before), _states(problem, x_after)]
-    fig = Figure(figsize=(11.0, 6.4), layout="constrained")
+    fig, axes, panels = _before_after_panels(
+        problem, after, before, after_label, height_ratios=(2, 1)
+    )
     try:
-        axes = fig.subplots(2, 2, sharex=True, sharey="row", height_ratios=(2, 1))
-        for col, (st, x, tag) in enumerate(
-            zip(
-                states,
-                (x_before, x_after),
-                (f"(a) before optimisation ({before_what})", f"(b) after {after_label}"),
-                strict=True,
-            )
-        ):
-            top, bottom = axes[0, col], axes[1, col]
+        for top, bottom, st, _x, title in panels:
             err = st["voltage_v"] - v_meas
             top.plot(t, v_meas, color="0.2", lw=2.2, alpha=0.35, label="measured")
             top.plot(t, st["voltage_v"], color="#a50f15", lw=1.0, label="model")
-            top.set_title(f"{tag}\n{_param_line(problem, x)}\nISE = {st['ise']:.4g} V²", fontsize=9)
+            top.set_title(title, fontsize=9)
             bottom.plot(t, 1e3 * err, color="#a50f15", lw=0.8)
             bottom.axhline(0.0, color="0.3", lw=0.6)
             rms = math.sqrt(float(np.mean(err**2)))
