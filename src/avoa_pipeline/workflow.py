@@ -13,6 +13,7 @@ and a one-line log.
 from __future__ import annotations
 
 import copy
+import json
 import multiprocessing
 import os
 import threading
@@ -26,11 +27,18 @@ import yaml
 from . import aggregate, config, fit, problem, synthetic
 from .io import atomic_path, write_json
 
+_VALIDATED: dict[str, dict] = {}
+
 
 def _checked(cfg) -> dict:
-    cfg = copy.deepcopy(dict(cfg))
-    config.validate(cfg, source="snakemake config")
-    return cfg
+    """The validated config. Validation (~30 ms) runs once per distinct config and process, not
+    once per fit job: every job of a run passes the same config."""
+    key = json.dumps(cfg, sort_keys=True, default=str)
+    if key not in _VALIDATED:
+        checked = copy.deepcopy(dict(cfg))
+        config.validate(checked, source="snakemake config")
+        _VALIDATED[key] = checked
+    return _VALIDATED[key]
 
 
 def _log(path, text: str) -> None:
@@ -56,10 +64,6 @@ _POOL: ProcessPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 
 
-def _worker_init() -> None:
-    numba.set_num_threads(1)
-
-
 def _pool(workers: int) -> ProcessPoolExecutor:
     global _POOL
     with _POOL_LOCK:
@@ -70,9 +74,7 @@ def _pool(workers: int) -> ProcessPoolExecutor:
                 os.environ[var] = "1"
             # forkserver: never fork the multi-threaded Snakemake process itself
             ctx = multiprocessing.get_context("forkserver")
-            _POOL = ProcessPoolExecutor(
-                max_workers=max(1, int(workers)), mp_context=ctx, initializer=_worker_init
-            )
+            _POOL = ProcessPoolExecutor(max_workers=max(1, int(workers)), mp_context=ctx)
         return _POOL
 
 
@@ -104,8 +106,12 @@ def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None
     _log(log, f"{len(runs)} runs, {len(hist)} history rows")
 
 
-def concat_parquet(paths, out: str, log: str | None = None) -> None:
-    df = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
-    with atomic_path(out) as tmp:
-        df.to_parquet(tmp, index=False)
-    _log(log, f"{out}: {len(df)} rows from {len(paths)} files")
+def concat_aggregates(runs_in, hist_in, runs_out: str, hist_out: str, log: str | None = None):
+    """The per-pair aggregates of a run in one runs table and one histories table."""
+    lines = []
+    for paths, out in ((runs_in, runs_out), (hist_in, hist_out)):
+        df = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+        with atomic_path(out) as tmp:
+            df.to_parquet(tmp, index=False)
+        lines.append(f"{out}: {len(df)} rows from {len(paths)} files")
+    _log(log, "\n".join(lines))

@@ -22,5 +22,4 @@ rule aggregate_all:
     log:
         "logs/aggregate/all.log",
     run:
-        wf.concat_parquet(input.runs, output.runs, log[0])
-        wf.concat_parquet(input.histories, output.histories, log[0])
+        wf.concat_aggregates(input.runs, input.histories, output.runs, output.histories, log[0])
