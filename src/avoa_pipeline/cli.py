@@ -1,4 +1,4 @@
-"""Command line: ``python -m avoa_pipeline {fit,generate} ...``.
+"""Command line: ``python -m avoa_pipeline {fit,generate,recovery} ...``.
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -13,8 +13,7 @@ import sys
 os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
 
 from .errors import UserError
-
-ALGORITHM_NAMES = ("nelder_mead", "quasi_newton", "ga", "gwo", "run", "avoa", "gto")
+from .names import ALGORITHMS
 
 
 class _Parser(argparse.ArgumentParser):
@@ -38,9 +37,9 @@ def _int_in(name: str, allowed):
 
 
 def _algorithm(text: str) -> str:
-    if text not in ALGORITHM_NAMES:
+    if text not in ALGORITHMS:
         raise argparse.ArgumentTypeError(
-            f"unknown algorithm {text!r}; choose from {', '.join(ALGORITHM_NAMES)}"
+            f"unknown algorithm {text!r}; choose from {', '.join(ALGORITHMS)}"
         )
     return text
 

@@ -3,11 +3,9 @@
 Importing this package registers all seven algorithms of the paper in ``REGISTRY``.
 """
 
+from ..names import ALGORITHMS
 from . import avoa, ga, gto, gwo, nelder_mead, quasi_newton, run  # noqa: F401 - registers each
 from .base import REGISTRY, Budget, OptimResult, Tracker, minimize, register
-
-ALGORITHMS = ("nelder_mead", "quasi_newton", "ga", "gwo", "run", "avoa", "gto")
-"""The paper's seven algorithms, in the column order of its Tables 4-24."""
 
 PAPER_LABELS = {
     "nelder_mead": "Nelder–Mead",
