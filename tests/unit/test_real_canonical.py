@@ -1,0 +1,135 @@
+"""The canonical record: checksum gate, validation messages, atomic write, round trip."""
+
+import hashlib
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from avoa_pipeline.errors import DataError
+from avoa_pipeline.real import canonical
+
+
+def _frame(n=5):
+    return pd.DataFrame(
+        {
+            "time_s": np.arange(n, dtype=float),
+            "current_a": np.linspace(-1.0, 2.0, n),
+            "voltage_v": np.linspace(4.1, 3.9, n),
+            "temperature_c": np.full(n, 25.0),
+        }
+    )
+
+
+SIDECAR = {
+    "cell": "test cell",
+    "nominal_capacity_ah": 2.9,
+    "ambient_temperature_c": 25.0,
+    "test_type": "drive_cycle",
+    "source_file": "ds/file.mat",
+    "source_sha256": "0" * 64,
+    "citation": "nobody",
+    "licence": "unknown",
+}
+
+
+def test_check_source_accepts_matching_sha(tmp_path):
+    f = tmp_path / "a.bin"
+    f.write_bytes(b"abc")
+    digest = hashlib.sha256(b"abc").hexdigest()
+    assert canonical.check_source(f, digest.upper(), key="ds/a.bin") == f
+
+
+def test_check_source_missing_file(tmp_path):
+    with pytest.raises(DataError, match=r"a\.bin: missing \(config real\.sources\['ds/a\.bin'\]\)"):
+        canonical.check_source(tmp_path / "a.bin", "0" * 64, key="ds/a.bin")
+
+
+def test_check_source_changed_file(tmp_path):
+    f = tmp_path / "a.bin"
+    f.write_bytes(b"abd")
+    with pytest.raises(DataError, match=r"a\.bin: sha256 [0-9a-f]{64} does not match config"):
+        canonical.check_source(f, hashlib.sha256(b"abc").hexdigest())
+
+
+def test_validate_orders_columns_and_drops_extras():
+    df = _frame()[["voltage_v", "temperature_c", "time_s", "current_a"]]
+    df["extra"] = 1
+    out = canonical.validate(df, "src")
+    assert tuple(out.columns) == canonical.COLUMNS
+    assert all(out[c].dtype == float for c in out.columns)
+
+
+@pytest.mark.parametrize("col", canonical.COLUMNS)
+def test_validate_missing_column(col):
+    with pytest.raises(DataError, match=rf"^src: missing column '{col}'"):
+        canonical.validate(_frame().drop(columns=col), "src")
+
+
+@pytest.mark.parametrize(
+    ("col", "value", "what"),
+    [
+        ("voltage_v", np.nan, "missing value"),
+        ("current_a", np.inf, "not finite"),
+        ("temperature_c", "hot", "not a number"),
+    ],
+)
+def test_validate_bad_value(col, value, what):
+    df = _frame().astype(object)
+    df.loc[3, col] = value
+    with pytest.raises(DataError, match=rf"^src: column '{col}' row 3: {what}"):
+        canonical.validate(df, "src")
+
+
+def test_validate_duplicate_and_backwards_time():
+    df = _frame()
+    df.loc[2, "time_s"] = 1.0
+    with pytest.raises(DataError, match=r"^src: column 'time_s' row 2: duplicate time"):
+        canonical.validate(df, "src")
+    df.loc[2, "time_s"] = 0.5
+    with pytest.raises(DataError, match=r"^src: column 'time_s' row 2: time goes backwards"):
+        canonical.validate(df, "src")
+
+
+def test_write_read_round_trip(tmp_path):
+    out = tmp_path / "sub" / "rec.csv"
+    canonical.write(_frame(), SIDECAR, out)
+    frame, side = canonical.read(out)
+    pd.testing.assert_frame_equal(frame, _frame())
+    assert side == SIDECAR
+    assert (tmp_path / "sub" / "rec.json").is_file()
+    assert sorted(p.name for p in (tmp_path / "sub").iterdir()) == ["rec.csv", "rec.json"]
+
+
+@pytest.mark.parametrize(
+    "broken",
+    [
+        lambda f, s: (f.drop(columns="voltage_v"), s),
+        lambda f, s: (f.assign(voltage_v=np.r_[f.voltage_v[:-1], np.nan]), s),
+        lambda f, s: (f.assign(time_s=f.time_s[::-1].to_numpy()), s),
+        lambda f, s: (f, {k: v for k, v in s.items() if k != "licence"}),
+        lambda f, s: (f, {**s, "nominal_capacity_ah": float("nan")}),
+    ],
+)
+def test_write_leaves_nothing_on_error(tmp_path, broken):
+    frame, side = broken(_frame(), dict(SIDECAR))
+    with pytest.raises(DataError, match=r"^ds/file\.mat: "):
+        canonical.write(frame, side, tmp_path / "rec.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_read_reports_csv_line_and_missing_sidecar(tmp_path):
+    out = tmp_path / "rec.csv"
+    canonical.write(_frame(), SIDECAR, out)
+    text = out.read_text().splitlines()
+    fields = text[3].split(",")
+    fields[2] = ""  # blank voltage on CSV line 4
+    text[3] = ",".join(fields)
+    out.write_text("\n".join(text) + "\n")
+    with pytest.raises(DataError, match=r"rec\.csv: column 'voltage_v' row 4: missing value"):
+        canonical.read(out)
+    (tmp_path / "rec.json").unlink()
+    canonical.write(_frame(), SIDECAR, tmp_path / "ok.csv")
+    (tmp_path / "ok.json").unlink()
+    with pytest.raises(DataError, match=r"ok\.json: no such file"):
+        canonical.read(tmp_path / "ok.csv")
