@@ -45,6 +45,7 @@ def warm_up(problem: Problem, pop_size: int) -> None:
     """Load the compiled kernels before the clock starts (wall_s is optimizer time only)."""
     x = (problem.lb + problem.ub) / 2
     problem.objective(np.tile(x, (max(pop_size, 1), 1)))
+    problem.objective_one(x)
     problem.objective(x[None, :])
 
 
@@ -53,7 +54,9 @@ def run(cfg: dict, problem: Problem, algorithm: str, seed: int, budget: Budget) 
         raise ConfigError(f"unknown algorithm {algorithm!r}; choose from {', '.join(ALGORITHMS)}")
     rng = seeds.stream(cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed)
     warm_up(problem, budget.pop_size)
-    res = minimize(algorithm, problem.objective, problem.lb, problem.ub, budget, rng)
+    res = minimize(
+        algorithm, problem.objective, problem.lb, problem.ub, budget, rng, problem.objective_one
+    )
     best = dict(zip(problem.names, map(float, res.best_x), strict=False))
     truth = problem.true_free()
     record = {

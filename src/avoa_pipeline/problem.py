@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from . import config as config_mod
 from . import synthetic
 from .errors import DataError
 from .io import read_measurement, uniform_step
+from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
 
 
@@ -50,6 +52,27 @@ class Problem:
 
     def objective(self, X: np.ndarray) -> np.ndarray:
         return ise(self.full(X), self.current_a, self.voltage_v, self.ts, self.spec)
+
+    @cached_property
+    def _one_args(self) -> tuple:
+        # built once: argument assembly would cost more than the simulation itself otherwise
+        spec = self.spec
+        return (
+            np.asarray(self.free_index, dtype=np.int64),
+            np.ascontiguousarray(self.fixed, dtype=float),
+            np.ascontiguousarray(spec.fade_factors, dtype=float),
+            np.ascontiguousarray(self.current_a, dtype=float),
+            np.ascontiguousarray(self.voltage_v, dtype=float),
+            self.ts,
+            spec.soc0,
+            spec.qdis_ah,
+            spec.g_load,
+            spec.dynamics,
+        )
+
+    def objective_one(self, x: np.ndarray) -> float:
+        """:meth:`objective` of one candidate, as a float (the same compiled steps, bit for bit)."""
+        return kernel.ise_one(np.ascontiguousarray(x, dtype=float), *self._one_args)
 
     def simulate(self, x_free) -> dict:
         return simulate(self.full(x_free)[0], self.current_a, self.ts, self.spec)

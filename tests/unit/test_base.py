@@ -87,3 +87,28 @@ def test_progress_with_both_budgets_is_the_larger_fraction():
     t.evaluate(np.zeros((4, 2)))
     t.end_iteration()
     assert t.progress() == 1 / 2  # the iterations run out first
+
+
+def _counting_objective_one(x):
+    return float(sphere(np.asarray(x)[None, :])[0])
+
+
+@pytest.mark.parametrize("one", [None, _counting_objective_one])
+def test_evaluate_one_keeps_the_accounts_of_evaluate(one):
+    budget = Budget(pop_size=2, iterations=None, max_nfe=3)
+    fast = Tracker(sphere, [-1.0, -1.0], [1.0, 1.0], budget, objective_one=one)
+    slow = Tracker(sphere, [-1.0, -1.0], [1.0, 1.0], budget)
+    points = np.array([[0.5, 0.5], [0.1, -0.2], [0.9, 0.0], [0.0, 0.0]])
+    got = [fast.evaluate_one(x) for x in points]
+    want = [float(slow.evaluate(x[None, :])[0]) for x in points]
+    assert got == want
+    assert got[-1] == np.inf  # past max_nfe: not evaluated, never best
+    assert (fast.nfe, fast.best_f) == (slow.nfe, slow.best_f) == (3, slow.best_f)
+    np.testing.assert_array_equal(fast.best_x, [0.1, -0.2])
+
+
+def test_evaluate_one_treats_nan_as_worst():
+    tr = Tracker(sphere, [-1.0], [1.0], Budget(pop_size=1, iterations=1), lambda x: np.nan)
+    assert tr.evaluate_one(np.array([0.3])) == np.inf
+    assert tr.best_x is None
+    assert tr.nfe == 1

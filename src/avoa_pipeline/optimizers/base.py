@@ -27,6 +27,9 @@ import numpy as np
 Objective = Callable[[np.ndarray], np.ndarray]
 """Population in (shape ``(P, D)``), objective values out (shape ``(P,)``)."""
 
+ObjectiveOne = Callable[[np.ndarray], float]
+"""One point in (shape ``(D,)``), its objective value out; must equal ``Objective`` on one row."""
+
 REGISTRY: dict[str, Callable[..., None]] = {}
 
 
@@ -80,8 +83,16 @@ class OptimResult:
 class Tracker:
     """Wraps the objective: counts evaluations, keeps the best, records the history."""
 
-    def __init__(self, objective: Objective, lb, ub, budget: Budget):
+    def __init__(
+        self,
+        objective: Objective,
+        lb,
+        ub,
+        budget: Budget,
+        objective_one: ObjectiveOne | None = None,
+    ):
         self.objective = objective
+        self.objective_one = objective_one
         self.lb = np.asarray(lb, dtype=float)
         self.ub = np.asarray(ub, dtype=float)
         if self.lb.shape != self.ub.shape or self.lb.ndim != 1:
@@ -174,6 +185,25 @@ class Tracker:
             self.best_x = X[i].copy()
         return f
 
+    def evaluate_one(self, x: np.ndarray) -> float:
+        """:meth:`evaluate` of one point, as a float: the path of the algorithms that move one
+        agent at a time (RUN, the local searches), where the population path's array handling
+        would cost more than the simulation."""
+        max_nfe = self.budget.max_nfe
+        if max_nfe is not None and self.nfe >= max_nfe:
+            return np.inf
+        if self.objective_one is None:
+            f = float(self.objective(x[None, :])[0])
+        else:
+            f = float(self.objective_one(x))
+        if f != f:  # NaN: a simulation that blew up is never better than any number
+            f = np.inf
+        self.nfe += 1
+        if f < self.best_f:
+            self.best_f = f
+            self.best_x = np.array(x, dtype=float)
+        return f
+
     def end_iteration(self) -> None:
         """Close an iteration (the initial population is iteration 0) and record the history."""
         self._hist_best.append(self.best_f)
@@ -213,12 +243,17 @@ def minimize(
     ub,
     budget: Budget,
     rng: np.random.Generator,
+    objective_one: ObjectiveOne | None = None,
     **settings,
 ) -> OptimResult:
-    """Run the registered optimizer ``name`` on ``objective`` within ``[lb, ub]``."""
+    """Run the registered optimizer ``name`` on ``objective`` within ``[lb, ub]``.
+
+    ``objective_one``, if given, evaluates a single point faster than ``objective`` on one row and
+    gives the same value.
+    """
     if name not in REGISTRY:
         raise KeyError(f"unknown algorithm {name!r}; known: {', '.join(sorted(REGISTRY))}")
-    tracker = Tracker(objective, lb, ub, budget)
+    tracker = Tracker(objective, lb, ub, budget, objective_one)
     REGISTRY[name](tracker, rng, budget.pop_size, **settings)
     if tracker.best_x is None:
         raise RuntimeError(f"{name} evaluated no point")

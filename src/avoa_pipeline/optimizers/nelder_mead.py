@@ -85,6 +85,16 @@ class LocalSearchAccounting:
             self._next_mark += self.pop_size
         return f, k == n
 
+    def evaluate_one(self, x: np.ndarray) -> float:
+        """:meth:`evaluate` of one point, as a float; ``BudgetExhausted`` if none is left."""
+        if self.remaining < 1:
+            raise BudgetExhausted
+        f = self.tracker.evaluate_one(x)
+        while self.tracker.nfe >= self._next_mark:
+            self.tracker.end_iteration()
+            self._next_mark += self.pop_size
+        return f
+
 
 def restart_loop(tracker: Tracker, rng: np.random.Generator, run_once) -> None:
     """Call ``run_once(x0)`` from fresh uniform random starts until the budget is spent."""
@@ -108,11 +118,7 @@ def nelder_mead(tracker: Tracker, rng: np.random.Generator, pop_size: int, **set
     acc = LocalSearchAccounting(tracker, pop_size)
     bounds = Bounds(tracker.lb, tracker.ub)
 
-    def fun(x: np.ndarray) -> float:
-        f, _ = acc.evaluate(x[None, :])
-        return float(f[0])
-
     def run_once(x0: np.ndarray) -> None:
-        minimize(fun, x0, method="Nelder-Mead", bounds=bounds, options=dict(settings))
+        minimize(acc.evaluate_one, x0, method="Nelder-Mead", bounds=bounds, options=dict(settings))
 
     restart_loop(tracker, rng, run_once)

@@ -151,9 +151,7 @@ def run(
     ib = int(np.argmin(cost))
     best_x, best_f = X[ib].copy(), float(cost[ib])
 
-    def evaluate_one(x: np.ndarray) -> float:
-        return float(tracker.evaluate(x[None, :])[0])
-
+    evaluate_one = tracker.evaluate_one
     while not tracker.done:
         tau = tracker.progress(count_initial=True)  # the reference's it/MaxIt
         f_amp = 20.0 * np.exp(-12.0 * tau)
