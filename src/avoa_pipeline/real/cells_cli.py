@@ -1,0 +1,143 @@
+"""Samsung 30Q and NASA B0005: import and experiments 2-3, for Snakemake and the command line.
+
+``python -m avoa_pipeline.real.cells_cli {samsung-import,nasa-import,arrhenius,fade} ...``
+
+The functions below are what the workflow's rules call (in the Snakemake process, with the
+validated config); :func:`main` is the same for a shell. Expected errors print one line on stderr
+and exit 2, and leave no output file (every writer is atomic).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+
+from .. import config as config_mod
+from ..errors import ConfigError, UserError
+
+
+def _log(path, text: str) -> None:
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text.rstrip() + "\n")
+
+
+def _real(cfg: Mapping, section: str) -> Mapping:
+    real = cfg.get("real") or {}
+    if section not in real or not real[section]:
+        raise ConfigError(f"config: field real.{section} missing (docs/real-data.md)")
+    return real[section]
+
+
+def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
+    from . import samsung
+
+    _real(cfg, "samsung")
+    frame, side = samsung.import_hppc(cfg, temperature, out_csv)
+    _log(log, f"wrote {out_csv}: {len(frame)} samples from {side['source_file']}")
+
+
+def nasa_import(cfg, out_csv, log=None) -> None:
+    from . import nasa
+
+    _real(cfg, "nasa")
+    frame, side = nasa.import_b0005(cfg, out_csv)
+    _log(log, f"wrote {out_csv}: {len(frame)} samples, {len(side['discharges'])} discharges")
+
+
+def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> None:
+    from . import arrhenius as arr
+
+    rc, table = arr.run(hppc, _real(cfg, "samsung"), out_rc, out_arrhenius)
+    pooled = table[(table["scope"] == "pooled_pulses")].set_index("quantity")
+    _log(
+        log,
+        f"wrote {out_rc} ({len(rc)} pulses) and {out_arrhenius}; pooled Ea [kJ/mol]: "
+        + ", ".join(f"{q} {r['ea_kj_mol']:.2f}" for q, r in pooled.iterrows()),
+    )
+
+
+def fade(cfg, record, out_states, out_fits, log=None) -> None:
+    from . import fade as fade_mod
+
+    table, fits = fade_mod.run(record, _real(cfg, "nasa"), out_states, out_fits)
+    _log(
+        log,
+        f"wrote {out_states} ({len(table)} states) and {out_fits}; RMSE: "
+        + ", ".join(f"{r.quantity}/{r.law} {r.rmse:.4g}" for r in fits.itertuples()),
+    )
+
+
+def experiments(cfg, workdir) -> dict:
+    """Both experiments from the configured source files, intermediate files in ``workdir``
+    (for a notebook run on its own); returns the four output tables by name."""
+    from . import arrhenius as arr
+    from . import fade as fade_mod
+
+    work = Path(workdir)
+    hppc = {}
+    for temperature in _real(cfg, "samsung")["hppc"]:
+        hppc[temperature] = work / f"samsung_hppc_{temperature}.csv"
+        samsung_import(cfg, temperature, hppc[temperature])
+    rc, table = arr.run(hppc, _real(cfg, "samsung"), work / "rc.csv", work / "arrhenius.csv")
+    nasa_import(cfg, work / "nasa_b0005.csv")
+    states, fits = fade_mod.run(
+        work / "nasa_b0005.csv", _real(cfg, "nasa"), work / "fade.csv", work / "fade_fit.csv"
+    )
+    return {"rc": rc, "arrhenius": table, "fade": states, "fade_fit": fits}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        raise UserError(f"{self.prog}: {message}")
+
+
+def _pair(text: str) -> tuple[str, str]:
+    key, sep, value = text.partition("=")
+    if not sep or not key or not value:
+        raise argparse.ArgumentTypeError(f"expected TEMPERATURE=CSV (e.g. 20degC=a.csv): {text!r}")
+    return key, value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="avoa_pipeline.real.cells_cli", description=__doc__.splitlines()[0])
+    p.add_argument("--config", default=None, help="config file (default config/config.yaml)")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    s = sub.add_parser("samsung-import", help="one Samsung HPPC file into the canonical form")
+    s.add_argument("--temperature", required=True, help="key of real.samsung.hppc, e.g. 20degC")
+    s.add_argument("--out", required=True, help="canonical CSV (sidecar .json beside it)")
+    n = sub.add_parser("nasa-import", help="the 168 B0005 discharges into one canonical record")
+    n.add_argument("--out", required=True)
+    a = sub.add_parser("arrhenius", help="experiment 2: R0, Rtr, tau per pulse and Arrhenius fits")
+    a.add_argument("--hppc", type=_pair, nargs="+", required=True, metavar="TEMP=CSV")
+    a.add_argument("--out-rc", required=True)
+    a.add_argument("--out-arrhenius", required=True)
+    f = sub.add_parser("fade", help="experiment 3: capacity/resistance per state and fade laws")
+    f.add_argument("--record", required=True, help="canonical B0005 record (nasa-import)")
+    f.add_argument("--out-states", required=True)
+    f.add_argument("--out-fits", required=True)
+    return p
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        cfg = config_mod.load(args.config)
+        if args.command == "samsung-import":
+            samsung_import(cfg, args.temperature, args.out)
+        elif args.command == "nasa-import":
+            nasa_import(cfg, args.out)
+        elif args.command == "arrhenius":
+            arrhenius(cfg, dict(args.hppc), args.out_rc, args.out_arrhenius)
+        else:
+            fade(cfg, args.record, args.out_states, args.out_fits)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
