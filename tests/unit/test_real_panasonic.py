@@ -1,0 +1,207 @@
+"""Panasonic 18650PF import: sign, resampling with charge conserved, HPPC merge, soak trim, errors.
+
+Tests on real files read them from the configured data root (never copied into the repository)
+and are skipped where that root is absent.
+"""
+
+import copy
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import scipy.io
+from scipy.interpolate import PPoly
+
+from avoa_pipeline.errors import ConfigError, DataError
+from avoa_pipeline.real import canonical, panasonic
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def real(cfg):
+    real = copy.deepcopy(cfg["real"])
+    root = Path(real["root"])
+    real["root"] = str(root if root.is_absolute() else (REPO / root).resolve())
+    if not Path(real["root"], "panasonic_18650pf").is_dir():
+        pytest.skip(f"Panasonic data not found under {real['root']}")
+    return real
+
+
+def _key(real, temp, cycle):
+    return real["panasonic"]["temperatures"][temp]["drive_cycles"][cycle]
+
+
+def test_bin_means_conserve_charge_exactly():
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.05, 3.0, 4000))
+    cur = rng.normal(0.0, 5.0, t.size - 1)
+    v = rng.normal(3.7, 0.1, t.size)
+    grid, means = panasonic.bin_means(t, cur, {"v": v}, 1.0)
+    span = grid[-1] + 1.0
+    exact = PPoly(cur[None, :], t).integrate(t[0], t[0] + span)
+    total = np.sum(means["current"]) * 1.0
+    assert abs(total - exact) <= 1e-9 * np.sum(np.abs(cur) * np.diff(t))
+    assert np.array_equal(grid, np.arange(grid.size, dtype=float))
+    # a constant voltage stays constant, a linear one is averaged at the bin centre
+    _, m = panasonic.bin_means(t, cur, {"c": np.full(t.size, 3.3), "lin": 2.0 * t}, 1.0)
+    np.testing.assert_allclose(m["c"], 3.3, rtol=1e-9)
+    np.testing.assert_allclose(m["lin"], 2.0 * (t[0] + grid + 0.5), rtol=1e-9)
+
+
+def test_interval_current_uses_ah_counter_over_gaps():
+    t = np.array([0.0, 0.1, 0.2, 60.2, 60.3])
+    cur = np.array([-1.0, -1.0, -2.0, 0.0, 0.0])
+    ah = np.array([0.0, -0.1 / 3600, -0.2 / 3600, -60.2 / 3600, -60.2 / 3600])
+    held, n_gaps = panasonic.interval_current(t, cur, ah, gap_s=0.5)
+    np.testing.assert_allclose(held, [-1.0, -1.0, -1.0, 0.0])
+    assert n_gaps == 1
+
+
+def test_import_drive_cycle(real, tmp_path):
+    out = tmp_path / "us06.csv"
+    key = _key(real, "0degC", "us06")
+    side = panasonic.import_record(real, [key], "drive_cycle:us06", 0.0, out, trim_soak=True)
+    frame, side2 = canonical.read(out)
+    assert side2 == side
+    assert tuple(frame.columns) == canonical.COLUMNS
+    assert np.array_equal(frame["time_s"], np.arange(len(frame), dtype=float))
+    # discharge is positive now: no regen below 10 degC, so nothing is negative beyond noise
+    assert frame["current_a"].min() > -0.05
+    assert frame["current_a"].max() > 10.0
+    # and the voltage falls when the (positive = discharge) current rises
+    r, n = panasonic.step_resistance(frame.time_s, frame.current_a, frame.voltage_v, 1.0)
+    assert n > 100
+    assert r < 0
+    # charge: exactly the piecewise-constant signal's, within 0.1 % of the tester's counter
+    discharged = frame["current_a"].sum() / 3600.0
+    assert abs(discharged - side["discharged_ah"]) < 1e-9 * discharged
+    assert abs(side["discharged_ah"] - side["discharged_ah_piecewise_constant"]) < 1e-9 * discharged
+    assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 1e-3 * discharged
+    assert 2.30 < side["discharged_ah"] < 2.34  # the test stops after 2.32 Ah at 0 degC
+    for field in canonical.SIDECAR_KEYS:
+        assert field in side
+    assert side["source_sha256"] == real["sources"][key]
+
+
+def test_hppc_merge_follows_the_ah_counter(real, tmp_path):
+    spec = real["panasonic"]["temperatures"]["0degC"]
+    out = tmp_path / "hppc.csv"
+    side = panasonic.import_record(real, [spec["hppc"], spec["hppc_steps"]], "hppc", 0.0, out)
+    frame, _ = canonical.read(out)
+    assert side["merged_blocks"] > 10
+    assert side["later_test_rows_dropped"] == 0
+    cur = frame["current_a"].to_numpy()
+    # the SOC steps (0.87 A, logged every 60 s in the other file) are in the record
+    assert np.sum(np.abs(cur - 0.87) < 0.03) > 5000  # seconds at 0.87 A (about 6,400 here)
+    assert np.max(cur) > 17.0  # and the 6C pulses
+    assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 0.01 * 2.5
+    assert frame["voltage_v"].iloc[-1] < 3.4
+
+
+def test_thermal_soak_is_trimmed(real, tmp_path):
+    # the 10 degC HWFET file starts with ~1 h of rest (cell charged warm, logged every 60 s)
+    key = "panasonic_18650pf/10degC/Drive Cycles/03-27-17_09.06 10degC_HWFET_Pan18650PF.mat"
+    path = Path(real["root"], key)
+    if not path.is_file():
+        pytest.skip(f"{path} not present")
+    local = {**real, "sources": {key: hashlib.sha256(path.read_bytes()).hexdigest()}}
+    out = tmp_path / "hwfet10.csv"
+    side = panasonic.import_record(local, [key], "drive_cycle:hwfet", 10.0, out, trim_soak=True)
+    frame, _ = canonical.read(out)
+    first = frame["time_s"][np.abs(frame["current_a"]) > panasonic.REST_A].iloc[0]
+    assert 3400 < side["leading_rest_trimmed_s"] < 3600
+    assert 55 <= first <= 65
+    assert side["n_samples"] == len(frame)
+
+
+def test_trim_leaves_short_rests_alone():
+    frame = pd.DataFrame(
+        {
+            "time_s": np.arange(100.0),
+            "current_a": np.r_[np.zeros(30), np.ones(70)],
+            "voltage_v": 4.0,
+            "temperature_c": 25.0,
+        }
+    )
+    out, cut = panasonic.trim_leading_rest(frame, panasonic.Settings())
+    assert cut == 0.0
+    assert out is frame
+    out, cut = panasonic.trim_leading_rest(frame, panasonic.Settings(max_leading_rest_s=20.0,
+                                                                      keep_rest_s=5.0))
+    assert cut == 25.0
+    assert out["time_s"].iloc[0] == 0.0
+    assert out["current_a"].iloc[4] == 0.0
+    assert out["current_a"].iloc[5] == 1.0
+
+
+# --- bad input: one line naming file and field, nothing written -------------------------------
+
+
+def _copy_with(real, tmp_path, edit):
+    """A one-file data root holding an edited copy of the 0 degC US06 file."""
+    key = _key(real, "0degC", "us06")
+    mat = scipy.io.loadmat(Path(real["root"], key), squeeze_me=True, struct_as_record=False)
+    # the first 5,000 rows (500 s of driving) keep the test fast and hold plenty of steps
+    meas = {name: getattr(mat["meas"], name)[:5000] for name in mat["meas"]._fieldnames}
+    edit(meas)
+    root = tmp_path / "root"
+    dest = root / "copy.mat"
+    root.mkdir()
+    scipy.io.savemat(dest, {"meas": meas})
+    sha = hashlib.sha256(dest.read_bytes()).hexdigest()
+    return {**real, "root": str(root), "sources": {"copy.mat": sha}}
+
+
+def _fails(local, tmp_path, pattern):
+    out = tmp_path / "out" / "rec.csv"
+    with pytest.raises(DataError, match=pattern) as info:
+        panasonic.import_record(local, ["copy.mat"], "drive_cycle:us06", 0.0, out)
+    assert "\n" not in str(info.value)
+    assert not out.parent.exists() or list(out.parent.iterdir()) == []
+
+
+def test_flipped_sign_is_refused(real, tmp_path):
+    def flip(meas):
+        meas["Current"] = -meas["Current"]
+
+    local = _copy_with(real, tmp_path, flip)
+    _fails(local, tmp_path, r"copy\.mat: field 'meas\.Current': sign contradicts the voltage")
+
+
+def test_unedited_copy_imports(real, tmp_path):
+    local = _copy_with(real, tmp_path, lambda meas: None)
+    side = panasonic.import_record(local, ["copy.mat"], "drive_cycle:us06", 0.0, tmp_path / "a.csv")
+    assert side["sign_check"]["copy.mat"]["median_step_dv_di_ohm"] > 0
+
+
+@pytest.mark.parametrize(
+    ("edit", "pattern"),
+    [
+        (lambda m: m.pop("Voltage"), r"field 'meas\.Voltage': missing"),
+        (lambda m: m["Voltage"].__setitem__(500, np.nan), r"'meas\.Voltage' row 501: not finite"),
+        (lambda m: m["Time"].__setitem__(500, m["Time"][498]), r"'meas\.Time' row 501: time goes"),
+    ],
+)
+def test_bad_source_fields(real, tmp_path, edit, pattern):
+    _fails(_copy_with(real, tmp_path, edit), tmp_path, r"copy\.mat: (field )?" + pattern)
+
+
+def test_changed_or_missing_source(real, tmp_path):
+    local = _copy_with(real, tmp_path, lambda meas: None)
+    local["sources"] = {"copy.mat": "0" * 64}
+    _fails(local, tmp_path, r"copy\.mat: sha256 [0-9a-f]{64} does not match config")
+    Path(local["root"], "copy.mat").unlink()
+    _fails(local, tmp_path, r"copy\.mat: missing \(config real\.sources\['copy\.mat'\]\)")
+
+
+def test_records_need_a_checksum_for_every_file(cfg):
+    names = panasonic.records(cfg)
+    assert {"25degC/hppc", "25degC/ocv_c20", "0degC/hppc", "25degC/us06"} <= set(names)
+    broken = copy.deepcopy(cfg)
+    broken["real"]["sources"].pop(_key(cfg["real"], "25degC", "us06"))
+    with pytest.raises(ConfigError, match=r"real\.panasonic \(25degC/us06\).*no entry"):
+        panasonic.records(broken)
+    assert panasonic.records({k: v for k, v in cfg.items() if k != "real"}) == {}
