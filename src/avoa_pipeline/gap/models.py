@@ -1,0 +1,682 @@
+"""Candidate cell models for the gap diagnosis: the paper's model and its augmentations.
+
+The base model is the paper's (eqs. 3-6), with the rational OCV of ``model/battery.py`` written
+with β as a parameter instead of through Vdis (the two are the same curve; the diagnosis knows no
+Qdis of an unknown cell), a free capacity and a free initial SOC. Each effect of
+:data:`avoa_pipeline.gap.EFFECTS` adds its own parameters; at its *neutral* values the augmented
+model is the base model exactly, so every candidate nests the base and the ladder can stack them.
+
+Per sample k (current i positive = discharge, Δt_k = t[k+1] − t[k], zero-order hold):
+
+    i_k     = i_meas,k + b                                       current_offset (b)
+    OCV(s)  = Vnom·s / (1 − β(1 − s)) + Σ_j d_j·φ_j(s)            ocv_shape: hat functions φ_j on
+                                                                  K knots over the visited SOC
+    f0_k    = exp(θ0 (1/T_k − 1/Tref)),  f1_k likewise with θ1   thermal (Arrhenius, T in K)
+    V_k     = OCV(s_k) − M·h_k − f0_k·R0·i_k − v1_k − v2_k       hysteresis M,
+              − (2RT_k/F)·asinh(g·i_k/2) + c                     Butler–Volmer g = 1/i0, offset c
+    v1_k+1  = a1·v1_k + f1_k·R1(1 − a1)·i_k,  a1 = exp(−Δt/τ1)    eq. 3 (v2: second_rc, R2, τ2)
+    ie_k    = i_k if i_k > 0 else η·i_k                          coulombic_efficiency η (charge)
+    h_k+1   = e_k·h_k + (1 − e_k)·sign(i_k),  e_k = exp(−|ie_k·γ·Δt/(3600 Q)|)
+                                                                  Plett's one-state hysteresis
+    s_k+1   = s_k − ie_k·Δt/(3600 Q)                              eq. 6
+
+Neutral values: b = 0, d = 0, θ0 = θ1 = 0, M = 0, g = 0, c = 0, R2 = 0, η = 1.
+
+Why hand-written numerics: the recursion is sequential in time (as in ``model/kernel.py``), so it
+is compiled with numba; one call steps a whole set of parameter rows together (time outer, rows
+inner) so that a finite-difference Jacobian costs one pass over the record. Fitting is scipy's
+``least_squares`` (trust-region reflective, box bounds) on that Jacobian.
+
+Optimisation runs in internal coordinates: log10 for capacity, time constants and the hysteresis
+rate, and log10(1 − β) for the OCV curvature (β → 1 flattens the curve; its natural scale is
+logarithmic). :func:`Fitted.params` reports physical values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba as nb
+import numpy as np
+import pandas as pd
+from scipy.optimize import brentq, least_squares
+
+from . import EFFECTS
+
+FARADAY = 96485.33212
+GAS_R = 8.314462618
+T_DEFAULT_K = 298.15
+N_KNOTS = 6  # ocv_shape: knots over the visited SOC range (5 segments)
+
+# internal parameter layout (one full vector per model; absent effects sit at neutral values)
+_NAMES = (
+    "vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1", "r2", "ltau2",
+    "hm", "lgamma", "h0", "bvg", "th0", "th1", "ioff", "voff", "eta",
+)  # fmt: skip
+IDX = {n: k for k, n in enumerate(_NAMES)}
+D0 = len(_NAMES)
+NFULL = D0 + N_KNOTS
+KNOT_NAMES = tuple(f"d{j}" for j in range(N_KNOTS))
+for _j, _n in enumerate(KNOT_NAMES):
+    IDX[_n] = D0 + _j
+
+BASE_PARAMS = ("vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1")
+EFFECT_PARAMS = {
+    "second_rc": ("r2", "ltau2"),
+    "hysteresis": ("hm", "lgamma", "h0"),
+    "butler_volmer": ("bvg",),
+    "thermal": ("th0", "th1"),
+    "ocv_shape": KNOT_NAMES,
+    "current_offset": ("ioff",),
+    "voltage_offset": ("voff",),
+    "coulombic_efficiency": ("eta",),
+}
+assert set(EFFECT_PARAMS) == set(EFFECTS)
+
+NEUTRAL = np.zeros(NFULL)
+NEUTRAL[IDX["eta"]] = 1.0
+NEUTRAL[IDX["ltau2"]] = 1.0  # irrelevant while R2 = 0
+NEUTRAL[IDX["lgamma"]] = 2.0  # irrelevant while M = 0
+
+# physical names in reports: internal name -> (report name, to-physical)
+_REPORT = {
+    "vnom": ("vnom_v", lambda x: x),
+    "lc": ("beta", lambda x: 1.0 - 10.0**x),
+    "lq": ("capacity_ah", lambda x: 10.0**x),
+    "soc0": ("soc0", lambda x: x),
+    "r0": ("r0_ohm", lambda x: x),
+    "r1": ("r1_ohm", lambda x: x),
+    "ltau1": ("tau1_s", lambda x: 10.0**x),
+    "r2": ("r2_ohm", lambda x: x),
+    "ltau2": ("tau2_s", lambda x: 10.0**x),
+    "hm": ("hysteresis_m_v", lambda x: x),
+    "lgamma": ("hysteresis_gamma", lambda x: 10.0**x),
+    "h0": ("hysteresis_h0", lambda x: x),
+    "bvg": ("bv_inv_i0_per_a", lambda x: x),
+    "th0": ("thermal_theta_r0_k", lambda x: x),
+    "th1": ("thermal_theta_rc_k", lambda x: x),
+    "ioff": ("current_offset_a", lambda x: x),
+    "voff": ("voltage_offset_v", lambda x: x),
+    "eta": ("coulombic_efficiency", lambda x: x),
+    **{n: (f"ocv_{n}_v", lambda x: x) for n in KNOT_NAMES},
+}
+
+
+def n_effect_params(effect: str) -> int:
+    return len(EFFECT_PARAMS[effect])
+
+
+# ----------------------------------------------------------------------------------------------
+# compiled simulation
+
+
+@nb.njit(cache=True, nogil=True)
+def _simulate(P, cur, dt, uniform, dinv_t, two_rt_f, s_lo, ds, out, tr):
+    """Terminal voltage of every row of ``P`` (internal layout) into ``out`` (n, m).
+
+    ``tr`` (4, n) records SOC, h, v1 + v2 and the thermal R0 factor of row 0 when non-empty.
+    """
+    m = P.shape[0]
+    n = cur.shape[0]
+    nk = P.shape[1] - D0
+    record = tr.shape[0] > 0
+    vnom = np.empty(m)
+    omb = np.empty(m)
+    beta = np.empty(m)
+    q3600 = np.empty(m)
+    a1 = np.empty(m)
+    a2 = np.empty(m)
+    gam = np.empty(m)
+    shape = np.zeros(m, dtype=np.bool_)
+    soc = np.empty(m)
+    h = np.empty(m)
+    v1 = np.zeros(m)
+    v2 = np.zeros(m)
+    for c in range(m):
+        vnom[c] = P[c, 0]
+        omb[c] = 10.0 ** P[c, 1]
+        beta[c] = 1.0 - omb[c]
+        q3600[c] = 3600.0 * 10.0 ** P[c, 2]
+        soc[c] = P[c, 3]
+        a1[c] = np.exp(-dt[0] / 10.0 ** P[c, 6])
+        a2[c] = np.exp(-dt[0] / 10.0 ** P[c, 8])
+        gam[c] = 10.0 ** P[c, 10]
+        h[c] = P[c, 11]
+        for j in range(nk):
+            if P[c, D0 + j] != 0.0:
+                shape[c] = True
+    for k in range(n):
+        dtk = dt[k]
+        ik0 = cur[k]
+        dinv = dinv_t[k]
+        rtf = two_rt_f[k]
+        for c in range(m):
+            i = ik0 + P[c, 15]
+            s = soc[c]
+            sc = min(max(s, 0.0), 1.2)  # the rational curve is singular outside
+            ocv = vnom[c] * sc / (omb[c] + beta[c] * sc)
+            if shape[c]:
+                x = (sc - s_lo) / ds
+                if x <= 0.0:
+                    ocv += P[c, D0]
+                elif x >= nk - 1:
+                    ocv += P[c, D0 + nk - 1]
+                else:
+                    j = int(x)
+                    w = x - j
+                    ocv += (1.0 - w) * P[c, D0 + j] + w * P[c, D0 + j + 1]
+            f0 = 1.0
+            f1 = 1.0
+            if P[c, 13] != 0.0:
+                f0 = np.exp(P[c, 13] * dinv)
+            if P[c, 14] != 0.0:
+                f1 = np.exp(P[c, 14] * dinv)
+            v = ocv - P[c, 9] * h[c] - f0 * P[c, 4] * i - v1[c] - v2[c] + P[c, 16]
+            if P[c, 12] != 0.0:
+                v -= rtf * np.arcsinh(0.5 * P[c, 12] * i)
+            out[k, c] = v
+            if record and c == 0:
+                tr[0, k] = s
+                tr[1, k] = h[c]
+                tr[2, k] = v1[c] + v2[c]
+                tr[3, k] = f0
+            if not uniform:
+                a1[c] = np.exp(-dtk / 10.0 ** P[c, 6])
+                a2[c] = np.exp(-dtk / 10.0 ** P[c, 8])
+            v1[c] = a1[c] * v1[c] + f1 * P[c, 5] * (1.0 - a1[c]) * i
+            v2[c] = a2[c] * v2[c] + f1 * P[c, 7] * (1.0 - a2[c]) * i
+            ie = i if i > 0.0 else P[c, 17] * i
+            dq = ie * dtk / q3600[c]
+            if P[c, 9] != 0.0:
+                e = np.exp(-abs(dq * gam[c]))
+                sg = 1.0 if i > 0.0 else (-1.0 if i < 0.0 else 0.0)
+                if sg != 0.0:
+                    h[c] = e * h[c] + (1.0 - e) * sg
+            soc[c] = s - dq
+
+
+# ----------------------------------------------------------------------------------------------
+# records
+
+
+@dataclass(frozen=True)
+class Record:
+    """The inputs a simulation needs, prepared once per record."""
+
+    t: np.ndarray
+    i: np.ndarray
+    v: np.ndarray
+    temp_c: np.ndarray | None
+    dt: np.ndarray  # dt[k] = t[k+1] - t[k]; the last is the median step (never used by V)
+    uniform: bool
+    tref_k: float
+    dinv_t: np.ndarray
+    two_rt_f: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.t.size
+
+    @property
+    def temperature_varies(self) -> bool:
+        return self.temp_c is not None and float(np.ptp(self.temp_c)) >= THERMAL_MIN_RANGE_C
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, tref_k: float | None = None) -> Record:
+        t = np.ascontiguousarray(frame["time_s"].to_numpy(dtype=float))
+        i = np.ascontiguousarray(frame["current_a"].to_numpy(dtype=float))
+        v = np.ascontiguousarray(frame["voltage_v"].to_numpy(dtype=float))
+        temp = None
+        if "temperature_c" in frame.columns:
+            temp = np.ascontiguousarray(frame["temperature_c"].to_numpy(dtype=float))
+        d = np.diff(t)
+        step = float(np.median(d)) if d.size else 1.0
+        dt = np.append(d, step)
+        uniform = bool(np.all(np.abs(d - step) <= 1e-9 * max(step, 1.0)))
+        if uniform:
+            dt = np.full(t.size, step)
+        tk = np.full(t.size, T_DEFAULT_K) if temp is None else temp + 273.15
+        if tref_k is None:
+            tref_k = float(np.mean(tk))
+        return cls(
+            t=t,
+            i=i,
+            v=v,
+            temp_c=temp,
+            dt=np.ascontiguousarray(dt),
+            uniform=uniform,
+            tref_k=float(tref_k),
+            dinv_t=np.ascontiguousarray(1.0 / tk - 1.0 / tref_k),
+            two_rt_f=np.ascontiguousarray(2.0 * GAS_R * tk / FARADAY),
+        )
+
+    def charge_ah(self) -> np.ndarray:
+        """Charge removed since the start (Ah) at each sample (discharge positive)."""
+        q = np.concatenate([[0.0], np.cumsum(self.i[:-1] * self.dt[:-1])]) / 3600.0
+        return q
+
+    def imax(self) -> float:
+        return max(float(np.quantile(np.abs(self.i), 0.99)), 1e-6)
+
+
+THERMAL_MIN_RANGE_C = 2.0
+"""The thermal candidate needs the measured temperature to move at least this much (°C): with
+less, an Arrhenius factor is a constant that R0 and R1 already absorb."""
+
+
+@dataclass(frozen=True)
+class Knots:
+    lo: float
+    step: float
+
+    def grid(self) -> np.ndarray:
+        return self.lo + self.step * np.arange(N_KNOTS)
+
+
+def simulate_rows(rec: Record, P: np.ndarray, knots: Knots, traces: bool = False):
+    """Voltage (n, m) of parameter rows ``P`` (m, NFULL); with traces, also (4, n) of row 0."""
+    P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+    out = np.empty((rec.n, P.shape[0]))
+    tr = np.empty((4, rec.n)) if traces else np.empty((0, 0))
+    _simulate(
+        P, rec.i, rec.dt, rec.uniform, rec.dinv_t, rec.two_rt_f, knots.lo, knots.step, out, tr
+    )
+    return (out, tr) if traces else out
+
+
+def ocv(x: np.ndarray, soc: np.ndarray, knots: Knots) -> np.ndarray:
+    """The OCV curve (rational + ocv_shape correction + voltage offset) of internal vector x."""
+    sc = np.clip(np.asarray(soc, dtype=float), 0.0, 1.2)
+    omb = 10.0 ** x[IDX["lc"]]
+    v = x[IDX["vnom"]] * sc / (omb + (1.0 - omb) * sc)
+    d = x[D0:]
+    if np.any(d != 0.0):
+        v = v + np.interp(sc, knots.grid(), d)
+    return v + x[IDX["voff"]]
+
+
+# ----------------------------------------------------------------------------------------------
+# structure: which parameters are free, their bounds and starts
+
+
+@dataclass
+class Structure:
+    effects: tuple[str, ...]
+    free: tuple[str, ...]
+    lo: np.ndarray
+    hi: np.ndarray
+    knots: Knots
+
+    @property
+    def free_idx(self) -> np.ndarray:
+        return np.array([IDX[n] for n in self.free], dtype=int)
+
+
+def bounds_for(rec: Record) -> dict[str, tuple[float, float]]:
+    """Wide, physically plausible bounds (internal coordinates) for one record."""
+    q = rec.charge_ah()
+    swing = float(np.ptp(q))
+    imax = rec.imax()
+    dt_med = float(np.median(rec.dt))
+    duration = float(rec.t[-1] - rec.t[0])
+    tau_lo = np.log10(max(dt_med, 0.05))
+    tau_hi = np.log10(max(min(2e4, 2.0 * duration), 10.0 * dt_med))
+    q_lo = max(0.01, 0.8 * swing)  # the record may not span more than 125 % of the capacity
+    return {
+        "vnom": (1.5, 5.0),
+        "lc": (-4.0, np.log10(3.0)),  # β ∈ [−2, 0.9999]: OCV rising with SOC
+        "lq": (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo))),
+        "soc0": (0.0, 1.0),
+        "r0": (0.0, 2.0),
+        "r1": (0.0, 2.0),
+        "ltau1": (tau_lo, tau_hi),
+        "r2": (0.0, 2.0),
+        "ltau2": (tau_lo, tau_hi),
+        "hm": (0.0, 0.3),
+        "lgamma": (-1.0, 4.0),
+        "h0": (-1.0, 1.0),
+        "bvg": (0.0, 100.0 / imax),
+        "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
+        "th1": (0.0, 12000.0),
+        "ioff": (-0.1 * imax, 0.1 * imax),
+        "voff": (-0.3, 0.3),
+        "eta": (0.7, 1.0),
+        **{n: (-0.5, 0.5) for n in KNOT_NAMES},
+    }
+
+
+def structure(
+    rec: Record,
+    effects=(),
+    knots: Knots | None = None,
+    fix_capacity: bool = False,
+    fix_soc0: bool = False,
+) -> Structure:
+    effects = tuple(effects)
+    for e in effects:
+        if e not in EFFECT_PARAMS:
+            raise ValueError(f"unknown effect {e!r}")
+    free = [n for n in BASE_PARAMS if not (n == "lq" and fix_capacity)]
+    free = [n for n in free if not (n == "soc0" and fix_soc0)]
+    for e in effects:
+        free.extend(EFFECT_PARAMS[e])
+    b = bounds_for(rec)
+    lo = np.array([b[n][0] for n in free])
+    hi = np.array([b[n][1] for n in free])
+    return Structure(effects, tuple(free), lo, hi, knots or Knots(0.0, 0.2))
+
+
+# ----------------------------------------------------------------------------------------------
+# fitting
+
+
+@dataclass
+class FitResult:
+    x: np.ndarray  # full internal vector
+    cost_fit: float  # 0.5 * sum of squared fitting residuals (on the fitted subset)
+    nfev: int
+
+
+def _fd_steps(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    h = 1e-6 * np.maximum(np.abs(x), 1e-2 * (hi - lo))
+    return np.where(x + h > hi, -h, h)
+
+
+class _Problem:
+    """Residuals and their forward-difference Jacobian for least_squares, one pass per call."""
+
+    def __init__(self, rec: Record, st: Structure, x_full: np.ndarray, idx: np.ndarray):
+        self.rec, self.st, self.idx = rec, st, idx
+        self.base = x_full.copy()
+        self.fi = st.free_idx
+        self.vm = rec.v[idx]
+        self.shape = "ocv_shape" in st.effects
+        self._cache_x = None
+        self._cache_v = None
+        if self.shape:
+            self.grid = np.linspace(st.knots.lo, st.knots.lo + st.knots.step * (N_KNOTS - 1), 41)
+            self.w_mono = 10.0 * np.sqrt(idx.size)
+
+    def full(self, z: np.ndarray) -> np.ndarray:
+        x = self.base.copy()
+        x[self.fi] = z
+        return x
+
+    def _penalty(self, x: np.ndarray) -> np.ndarray:
+        # monotone OCV: a falling step between grid points costs as much as w_mono volts
+        d = np.diff(ocv(x, self.grid, self.st.knots))
+        return self.w_mono * np.minimum(d, 0.0)
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        x = self.full(z)
+        v = simulate_rows(self.rec, x[None, :], self.st.knots)[:, 0]
+        r = v[self.idx] - self.vm
+        self._cache_x, self._cache_v = z.copy(), r
+        if self.shape:
+            r = np.concatenate([r, self._penalty(x)])
+        return r
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        h = _fd_steps(z, self.st.lo, self.st.hi)
+        X = np.repeat(self.full(z)[None, :], z.size + 1, axis=0)
+        for j, k in enumerate(self.fi):
+            X[j + 1, k] += h[j]
+        V = simulate_rows(self.rec, X, self.st.knots)[self.idx]
+        J = (V[:, 1:] - V[:, :1]) / h
+        if self.shape:
+            p0 = self._penalty(X[0])
+            Jp = np.stack([(self._penalty(X[j + 1]) - p0) / h[j] for j in range(z.size)], 1)
+            J = np.vstack([J, Jp])
+        return J
+
+
+def fit_structure(
+    rec: Record,
+    st: Structure,
+    x0: np.ndarray,
+    idx: np.ndarray,
+    max_nfev: int = 200,
+    tol: float = 1e-9,
+) -> FitResult:
+    """Least-squares fit of the free parameters of ``st`` from full vector ``x0``.
+
+    ``idx``: the samples whose residuals are fitted (the whole record is always simulated).
+    """
+    prob = _Problem(rec, st, x0, idx)
+    z0 = np.clip(x0[st.free_idx], st.lo, st.hi)
+    # strictly inside the box: trf needs an interior start
+    span = st.hi - st.lo
+    z0 = np.clip(z0, st.lo + 1e-10 * span, st.hi - 1e-10 * span)
+    res = least_squares(
+        prob.residuals,
+        z0,
+        jac=prob.jacobian,
+        bounds=(st.lo, st.hi),
+        method="trf",
+        x_scale="jac",
+        ftol=tol,
+        xtol=tol,
+        gtol=tol,
+        max_nfev=max_nfev,
+    )
+    return FitResult(prob.full(res.x), float(res.cost), int(res.nfev))
+
+
+def fit_indices(n: int, mask: np.ndarray | None, max_points: int) -> np.ndarray:
+    """Samples fitted: those in ``mask``, thinned by a fixed stride to at most ``max_points``."""
+    idx = np.arange(n) if mask is None else np.flatnonzero(mask)
+    stride = int(np.ceil(idx.size / max_points))
+    return idx[::stride] if stride > 1 else idx
+
+
+# ----------------------------------------------------------------------------------------------
+# starts
+
+
+def _r0_guess(rec: Record) -> float:
+    di = np.diff(rec.i)
+    dv = np.diff(rec.v)
+    big = np.abs(di) > 0.2 * rec.imax()
+    if big.sum() >= 1:
+        est = -dv[big] / di[big]
+        est = est[np.isfinite(est) & (est > 0)]
+        if est.size:
+            return float(np.clip(np.median(est), 1e-4, 1.0))
+    return 0.05
+
+
+def base_starts(rec: Record, capacity_ah=None, soc0=None) -> list[np.ndarray]:
+    """A handful of base-model starts spread over capacity, initial SOC and τ1."""
+    b = bounds_for(rec)
+    q = rec.charge_ah()
+    swing = max(float(np.ptp(q)), 1e-6)
+    r0 = _r0_guess(rec)
+    caps = [capacity_ah] if capacity_ah else [1.25 * swing, 3.0 * swing, 10.0 * swing]
+    starts = []
+    for cap in caps:
+        cap = float(np.clip(cap, 10 ** b["lq"][0], 10 ** b["lq"][1]))
+        s_hi = 1.0 + float(np.min(q)) / cap  # SOC0 such that SOC stays ≤ 1
+        s_lo = float(np.max(q)) / cap  # ... and ≥ 0
+        if soc0 is not None:
+            socs = [soc0]
+        elif s_lo >= s_hi:
+            socs = [float(np.clip(0.5 * (s_lo + s_hi), 0, 1))]
+        else:
+            socs = sorted({float(np.clip(s_lo + f * (s_hi - s_lo), 0.02, 1.0)) for f in (0.9, 0.4)})
+        for s0 in socs:
+            x = NEUTRAL.copy()
+            x[IDX["lq"]] = np.log10(cap)
+            x[IDX["soc0"]] = s0
+            x[IDX["r0"]] = r0
+            x[IDX["r1"]] = 0.5 * r0
+            x[IDX["ltau1"]] = np.clip(np.log10(60.0), *b["ltau1"])
+            x[IDX["vnom"]], x[IDX["lc"]] = _ocv_start(rec, x, cap, s0, r0, b)
+            starts.append(x)
+    return starts
+
+
+def _ocv_start(rec, x, cap, s0, r0, b):
+    """Vnom and log10(1−β) fitted to v + R0·i against the coulomb-counted SOC (no dynamics)."""
+    soc = np.clip(s0 - rec.charge_ah() / cap, 0.0, 1.2)
+    target = rec.v + r0 * rec.i
+    sel = slice(None, None, max(1, rec.n // 2000))
+    s, y = soc[sel], target[sel]
+
+    def res(p):
+        omb = 10.0 ** p[1]
+        return p[0] * s / (omb + (1 - omb) * s) - y
+
+    p0 = np.array([np.clip(np.max(y) + 0.05, *b["vnom"]), -1.0])
+    r = least_squares(res, p0, bounds=([b["vnom"][0], b["lc"][0]], [b["vnom"][1], b["lc"][1]]))
+    return r.x[0], r.x[1]
+
+
+def effect_starts(rec: Record, x_base: np.ndarray, effect: str) -> list[np.ndarray]:
+    """Starts for one added effect from a fitted vector (its other parameters kept)."""
+    b = bounds_for(rec)
+    imax = rec.imax()
+    out = []
+
+    def with_(**kw):
+        x = x_base.copy()
+        for k, v in kw.items():
+            x[IDX[k]] = np.clip(v, *b[k])
+        out.append(x)
+
+    lt1 = x_base[IDX["ltau1"]]
+    r1 = max(x_base[IDX["r1"]], 1e-4)
+    if effect == "second_rc":
+        with_(r2=0.3 * r1, ltau2=lt1 - 1.0)
+        with_(r2=0.3 * r1, ltau2=lt1 + 1.0)
+    elif effect == "hysteresis":
+        for lg in (1.0, 2.0, 3.0):
+            with_(hm=0.01, lgamma=lg, h0=0.0)
+    elif effect == "butler_volmer":
+        with_(bvg=1.0 / imax)
+        with_(bvg=5.0 / imax)
+    elif effect == "thermal":
+        with_(th0=3000.0, th1=3000.0)
+    elif effect == "ocv_shape":
+        with_()
+    elif effect == "current_offset":
+        with_(ioff=0.0)
+    elif effect == "voltage_offset":
+        with_(voff=0.0)
+    elif effect == "coulombic_efficiency":
+        with_(eta=0.98)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# public interface
+
+
+@dataclass
+class Fitted:
+    """A fitted model: effects, parameters, and simulation of another record of the same cell."""
+
+    effects: tuple[str, ...]
+    x: np.ndarray
+    knots: Knots
+    tref_k: float
+    free: tuple[str, ...]
+    rmse_mv: float
+    params: dict = field(default_factory=dict)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.free)
+
+    @classmethod
+    def build(cls, rec: Record, st: Structure, x: np.ndarray) -> Fitted:
+        v = simulate_rows(rec, x[None, :], st.knots)[:, 0]
+        rmse = float(np.sqrt(np.mean((v - rec.v) ** 2))) * 1e3
+        names = list(BASE_PARAMS)
+        for e in st.effects:
+            names.extend(EFFECT_PARAMS[e])
+        params = {_REPORT[n][0]: float(_REPORT[n][1](x[IDX[n]])) for n in names}
+        if "ocv_shape" in st.effects:
+            for j, s in enumerate(st.knots.grid()):
+                params[f"ocv_knot{j}_soc"] = float(s)
+        if "thermal" in st.effects or "butler_volmer" in st.effects:
+            params["tref_k"] = rec.tref_k
+        return cls(st.effects, x.copy(), st.knots, rec.tref_k, st.free, rmse, params)
+
+    def simulate(self, frame: pd.DataFrame, soc0: float | None = None) -> np.ndarray:
+        """Model voltage for ``frame`` (another record of the same cell).
+
+        ``soc0=None``: the initial SOC whose OCV equals the first sample's voltage corrected for
+        the ohmic drop (the record is assumed to start at rest; no hysteresis, no RC voltage).
+        """
+        rec = Record.from_frame(frame, tref_k=self.tref_k)
+        x = self.x.copy()
+        x[IDX["soc0"]] = self.soc0_from_voltage(rec) if soc0 is None else float(soc0)
+        x[IDX["h0"]] = 0.0 if soc0 is None else x[IDX["h0"]]
+        return simulate_rows(rec, x[None, :], self.knots)[:, 0]
+
+    def soc0_from_voltage(self, rec: Record) -> float:
+        x = self.x
+        target = rec.v[0] + x[IDX["r0"]] * (rec.i[0] + x[IDX["ioff"]])
+        f = lambda s: float(ocv(x, np.array([s]), self.knots)[0]) - target  # noqa: E731
+        lo, hi = 0.0, 1.0
+        if f(lo) >= 0:
+            return lo
+        if f(hi) <= 0:
+            return hi
+        return float(brentq(f, lo, hi, xtol=1e-9))
+
+    def trajectory(self, rec: Record) -> dict:
+        v, tr = simulate_rows(rec, self.x[None, :], self.knots, traces=True)
+        return {"voltage_v": v[:, 0], "soc": tr[0], "h": tr[1], "v_rc": tr[2]}
+
+
+MAX_FIT_POINTS = 20000
+"""Residuals fitted per least-squares problem at most; longer records are thinned by a fixed
+stride for fitting (the model is always simulated at full resolution and scored on every sample)."""
+
+COARSE_POINTS = 2500
+"""Residuals per multi-start trial: the starts are compared on a thinned record, and only the best
+is refined on the full set."""
+
+
+def knots_for(rec: Record, x: np.ndarray) -> Knots:
+    """ocv_shape knots spread evenly over the SOC range the fitted base model visits."""
+    soc = np.clip(x[IDX["soc0"]] - rec.charge_ah() / 10.0 ** x[IDX["lq"]], 0.0, 1.2)
+    lo, hi = float(soc.min()), float(soc.max())
+    if hi - lo < 1e-3:
+        lo, hi = lo - 5e-4, hi + 5e-4
+    return Knots(lo, (hi - lo) / (N_KNOTS - 1))
+
+
+def best_of(rec, st, starts, mask=None, max_nfev_coarse=60, max_nfev=200) -> FitResult:
+    """Multi-start: each start on the thinned record, the best refined on the fitted samples."""
+    idx_full = fit_indices(rec.n, mask, MAX_FIT_POINTS)
+    if len(starts) == 1:
+        return fit_structure(rec, st, starts[0], idx_full, max_nfev=max_nfev)
+    idx_c = fit_indices(rec.n, mask, COARSE_POINTS)
+    trials = [fit_structure(rec, st, x0, idx_c, max_nfev=max_nfev_coarse) for x0 in starts]
+    best = min(trials, key=lambda r: r.cost_fit)
+    return fit_structure(rec, st, best.x, idx_full, max_nfev=max_nfev)
+
+
+def fit_base(rec: Record, capacity_ah=None, soc0=None, mask=None) -> tuple[Structure, FitResult]:
+    st = structure(rec, (), fix_capacity=capacity_ah is not None, fix_soc0=soc0 is not None)
+    res = best_of(rec, st, base_starts(rec, capacity_ah, soc0), mask)
+    st.knots = knots_for(rec, res.x)
+    return st, res
+
+
+def fit(frame: pd.DataFrame, effects=(), capacity_ah=None, soc0=None) -> Fitted:
+    """Fit the base model plus ``effects`` (names from EFFECTS) to one record."""
+    rec = Record.from_frame(frame)
+    st0, base = fit_base(rec, capacity_ah, soc0)
+    x = base.x
+    st = st0
+    added: list[str] = []
+    for e in effects:  # one effect at a time, each from the previous fit (as the ladder does)
+        added.append(e)
+        st = structure(
+            rec, added, st0.knots, fix_capacity=capacity_ah is not None, fix_soc0=soc0 is not None
+        )
+        x = best_of(rec, st, effect_starts(rec, x, e)).x
+    return Fitted.build(rec, st, x)
