@@ -123,9 +123,13 @@ def to_canonical(raw: pd.DataFrame, source: str, sample_s: float = 1.0) -> pd.Da
 
 
 def data_root(cfg: dict) -> Path:
-    """``real.root``; a relative root is relative to the repository (as the config says)."""
+    """``real.root``. A relative root is taken from the working directory (where Snakemake runs,
+    so the rules' inputs and the importers see the same files), or from the repository when it
+    does not exist there (a notebook or test started elsewhere)."""
     root = Path(cfg["real"]["root"])
-    return root if root.is_absolute() else REPO_ROOT / root
+    if root.is_absolute() or root.is_dir():
+        return root
+    return REPO_ROOT / root
 
 
 def samsung_cfg(cfg: dict) -> dict:
