@@ -55,8 +55,14 @@ in a run and 1.6·P late (5-D sphere/Rosenbrock, P = 20). Every evaluation is pr
 Sequential updates (kept on purpose). The reference updates agent i in place before agent i+1
 moves, and agent i+1 sees that: x_lbest and the random partners read the updated population, and
 x* is refreshed after each agent. Vectorising over the population would change the algorithm, so
-the agent loop is kept; only the random numbers of fixed shape are drawn per iteration in bulk
-(the three-partner draws included), which changes the random stream but not the distribution.
+the agent loop is kept. Every random number an agent may need (those of untaken branches included)
+is drawn per iteration in bulk, which changes the random stream but not the distribution.
+
+Why compiled: the loop is a numba generator (:func:`_agents`) that yields each candidate and is
+resumed with its objective value. As plain numpy on 6-element vectors, the moves cost about as much
+Python time as the model costs to simulate (RUN was half of the full grid's optimizer time); the
+generator keeps the algorithm's control flow in one place while the evaluations, the budget and
+the history stay with the Python :class:`~.base.Tracker`.
 
 Schedule. The reference counts ``it = 2..MaxIt`` with the initial population as ``it = 1`` and uses
 ``τ = it/MaxIt``. With an iteration budget T (our iteration t = 1..T after the initial population)
@@ -103,6 +109,7 @@ from memory of the published equations and should be checked against the article
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from .base import Tracker, register
@@ -115,19 +122,115 @@ def _three_partners(rng: np.random.Generator, P: int) -> np.ndarray:
     return np.argsort(keys, axis=1)[:, :3]
 
 
-def _runge_kutta(rng: np.random.Generator, xb, xw, delx) -> np.ndarray:
+def _rk_draws(rng: np.random.Generator, P: int, D: int) -> tuple:
+    """Random numbers of one ``RungeKutta`` call per agent: c = randi([1, 2])·(1 − rand), the
+    two coordinate vectors r1, r2 and the four scalar factors of K1..K4."""
+    c = rng.integers(1, 3, size=P) * (1.0 - rng.random(P))
+    return c, rng.random((P, D)), rng.random((P, D)), rng.random((P, 4))
+
+
+@nb.njit(cache=True)
+def _runge_kutta(xb, xw, delx, c, r1, r2, q):
     """The RK4-like search mechanism SM of the reference (``RungeKutta``)."""
-    D = xb.size
-    c = rng.integers(1, 3) * (1.0 - rng.random())
-    r1 = rng.random(D)
-    r2 = rng.random(D)
-    k = 0.5 * (rng.random() * xw - c * xb)
+    k = 0.5 * (q[0] * xw - c * xb)
     total = k.copy()
-    for h, weight in ((0.5, 2.0), (0.5, 2.0), (1.0, 1.0)):
+    for j in range(3):
+        h, weight = (0.5, 2.0) if j < 2 else (1.0, 1.0)
         step = h * k * delx
-        k = 0.5 * (rng.random() * (xw + r2 * step) - (c * xb + r1 * step))
+        k = 0.5 * (q[j + 1] * (xw + r2 * step) - (c * xb + r1 * step))
         total += weight * k
     return total / 6.0
+
+
+@nb.njit(cache=True)
+def _clip(x, lb, ub):
+    return np.minimum(np.maximum(x, lb), ub)
+
+
+@nb.njit(cache=True)
+def _agents(
+    X, cost, best_x, best_f, x_mean, fbox, wk, lb, ub, tau, overwrite_mean, sf_all, m, v, esq
+):
+    """The agent loop of one iteration, as a generator: it yields each candidate to evaluate and
+    reads its objective value from ``fbox[0]`` when resumed; ``X``, ``cost``, ``best_x``,
+    ``best_f`` and ``x_mean`` are updated in place, so stopping early (budget spent) leaves the
+    state of the agents moved so far, as the Python loop it replaces did.
+
+    ``m`` holds the main move's random numbers per agent (see :func:`run`), ``v`` the vector ones
+    (shape (P, k, D)), ``esq`` the ESQ / Eq. 20 scalars.
+    """
+    P = X.shape[0]
+    span = ub - lb
+    decay_gamma = np.exp(-4.0 * tau)
+    for i in range(P):
+        a, b = int(m[i, 0]), int(m[i, 1])
+        p3 = m[i, 0:3].astype(np.int64)
+        k = p3[np.argmin(cost[p3])]
+        x_lbest = X[np.argmin(cost)].copy()
+        gamma = m[i, 3] * (X[i] - v[i, 0] * span) * decay_gamma
+        stp = v[i, 1] * ((best_x - m[i, 4] * x_mean) + gamma)
+        wk[0] = 2.0 * v[i, 2] * np.abs(stp)  # Δx, reused by Eq. 20
+        delx = wk[0]
+        if cost[i] < cost[k]:
+            xb, xw = X[i].copy(), X[k].copy()
+        else:
+            xb, xw = X[k].copy(), X[i].copy()
+        sm = _runge_kutta(xb, xw, delx, m[i, 5], v[i, 3], v[i, 4], m[i, 6:10])
+        L = v[i, 5] < 0.5
+        xc = np.where(L, X[i], X[a])
+        xm = np.where(L, best_x, x_lbest)
+        r = np.where(v[i, 6] < 0.5, 1.0, -1.0)
+        g, mu, sf = m[i, 10], v[i, 7], sf_all[i]
+        if m[i, 11] < 0.5:
+            x_new = xc + r * sf * g * xc + sf * sm + mu * (xm - xc)
+        else:
+            x_new = xm + r * sf * g * xm + sf * sm + mu * (X[a] - X[b])
+        wk[3] = _clip(x_new, lb, ub)
+        yield wk[3].copy()
+        if fbox[0] < cost[i]:
+            X[i] = wk[3]
+            cost[i] = fbox[0]
+
+        if m[i, 12] < 0.5:  # enhanced solution quality (Eq. 19)
+            decay_w = np.exp(-5.0 * esq[i, 0] * tau)
+            r_esq = np.floor(-1.0 + 3.0 * esq[i, 1])  # Unifrnd(-1, 2) floored: -1, 0, 1
+            u = 2.0 * v[i, 8]
+            wk[1] = 2.0 * v[i, 9] * decay_w
+            w = wk[1]
+            a3 = esq[i, 2:5].astype(np.int64)
+            x_avg3 = (X[a3[0]] + X[a3[1]] + X[a3[2]]) / 3.0
+            if overwrite_mean:
+                x_mean[:] = x_avg3
+            beta = v[i, 10]
+            x1 = beta * best_x + (1.0 - beta) * x_avg3
+            n = v[i, 11]
+            x2 = np.where(
+                w < 1.0,
+                x1 + r_esq * w * np.abs((x1 - x_avg3) + n),
+                (x1 - x_avg3) + r_esq * w * np.abs((u * x1 - x_avg3) + n),
+            )
+            wk[2] = _clip(x2, lb, ub)
+            yield wk[2].copy()
+            # (locals holding arrays must not live across a yield: numba 0.68 generators corrupt
+            # the heap then, so the vectors reused after a yield live in ``wk``)
+            if fbox[0] < cost[i]:
+                X[i] = wk[2]
+                cost[i] = fbox[0]
+            elif esq[i, 5] < wk[1, int(esq[i, 6])]:  # Eq. 20
+                x2 = wk[2]
+                sm = _runge_kutta(
+                    X[i].copy(), x2, wk[0], esq[i, 7], v[i, 12], v[i, 13], esq[i, 8:12]
+                )
+                x3 = (x2 - esq[i, 12] * x2) + sf_all[i] * (sm + (2.0 * v[i, 14] * best_x - x2))
+                wk[3] = _clip(x3, lb, ub)
+                yield wk[3].copy()
+                if fbox[0] < cost[i]:
+                    X[i] = wk[3]
+                    cost[i] = fbox[0]
+
+        if cost[i] < best_f[0]:
+            best_x[:] = X[i]
+            best_f[0] = cost[i]
 
 
 @register("run")
@@ -143,110 +246,88 @@ def run(
     if P < 4:
         raise ValueError(f"RUN needs pop_size >= 4 (three partners besides the agent), got {P}")
     lb, ub = tracker.lb, tracker.ub
-    span = ub - lb
 
     X = tracker.random_uniform(rng, P)
     cost = tracker.evaluate(X)
     tracker.end_iteration()
     ib = int(np.argmin(cost))
-    best_x, best_f = X[ib].copy(), float(cost[ib])
+    best_x, best_f = X[ib].copy(), np.array([cost[ib]])
+    fbox = np.zeros(1)
+    wk = np.zeros((4, D))
 
-    evaluate_one = tracker.evaluate_one
     while not tracker.done:
         tau = tracker.progress(count_initial=True)  # the reference's it/MaxIt
-        f_amp = 20.0 * np.exp(-12.0 * tau)
         x_mean = X.mean(axis=0)
-        SF = 2.0 * (0.5 - rng.random(P)) * f_amp
-        # random numbers of fixed shape for the main move of every agent, drawn in bulk
-        partners = _three_partners(rng, P)
-        g_scalar = rng.random(P)  # γ factor
-        g_vec = rng.random((P, D))  # γ: rand(D)·(ub − lb)
-        s_vec = rng.random((P, D))  # Stp factor
-        s_scalar = rng.random(P)  # Stp: rand·x̄
-        d_vec = rng.random((P, D))  # Δx factor
-        L_all = rng.random((P, D)) < 0.5
-        r_all = np.where(rng.random((P, D)) < 0.5, 1.0, -1.0)
-        g_all = 2.0 * rng.random(P)
-        mu_all = 0.5 + 0.1 * rng.standard_normal((P, D))
-        branch = rng.random(P) < 0.5
-        esq_gate = rng.random(P) < 0.5
-        decay_gamma = np.exp(-4.0 * tau)
-
+        SF = 2.0 * (0.5 - rng.random(P)) * (20.0 * np.exp(-12.0 * tau))  # Eqs. 17.5-17.6
+        # Every random number an agent may need, drawn for all agents in bulk (those of branches
+        # not taken go unused): same distributions as the reference's draws on demand.
+        rk1, rk2 = _rk_draws(rng, P, D), _rk_draws(rng, P, D)
+        m = np.column_stack(
+            [
+                _three_partners(rng, P),  # 0-2: a, b, c
+                rng.random(P),  # 3: γ factor
+                rng.random(P),  # 4: Stp: rand·x̄
+                rk1[0],  # 5: RK c
+                rk1[3],  # 6-9: RK K1..K4 factors
+                2.0 * rng.random(P),  # 10: g
+                rng.random(P),  # 11: branch of Eq. 18
+                rng.random(P),  # 12: ESQ gate
+            ]
+        )
+        v = np.stack(
+            [
+                rng.random((P, D)),  # 0: γ: rand(D)·(ub − lb)
+                rng.random((P, D)),  # 1: Stp factor
+                rng.random((P, D)),  # 2: Δx factor
+                rk1[1],  # 3: RK r1
+                rk1[2],  # 4: RK r2
+                rng.random((P, D)),  # 5: L
+                rng.random((P, D)),  # 6: sign r
+                0.5 + 0.1 * rng.standard_normal((P, D)),  # 7: μ
+                rng.random((P, D)),  # 8: ESQ u
+                rng.random((P, D)),  # 9: ESQ w
+                rng.random((P, D)),  # 10: ESQ β
+                rng.standard_normal((P, D)),  # 11: ESQ normals
+                rk2[1],  # 12: Eq. 20 RK r1
+                rk2[2],  # 13: Eq. 20 RK r2
+                rng.random((P, D)),  # 14: Eq. 20 rand(D)
+            ],
+            axis=1,
+        )
+        esq = np.column_stack(
+            [
+                rng.random(P),  # 0: decay of w
+                rng.random(P),  # 1: r ∈ {−1, 0, 1}
+                _three_partners(rng, P),  # 2-4: the three agents averaged
+                rng.random(P),  # 5: Eq. 20 gate
+                rng.integers(D, size=P),  # 6: coordinate of w compared with it
+                rk2[0],  # 7: RK c
+                rk2[3],  # 8-11: RK K1..K4 factors
+                rng.random(P),  # 12: x3's rand
+            ]
+        )
         complete = True
-        for i in range(P):
+        for x in _agents(
+            X,
+            cost,
+            best_x,
+            best_f,
+            x_mean,
+            fbox,
+            wk,
+            lb,
+            ub,
+            tau,
+            esq_overwrites_mean,
+            SF,
+            m,
+            v,
+            esq,
+        ):
             if tracker.done:
                 complete = False
                 break
-            x_lbest = X[int(np.argmin(cost))]
-            a, b, _ = partners[i]
-            k = partners[i][int(np.argmin(cost[partners[i]]))]
-
-            gamma = g_scalar[i] * (X[i] - g_vec[i] * span) * decay_gamma
-            stp = s_vec[i] * ((best_x - s_scalar[i] * x_mean) + gamma)
-            delx = 2.0 * d_vec[i] * np.abs(stp)
-            if cost[i] < cost[k]:
-                xb, xw = X[i], X[k]
-            else:
-                xb, xw = X[k], X[i]
-            sm = _runge_kutta(rng, xb, xw, delx)
-
-            L = L_all[i]
-            xc = np.where(L, X[i], X[a])
-            xm = np.where(L, best_x, x_lbest)
-            r, g, mu, sf = r_all[i], g_all[i], mu_all[i], SF[i]
-            if branch[i]:
-                x_new = xc + r * sf * g * xc + sf * sm + mu * (xm - xc)
-            else:
-                x_new = xm + r * sf * g * xm + sf * sm + mu * (X[a] - X[b])
-            x_new = tracker.clip(x_new)
-            f_new = evaluate_one(x_new)
-            if f_new < cost[i]:
-                X[i], cost[i] = x_new, f_new
-
-            if esq_gate[i]:  # enhanced solution quality (Eq. 19)
-                if tracker.done:
-                    complete = False
-                    break
-                decay_w = np.exp(-5.0 * rng.random() * tau)
-                r_esq = np.floor(-1.0 + 3.0 * rng.random())  # Unifrnd(-1, 2) floored: -1, 0, 1
-                u = 2.0 * rng.random(D)
-                w = 2.0 * rng.random(D) * decay_w
-                a3 = _three_partners_of(rng, P, i)
-                x_avg3 = X[a3].mean(axis=0)
-                if esq_overwrites_mean:
-                    x_mean = x_avg3
-                beta = rng.random(D)
-                x1 = beta * best_x + (1.0 - beta) * x_avg3
-                n = rng.standard_normal(D)
-                x2 = np.where(
-                    w < 1.0,
-                    x1 + r_esq * w * np.abs((x1 - x_avg3) + n),
-                    (x1 - x_avg3) + r_esq * w * np.abs((u * x1 - x_avg3) + n),
-                )
-                x2 = tracker.clip(x2)
-                f2 = evaluate_one(x2)
-                if f2 < cost[i]:
-                    X[i], cost[i] = x2, f2
-                elif rng.random() < w[rng.integers(D)]:  # Eq. 20
-                    if tracker.done:
-                        complete = False
-                        break
-                    sm = _runge_kutta(rng, X[i], x2, delx)
-                    x3 = (x2 - rng.random() * x2) + sf * (sm + (2.0 * rng.random(D) * best_x - x2))
-                    x3 = tracker.clip(x3)
-                    f3 = evaluate_one(x3)
-                    if f3 < cost[i]:
-                        X[i], cost[i] = x3, f3
-
-            if cost[i] < best_f:
-                best_x, best_f = X[i].copy(), float(cost[i])
-
+            fbox[0] = tracker.evaluate_one(x)
         if not complete:
             break
         tracker.end_iteration()
-
-
-def _three_partners_of(rng: np.random.Generator, P: int, i: int) -> np.ndarray:
-    """Three distinct random agents other than ``i`` (``RndX`` for a single agent)."""
-    picks = rng.choice(P - 1, size=3, replace=False)
-    return picks + (picks >= i)
