@@ -124,16 +124,53 @@ def ise_serial(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
 def ise_one(x, free, base, fade, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
     """ISE of one candidate ``x`` of free parameters (columns ``free`` of the fresh-cell vector
     ``base``; effective parameters = fresh × ``fade``): the single-candidate path of the local
-    searches and RUN, which would otherwise spend more time assembling arguments than stepping."""
-    p = base.copy()
+    searches and RUN. Same value, bit for bit, as :func:`ise_serial` on that one row: the same
+    arithmetic in the same order as :func:`_run_block`, with the state kept in scalars (in the
+    block kernel it lives in arrays, and for one candidate every sample then waits for a store
+    and a reload of SOC and Vtr on the sample-to-sample chain)."""
+    P = np.empty((1, base.shape[0]))
+    for j in range(base.shape[0]):
+        P[0, j] = base[j]
     for j in range(free.shape[0]):
-        p[free[j]] = x[j]
-    P = np.empty((1, p.shape[0]))
-    for j in range(p.shape[0]):
-        P[0, j] = p[j] * fade[j]
-    out = np.empty(1)
-    _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, np.empty((0, 0)))
-    return out[0]
+        P[0, free[j]] = x[j]
+    for j in range(base.shape[0]):
+        P[0, j] = P[0, j] * fade[j]
+    C = _coefficients(P, ts, qdis, g_load, dynamics)
+    vnom, omb, beta, r0, a, b, inv_den, dq = (
+        C[0, 0],
+        C[1, 0],
+        C[2, 0],
+        C[3, 0],
+        C[4, 0],
+        C[5, 0],
+        C[6, 0],
+        C[7, 0],
+    )
+    kq = dq * g_load * inv_den
+    kv = kq * vnom
+    s = soc0
+    vtr = 0.0
+    acc = 0.0
+    if g_load != 0.0:
+        for k in range(ip.shape[0]):
+            ipk = ip[k]
+            r = s / (omb + beta * s)
+            vt = (vnom * r - vtr - r0 * ipk) * inv_den
+            i = ipk + vt * g_load
+            e = vt - vmeas[k]
+            acc += e * e
+            s = (s - dq * ipk + kq * (vtr + r0 * ipk)) - kv * r
+            vtr = a * vtr + b * i
+    else:
+        for k in range(ip.shape[0]):
+            ipk = ip[k]
+            r = s / (omb + beta * s)
+            vt = (vnom * r - vtr - r0 * ipk) * inv_den
+            e = vt - vmeas[k]
+            acc += e * e
+            s = s - ipk * dq
+            vtr = a * vtr + b * ipk
+    return acc
 
 
 @nb.njit(cache=True)
