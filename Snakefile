@@ -17,6 +17,7 @@ include: "workflow/rules/identify.smk"
 include: "workflow/rules/aggregate.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/real.smk"
 
 
 rule all:
@@ -25,3 +26,4 @@ rule all:
         all_tables(),
         all_figures(),
         "results/tables/claims.csv",
+        real_outputs(),

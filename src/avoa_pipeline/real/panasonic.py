@@ -439,11 +439,15 @@ def records(cfg: dict) -> dict[str, dict]:
 
 
 def import_named(cfg: dict, name: str, out_csv) -> dict:
+    """Import the record ``name`` of :func:`records` (root resolved as the other importers do)."""
+    from .samsung import data_root
+
     rec = records(cfg).get(name)
     if rec is None:
         raise ConfigError(f"config field real.panasonic: no record {name!r}")
+    real = {**cfg["real"], "root": str(data_root(cfg))}
     return import_record(
-        cfg["real"], rec["keys"], rec["test_type"], rec["ambient_c"], out_csv,
+        real, rec["keys"], rec["test_type"], rec["ambient_c"], out_csv,
         trim_soak=rec["trim_soak"],
     )
 
