@@ -70,6 +70,40 @@ def fade(cfg, record, out_states, out_fits, log=None) -> None:
     )
 
 
+# What the workflow's rules need to know, kept here so workflow/rules/real.smk holds rules only.
+
+OUTPUTS = {
+    "samsung": ("results/real/samsung_rc_vs_temperature.csv", "results/real/samsung_arrhenius.csv"),
+    "nasa": ("results/real/nasa_fade.csv", "results/real/nasa_fade_fit.csv"),
+    "report": ("results/notebooks/real_cells.ipynb",),
+}
+
+
+def source_path(cfg: Mapping, key: str) -> str:
+    """A source file as the rules name it: under real.root, relative to the working directory."""
+    return str(Path(cfg["real"]["root"]) / key)
+
+
+def nasa_source_paths(cfg: Mapping) -> list[str]:
+    """The NASA index and every discharge file listed in real.sources."""
+    nasa = _real(cfg, "nasa")
+    folder = Path(nasa["discharge_dir"])
+    keys = [nasa["index"]] + [k for k in cfg["real"]["sources"] if Path(k).parent == folder]
+    return [source_path(cfg, k) for k in keys]
+
+
+def targets(cfg: Mapping) -> list[str]:
+    """The final outputs of experiments 2 and 3 for the sections the config has."""
+    real = cfg.get("real") or {}
+    out = []
+    for section in ("samsung", "nasa"):
+        if real.get(section):
+            out += OUTPUTS[section]
+    if real.get("samsung") and real.get("nasa"):
+        out += OUTPUTS["report"]
+    return out
+
+
 def experiments(cfg, workdir) -> dict:
     """Both experiments from the configured source files, intermediate files in ``workdir``
     (for a notebook run on its own); returns the four output tables by name."""
