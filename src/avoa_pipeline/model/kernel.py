@@ -15,9 +15,11 @@ Per sample k (eqs. 3-6 of Fahmy et al.; current positive = discharge):
     SOC_k+1 = SOC_k − I_k·Ts / (3600·Q)                           eq. 6 (forward Euler)
 
 Speed: with the load, the chain SOC → Vocv (a division) → Vt → I → SOC is carried from sample to
-sample, so one candidate at a time is latency-bound (~15 ns/sample). The population kernel
-therefore steps all candidates of a block together (time outer, candidates inner), which gives
-the CPU independent work and lets it vectorise; blocks run on the numba threads.
+sample, so one candidate at a time is latency-bound. The population kernel therefore steps all
+candidates of a block together (time outer, candidates inner), which gives the CPU independent
+work; blocks run on the numba threads. The single-candidate kernel (RUN, the local searches) keeps
+its state in scalars. All share one inlined step, :func:`_step`, so they agree bit for bit.
+Measured by ``benchmarks/bench_kernel.py``.
 
 ``P`` holds *effective* parameters (fade already applied), one candidate per row, in the column
 order of :data:`avoa_pipeline.model.battery.PARAM_NAMES`: vnom, q, vdis, r0, rtr, tau.
@@ -33,9 +35,11 @@ VNOM, Q, VDIS, R0, RTR, TAU = range(6)
 
 @nb.njit(cache=True)
 def _coefficients(P, ts, qdis, g_load, dynamics):
-    """Per-candidate constants: Vnom, 1−β, β, R0, a, b = Rtr(1−a), 1/(1+R0·G), Ts/(3600·Q)."""
+    """Per-candidate constants: Vnom, 1−β, β, R0, a, b = Rtr(1−a), 1/(1+R0·G), dq = Ts/(3600·Q),
+    kq = dq·G/(1+R0·G) (SOC change per volt of Vocv − Vtr − R0·Ip through the load),
+    kv = kq·Vnom."""
     m = P.shape[0]
-    C = np.empty((8, m))
+    C = np.empty((10, m))
     for c in range(m):
         soc1 = qdis / P[c, Q]
         # eq. 5 with Vocv(SOC1) = Vdis  →  β = (1 − Vnom·SOC1/Vdis) / (1 − SOC1)
@@ -49,51 +53,59 @@ def _coefficients(P, ts, qdis, g_load, dynamics):
         C[5, c] = P[c, RTR] * (1.0 - a) if dynamics else 0.0
         C[6, c] = 1.0 / (1.0 + P[c, R0] * g_load)
         C[7, c] = ts / (3600.0 * P[c, Q])
+        C[8, c] = C[7, c] * g_load * C[6, c]
+        C[9, c] = C[8, c] * C[0, c]
     return C
 
 
-@nb.njit(cache=True, nogil=True)
-def _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, traces):
-    """Step the candidates of ``P`` through the record.
+@nb.njit(inline="always")
+def _step(s, vtr, ipk, vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv, g_load, load):
+    """One sample: (Vt, I, SOC and Vtr of the next sample). Every kernel steps through this one
+    function (inlined), so all give the same numbers bit for bit.
 
-    With ``vmeas`` given (non-empty), write each candidate's ISE into ``out``. With ``traces`` of
-    shape (4, n) (one candidate only), record Vt, I, SOC and Vtr at every sample.
+    With the load, SOC − dq·I is regrouped so that only the OCV division and one subtraction stay
+    on the sample-to-sample chain (≈1.5× faster for one candidate; the same value up to rounding).
+    Without it the current is the cycler's and Vt leaves the SOC recursion altogether.
     """
+    r = s / (omb + beta * s)
+    vt = (vnom * r - vtr - r0 * ipk) * inv_den
+    if load:
+        i = ipk + vt * g_load
+        s_next = (s - dq * ipk + kq * (vtr + r0 * ipk)) - kv * r
+    else:
+        i = ipk
+        s_next = s - ipk * dq
+    return vt, i, s_next, a * vtr + b * i
+
+
+@nb.njit(cache=True, nogil=True)
+def _score_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out):
+    """Write the ISE of every row of ``P`` into ``out``: time outer, candidates inner, so the
+    candidates' independent chains overlap; one loop per load case so no branch sits inside."""
     m = P.shape[0]
     C = _coefficients(P, ts, qdis, g_load, dynamics)
-    vnom, omb, beta, r0, a, b, inv_den, dq = C[0], C[1], C[2], C[3], C[4], C[5], C[6], C[7]
-    kq = dq * g_load * inv_den  # SOC change per volt of (Vocv − Vtr − R0·Ip) through the load
-    kv = kq * vnom
+    vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv = C
     soc = np.full(m, soc0)
     vtr = np.zeros(m)
     acc = np.zeros(m)
-    score = vmeas.shape[0] > 0
-    record = traces.shape[0] > 0
-    # Without a load the current is the cycler's, so Vt leaves the SOC recursion; writing
-    # `ipk + vt * 0.0` would keep the division on the sample-to-sample chain.
-    load = g_load != 0.0
-    for k in range(ip.shape[0]):
-        ipk = ip[k]
-        for c in range(m):
-            s = soc[c]
-            r = s / (omb[c] + beta[c] * s)
-            vt = (vnom[c] * r - vtr[c] - r0[c] * ipk) * inv_den[c]
-            i = ipk + vt * g_load if load else ipk
-            if score:
-                e = vt - vmeas[k]
-                acc[c] += e * e
-            if record:
-                traces[0, k] = vt
-                traces[1, k] = i
-                traces[2, k] = s
-                traces[3, k] = vtr[c]
-            if load:
-                # s − dq·i regrouped: only the division and one subtraction stay on the
-                # sample-to-sample chain (≈1.5× faster for one candidate; same value up to rounding)
-                soc[c] = (s - dq[c] * ipk + kq[c] * (vtr[c] + r0[c] * ipk)) - kv[c] * r
-            else:
-                soc[c] = s - i * dq[c]
-            vtr[c] = a[c] * vtr[c] + b[c] * i
+    if g_load != 0.0:
+        for k in range(ip.shape[0]):
+            ipk, vk = ip[k], vmeas[k]
+            for c in range(m):
+                vt, _, soc[c], vtr[c] = _step(
+                    soc[c], vtr[c], ipk, vnom[c], omb[c], beta[c], r0[c], a[c], b[c],
+                    inv_den[c], dq[c], kq[c], kv[c], g_load, True,
+                )  # fmt: skip
+                acc[c] += (vt - vk) * (vt - vk)
+    else:
+        for k in range(ip.shape[0]):
+            ipk, vk = ip[k], vmeas[k]
+            for c in range(m):
+                vt, _, soc[c], vtr[c] = _step(
+                    soc[c], vtr[c], ipk, vnom[c], omb[c], beta[c], r0[c], a[c], b[c],
+                    inv_den[c], dq[c], kq[c], kv[c], 0.0, False,
+                )  # fmt: skip
+                acc[c] += (vt - vk) * (vt - vk)
     out[:] = acc
 
 
@@ -102,13 +114,12 @@ def ise_population(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, n_blocks):
     """Integral square error, eq. 13, of every row of ``P`` against ``vmeas``."""
     m = P.shape[0]
     out = np.empty(m)
-    no_traces = np.empty((0, 0))
     size = (m + n_blocks - 1) // n_blocks
     for j in nb.prange(n_blocks):
         lo = j * size
         hi = min(m, lo + size)
         if lo < hi:
-            _run_block(P[lo:hi], ip, vmeas, ts, soc0, qdis, g_load, dynamics, out[lo:hi], no_traces)
+            _score_block(P[lo:hi], ip, vmeas, ts, soc0, qdis, g_load, dynamics, out[lo:hi])
     return out
 
 
@@ -116,67 +127,48 @@ def ise_population(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, n_blocks):
 def ise_serial(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
     """As :func:`ise_population` on the calling thread only (no thread pool, GIL released)."""
     out = np.empty(P.shape[0])
-    _run_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out, np.empty((0, 0)))
+    _score_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out)
     return out
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _effective(x, free, base, fade):
+    p = base.copy()
+    for j in range(free.shape[0]):
+        p[free[j]] = x[j]
+    return (p * fade).reshape(1, -1)
 
 
 @nb.njit(cache=True, nogil=True)
 def ise_one(x, free, base, fade, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
     """ISE of one candidate ``x`` of free parameters (columns ``free`` of the fresh-cell vector
     ``base``; effective parameters = fresh × ``fade``): the single-candidate path of the local
-    searches and RUN. Same value, bit for bit, as :func:`ise_serial` on that one row: the same
-    arithmetic in the same order as :func:`_run_block`, with the state kept in scalars (in the
-    block kernel it lives in arrays, and for one candidate every sample then waits for a store
-    and a reload of SOC and Vtr on the sample-to-sample chain)."""
-    P = np.empty((1, base.shape[0]))
-    for j in range(base.shape[0]):
-        P[0, j] = base[j]
-    for j in range(free.shape[0]):
-        P[0, free[j]] = x[j]
-    for j in range(base.shape[0]):
-        P[0, j] = P[0, j] * fade[j]
-    C = _coefficients(P, ts, qdis, g_load, dynamics)
-    vnom, omb, beta, r0, a, b, inv_den, dq = (
-        C[0, 0],
-        C[1, 0],
-        C[2, 0],
-        C[3, 0],
-        C[4, 0],
-        C[5, 0],
-        C[6, 0],
-        C[7, 0],
-    )
-    kq = dq * g_load * inv_den
-    kv = kq * vnom
-    s = soc0
-    vtr = 0.0
-    acc = 0.0
-    if g_load != 0.0:
-        for k in range(ip.shape[0]):
-            ipk = ip[k]
-            r = s / (omb + beta * s)
-            vt = (vnom * r - vtr - r0 * ipk) * inv_den
-            i = ipk + vt * g_load
-            e = vt - vmeas[k]
-            acc += e * e
-            s = (s - dq * ipk + kq * (vtr + r0 * ipk)) - kv * r
-            vtr = a * vtr + b * i
-    else:
-        for k in range(ip.shape[0]):
-            ipk = ip[k]
-            r = s / (omb + beta * s)
-            vt = (vnom * r - vtr - r0 * ipk) * inv_den
-            e = vt - vmeas[k]
-            acc += e * e
-            s = s - ipk * dq
-            vtr = a * vtr + b * ipk
+    searches and RUN. The state lives in scalars: in the block kernel it lives in arrays, and for
+    one candidate every sample then waits for a store and a reload on the sample-to-sample chain.
+    """
+    C = _coefficients(_effective(x, free, base, fade), ts, qdis, g_load, dynamics)[:, 0]
+    vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv = C
+    load = g_load != 0.0
+    s, vtr, acc = soc0, 0.0, 0.0
+    for k in range(ip.shape[0]):
+        vt, _, s, vtr = _step(
+            s, vtr, ip[k], vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv, g_load, load
+        )
+        acc += (vt - vmeas[k]) * (vt - vmeas[k])
     return acc
 
 
 @nb.njit(cache=True)
 def simulate_one(p, ip, ts, soc0, qdis, g_load, dynamics):
     """Traces (Vt, I, SOC, Vtr), shape (4, n), of one row ``p`` of effective parameters."""
+    C = _coefficients(p.reshape(1, -1), ts, qdis, g_load, dynamics)[:, 0]
+    vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv = C
+    load = g_load != 0.0
     traces = np.empty((4, ip.shape[0]))
-    out = np.empty(1)
-    _run_block(p.reshape(1, -1), ip, np.empty(0), ts, soc0, qdis, g_load, dynamics, out, traces)
+    s, vtr = soc0, 0.0
+    for k in range(ip.shape[0]):
+        traces[2, k], traces[3, k] = s, vtr
+        traces[0, k], traces[1, k], s, vtr = _step(
+            s, vtr, ip[k], vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv, g_load, load
+        )
     return traces
