@@ -18,6 +18,7 @@ include: "workflow/rules/aggregate.smk"
 include: "workflow/rules/tables.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/real.smk"
+include: "workflow/rules/gap.smk"
 
 
 rule all:
@@ -27,3 +28,4 @@ rule all:
         all_figures(),
         "results/tables/claims.csv",
         real_outputs(),
+        gap_outputs(),

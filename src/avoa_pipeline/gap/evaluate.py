@@ -32,7 +32,22 @@ RATIO_EDGES = (0.0, 0.5, 1.0, 1.5, 3.0, 10.0, np.inf)
 SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
 
 
-# --- running the diagnosis ---------------------------------------------------------------------
+# --- Snakemake jobs (workflow/rules/gap.smk) ---------------------------------------------------
+# Jobs run in the Snakemake process (``run:``); the heavy ones hand their work to the workflow's
+# worker-process pool (see avoa_pipeline.workflow): no interpreter start per job, and the
+# scheduler's process is never busy with numerics.
+
+
+def _in_pool(workers, fn, *args):
+    from .. import workflow
+
+    return workflow._pool(workers).submit(fn, *args).result()
+
+
+def _log(path, text: str) -> None:
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text.rstrip() + "\n")
 
 
 def diagnose_file(csv_path, out_json, log=None) -> None:
@@ -44,19 +59,59 @@ def diagnose_file(csv_path, out_json, log=None) -> None:
     result = diagnose(frame, source=str(csv_path))
     wall = time.perf_counter() - start
     write_json({**result, "wall_s": wall, "source": str(csv_path)}, out_json)
-    if log:
-        verdict = result["verdict"]
-        Path(log).parent.mkdir(parents=True, exist_ok=True)
-        Path(log).write_text(
-            f"{csv_path}: verdict {verdict['effect']} (shrink {verdict['shrink']}), {wall:.1f} s\n"
-        )
+    verdict = result["verdict"]
+    _log(log, f"{csv_path}: verdict {verdict['effect']} (shrink {verdict['shrink']}), {wall:.1f} s")
 
 
 def diagnose_job(csv_path, out_json, log=None, workers=1) -> None:
-    """A Snakemake job: the diagnosis in the workflow's worker pool (no interpreter start)."""
-    from .. import workflow
+    _in_pool(workers, diagnose_file, str(csv_path), str(out_json), log)
 
-    workflow._pool(workers).submit(diagnose_file, str(csv_path), str(out_json), log).result()
+
+def _generate(base_seed, gcfg, profile, replicate, out_dir, log):
+    from . import withheld
+
+    start = time.perf_counter()
+    paths = withheld.write_batch(int(base_seed), gcfg, profile, int(replicate), out_dir)
+    _log(log, f"{len(paths)} datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
+
+
+def generate_job(base_seed, gcfg, profile, replicate, log=None, workers=1) -> None:
+    out_dir = f"results/gap/data/{profile}/r{replicate}"
+    _in_pool(workers, _generate, int(base_seed), dict(gcfg), profile, int(replicate), out_dir, log)
+
+
+def _pybamm(base_seed, name, out_csv, log):
+    from ..synthetic import write
+    from . import pybamm_data
+
+    start = time.perf_counter()
+    ds = pybamm_data.make(int(base_seed), name)
+    write(ds, out_csv)
+    _log(log, f"{out_csv}: {ds.meta['generator']}, {time.perf_counter() - start:.1f} s")
+
+
+def pybamm_job(base_seed, name, out_csv, log=None, workers=1) -> None:
+    _in_pool(workers, _pybamm, int(base_seed), name, str(out_csv), log)
+
+
+def paper_job(cfg, scenario, case, out_csv, log=None) -> None:
+    from .. import config
+
+    checked = dict(cfg)
+    config.validate(checked, source="snakemake config")
+    info = paper_dataset(checked, int(scenario), int(case), out_csv)
+    _log(log, f"{out_csv}: {info}")
+
+
+def evaluate_job(data_jsons, diag_jsons, out: dict, threshold, log=None) -> None:
+    df = evaluate(list(zip(data_jsons, diag_jsons, strict=True)), out, float(threshold))
+    _log(log, target(df, float(threshold)).to_string(index=False))
+
+
+def table_job(make_row, data_jsons, diag_jsons, out_csv, log=None) -> None:
+    rows = [make_row(d, g) for d, g in zip(data_jsons, diag_jsons, strict=True)]
+    write_csv(pd.DataFrame(rows), out_csv)
+    _log(log, f"{out_csv}: {len(rows)} rows")
 
 
 # --- records -----------------------------------------------------------------------------------
@@ -405,3 +460,157 @@ def evaluate(pairs, out: dict, threshold: float = THRESHOLD) -> pd.DataFrame:
     write_csv(shrink_distribution(df), out["shrink"])
     write_csv(target(df, threshold), out["target"])
     return df
+
+
+# --- figures (matplotlib Figure objects without pyplot, as report.figures) ----------------------
+
+
+def _save_png(fig, path) -> None:
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=150)
+
+
+def fig_confusion(records_df: pd.DataFrame, path) -> None:
+    """Confusion matrices, all datasets and detectable ones (with the controls), row shares
+    as colour and counts as text."""
+    from matplotlib.figure import Figure
+
+    df = records_df
+    parts = [
+        ("all datasets", None),
+        ("detectable effects and controls", df["detectable"] | (df["effect"] == "none")),
+    ]
+    fig = Figure(figsize=(13, 5.6), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for ax, (title, only) in zip(axes, parts, strict=True):
+        table = confusion(df, only)
+        share = table.div(table.sum(axis=1).replace(0, np.nan), axis=0).fillna(0.0)
+        ax.imshow(share.to_numpy(), cmap="Blues", vmin=0, vmax=1)
+        for (i, j), n in np.ndenumerate(table.to_numpy()):
+            if n:
+                ax.text(
+                    j,
+                    i,
+                    str(n),
+                    ha="center",
+                    va="center",
+                    color="white" if share.iat[i, j] > 0.6 else "black",
+                    fontsize=8,
+                )
+        ax.set_xticks(range(len(VERDICTS)), VERDICTS, rotation=60, ha="right", fontsize=8)
+        ax.set_yticks(range(len(VERDICTS)), VERDICTS, fontsize=8)
+        ax.set_xlabel("verdict")
+        ax.set_ylabel("withheld effect")
+        ax.set_title(f"{title} (n = {int(table.to_numpy().sum())})", fontsize=10)
+    _save_png(fig, path)
+
+
+def fig_accuracy(acc: pd.DataFrame, path, goal: float = TARGET) -> None:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    ax = fig.subplots()
+    x = np.arange(len(acc))
+    ax.bar(x - 0.2, acc["accuracy"].fillna(0), 0.4, label="all datasets", color="0.7")
+    ax.bar(
+        x + 0.2,
+        acc["accuracy_detectable"].fillna(0),
+        0.4,
+        label="detectable (controls: all)",
+        color="tab:blue",
+    )
+    for xi, (n, nd) in enumerate(zip(acc["n"], acc["n_detectable"], strict=True)):
+        ax.text(xi, 1.02, f"{n}/{nd}", ha="center", fontsize=7)
+    ax.axhline(goal, color="tab:red", ls="--", lw=1, label=f"target {goal:.0%}")
+    ax.set_xticks(x, acc["effect"], rotation=30, ha="right", fontsize=8)
+    ax.set_ylim(0, 1.1)
+    ax.set_ylabel("right verdicts")
+    ax.set_title(
+        "Accuracy per withheld effect (numbers: datasets / detectable datasets)", fontsize=10
+    )
+    ax.legend(fontsize=8, loc="lower left")
+    _save_png(fig, path)
+
+
+def fig_shrink(records_df: pd.DataFrame, path) -> None:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    ax = fig.subplots()
+    said = records_df[records_df["verdict"] != "none"]
+    for xi, effect in enumerate(VERDICTS):
+        for right, colour, dx in ((True, "tab:blue", -0.12), (False, "tab:red", 0.12)):
+            s = said.loc[(said["effect"] == effect) & (said["right"] == right), "shrink"]
+            jitter = np.linspace(-0.06, 0.06, len(s)) if len(s) > 1 else np.zeros(len(s))
+            ax.scatter(
+                xi + dx + jitter,
+                s,
+                s=12,
+                color=colour,
+                alpha=0.7,
+                label=("verdict right" if right else "verdict wrong") if xi == 0 else None,
+            )
+    ax.set_xticks(range(len(VERDICTS)), VERDICTS, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("shrink (held-out ISE removed)")
+    ax.set_title("Shrink of the verdict effect, per withheld effect", fontsize=10)
+    ax.legend(fontsize=8)
+    _save_png(fig, path)
+
+
+def fig_detection_limit(dl: pd.DataFrame, path, threshold: float = THRESHOLD) -> None:
+    """Right verdicts against effect residual / noise RMSE, per effect, for each noise level."""
+    from matplotlib.figure import Figure
+
+    noises = list(dict.fromkeys(dl["noise_mv"]))
+    fig = Figure(figsize=(4.6 * len(noises), 4.2), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(noises), sharey=True))
+    labels = ratio_bin_labels()
+    for ax, noise in zip(axes, noises, strict=True):
+        part = dl[dl["noise_mv"] == noise]
+        for effect in [*EFFECTS, "all effects"]:
+            rows = part[(part["effect"] == effect) & (part["n"] > 0)]
+            if rows.empty:
+                continue
+            x = [labels.index(b) for b in rows["ratio_bin"]]
+            bold = effect == "all effects"
+            ax.plot(
+                x,
+                rows["accuracy"],
+                marker="o",
+                ms=3 if not bold else 5,
+                lw=2.5 if bold else 1,
+                color="black" if bold else None,
+                label=effect,
+            )
+        # the threshold sits on a bin edge: between the bins below and above it
+        edge = sum(e <= threshold for e in RATIO_EDGES[1:]) - 0.5
+        ax.axvline(edge, color="tab:red", ls="--", lw=1)
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_xlabel("effect residual / noise RMSE")
+        title = "all noise levels" if noise == "all" else f"noise {noise} mV"
+        ax.set_title(title, fontsize=10)
+        ax.set_ylim(-0.05, 1.05)
+    axes[0].set_ylabel("right verdicts")
+    axes[-1].legend(fontsize=7, loc="lower right")
+    _save_png(fig, path)
+
+
+def demo_records(base_seed: int = 1, out_dir=None) -> pd.DataFrame:
+    """A few withheld-effect datasets diagnosed in memory (the real diagnosis, a tiny grid), so
+    the notebook runs on its own. Not a measurement: the workflow's grid is."""
+    import tempfile
+
+    from ..synthetic import write
+    from . import withheld
+
+    picks = [("none", 0.0), ("thermal", 40000.0), ("ocv_shape", 0.05), ("hysteresis", 0.04)]
+    pairs = []
+    folder = Path(out_dir or tempfile.mkdtemp(prefix="gap-demo-"))
+    for effect, mag in picks:
+        ds = withheld.make(base_seed, effect, mag, 1.0, "drive", 1)
+        ds.meta["name"] = effect
+        csv = folder / f"{effect}.csv"
+        write(ds, csv)
+        diagnose_file(csv, folder / f"{effect}.diagnosis.json")
+        pairs.append((folder / f"{effect}.json", folder / f"{effect}.diagnosis.json"))
+    return records(pairs)
