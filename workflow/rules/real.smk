@@ -54,6 +54,115 @@ rule panasonic_import:
 # ------------------------------------------------------------------------------------------------
 # Samsung 30Q and NASA B0005: their rules go below this line (they add to REAL_TARGETS).
 # ------------------------------------------------------------------------------------------------
+# Thin run: blocks calling avoa_pipeline.real.cells_cli in the Snakemake process (each job takes
+# seconds; a fresh interpreter would add one more). A config without real.samsung or real.nasa
+# leaves that dataset's rules out. docs/real-data.md, sections "Samsung INR18650-30Q", "NASA B0005".
+import avoa_pipeline.real.cells_cli as real_cells
+
+SAMSUNG_CFG = REAL.get("samsung") or {}
+NASA_CFG = REAL.get("nasa") or {}
+SAMSUNG_TEMPS = list(SAMSUNG_CFG.get("hppc", {}))
+REAL_CANON = "results/real/canonical"
+REAL_REPORT = "results/real/report"
+REAL_TARGETS += real_cells.targets(config)
+
+
+if SAMSUNG_CFG:
+
+    rule real_samsung_import:
+        """One Samsung 30Q HPPC file in the canonical form (time built from the 1 s rows, current
+        sign flipped and checked against the voltage, sha256 checked)."""
+        input:
+            lambda w: real_cells.source_path(config, SAMSUNG_CFG["hppc"][w.stemp]["file"]),
+        output:
+            csv=f"{REAL_CANON}/samsung_hppc_{{stemp}}.csv",
+            meta=f"{REAL_CANON}/samsung_hppc_{{stemp}}.json",
+        wildcard_constraints:
+            stemp="|".join(SAMSUNG_TEMPS),
+        log:
+            "logs/real/canonical/samsung_hppc_{stemp}.log",
+        params:
+            samsung=SAMSUNG_CFG,
+            sha256=lambda w: REAL["sources"][SAMSUNG_CFG["hppc"][w.stemp]["file"]],
+        run:
+            real_cells.samsung_import(config, wildcards.stemp, output.csv, log[0])
+
+    rule real_samsung_arrhenius:
+        """Experiment 2: R0, Rtr, tau per 1C HPPC pulse at each temperature; Arrhenius fits."""
+        input:
+            expand(f"{REAL_CANON}/samsung_hppc_{{stemp}}.csv", stemp=SAMSUNG_TEMPS),
+        output:
+            rc=real_cells.OUTPUTS["samsung"][0],
+            arrhenius=real_cells.OUTPUTS["samsung"][1],
+        log:
+            "logs/real/samsung_arrhenius.log",
+        params:
+            samsung=SAMSUNG_CFG,
+        run:
+            real_cells.arrhenius(config, dict(zip(SAMSUNG_TEMPS, input)), output.rc,
+                                 output.arrhenius, log[0])
+
+
+if NASA_CFG:
+
+    rule real_nasa_import:
+        """The 168 NASA B0005 discharges in one canonical record on one time axis (samples where
+        measured), each source's sha256 and current sign checked."""
+        input:
+            real_cells.nasa_source_paths(config),
+        output:
+            csv=f"{REAL_CANON}/nasa_b0005.csv",
+            meta=f"{REAL_CANON}/nasa_b0005.json",
+        log:
+            "logs/real/canonical/nasa_b0005.log",
+        params:
+            nasa=NASA_CFG,
+            sha256=real_cells.nasa_source_sha256(config),
+        run:
+            real_cells.nasa_import(config, output.csv, log[0])
+
+    rule real_nasa_fade:
+        """Experiment 3: capacity and 20-s resistance per ageing state; fade laws (eqs. 7-9)."""
+        input:
+            f"{REAL_CANON}/nasa_b0005.csv",
+        output:
+            states=real_cells.OUTPUTS["nasa"][0],
+            fits=real_cells.OUTPUTS["nasa"][1],
+        log:
+            "logs/real/nasa_fade.log",
+        params:
+            nasa=NASA_CFG,
+        run:
+            real_cells.fade(config, input[0], output.states, output.fits, log[0])
+
+
+if SAMSUNG_CFG and NASA_CFG:
+
+    rule real_cells_report:
+        """Figures and summary tables of experiments 2 and 3 (notebook; all in the report)."""
+        input:
+            nb="notebooks/real_cells.ipynb",
+            rc=real_cells.OUTPUTS["samsung"][0],
+            arrhenius=real_cells.OUTPUTS["samsung"][1],
+            fade=real_cells.OUTPUTS["nasa"][0],
+            fade_fit=real_cells.OUTPUTS["nasa"][1],
+        output:
+            report(ext(f"{REAL_REPORT}/samsung_rc_temperature", FIG_EXT), category="Real data",
+                   subcategory="Samsung 30Q: R0, Rtr, tau against temperature"),
+            report(ext(f"{REAL_REPORT}/samsung_arrhenius_summary", TABLE_EXT),
+                   category="Real data",
+                   subcategory="Samsung 30Q: R0, Rtr, tau against temperature"),
+            report(ext(f"{REAL_REPORT}/nasa_fade", FIG_EXT), category="Real data",
+                   subcategory="NASA B0005: fade law"),
+            report(ext(f"{REAL_REPORT}/nasa_fade_summary", TABLE_EXT), category="Real data",
+                   subcategory="NASA B0005: fade law"),
+            nb=real_cells.OUTPUTS["report"][0],
+        log:
+            "logs/notebooks/real_cells.log",
+        shell:
+            papermill("{input.nb}", "{output.nb}", "{log}", rc_csv="{input.rc}",
+                      arrhenius_csv="{input.arrhenius}", fade_csv="{input.fade}",
+                      fade_fit_csv="{input.fade_fit}", out_dir=REAL_REPORT)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -84,12 +84,17 @@ def source_path(cfg: Mapping, key: str) -> str:
     return str(Path(cfg["real"]["root"]) / key)
 
 
-def nasa_source_paths(cfg: Mapping) -> list[str]:
-    """The NASA index and every discharge file listed in real.sources."""
+def nasa_source_sha256(cfg: Mapping) -> dict[str, str]:
+    """The NASA index and every discharge file listed in real.sources, with their sha256."""
     nasa = _real(cfg, "nasa")
     folder = Path(nasa["discharge_dir"])
-    keys = [nasa["index"]] + [k for k in cfg["real"]["sources"] if Path(k).parent == folder]
-    return [source_path(cfg, k) for k in keys]
+    sources = cfg["real"]["sources"]
+    keys = [nasa["index"]] + [k for k in sources if Path(k).parent == folder]
+    return {k: sources.get(k, "") for k in keys}
+
+
+def nasa_source_paths(cfg: Mapping) -> list[str]:
+    return [source_path(cfg, k) for k in nasa_source_sha256(cfg)]
 
 
 def targets(cfg: Mapping) -> list[str]:
