@@ -1,4 +1,4 @@
-"""Command line: ``python -m avoa_pipeline {fit,generate,recovery} ...``.
+"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,diagnose} ...``.
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -11,6 +11,11 @@ import os
 import sys
 
 os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
+# one BLAS thread (set before numpy loads): scipy's least_squares and L-BFGS-B call BLAS on small
+# matrices, and spinning BLAS threads on a busy 2-core machine made a diagnosis up to 30x slower
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 from .errors import UserError
 from .names import ALGORITHMS
@@ -75,7 +80,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--iterations", type=_int_in("iterations", None), default=None)
     r.add_argument("--out", required=True, help="CSV of runs; a .md summary goes beside it")
     r.add_argument("--config", default=None)
+
+    d = sub.add_parser("diagnose", help="sim-to-real gap diagnosis of a measured record")
+    d.add_argument(
+        "data", help="CSV: time_s, current_a (A, + discharge), voltage_v[, temperature_c]"
+    )
+    d.add_argument("--out", required=True, help="folder for diagnosis.json and diagnosis.png")
+    d.add_argument("--capacity-ah", type=_float("capacity-ah"), default=None)
+    d.add_argument("--soc0", type=_float("soc0"), default=None, help="initial SOC in [0, 1]")
     return p
+
+
+def _float(name: str):
+    def parse(text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+
+    return parse
 
 
 def cmd_fit(args) -> None:
@@ -124,10 +147,40 @@ def cmd_recovery(args) -> None:
     print(md)
 
 
+def cmd_diagnose(args) -> None:
+    import json
+    from pathlib import Path
+
+    from .gap import diagnose, figure
+    from .io import atomic_path
+
+    frame = diagnose.read_record(args.data)
+    report, arrays = diagnose.run(frame, args.capacity_ah, args.soc0, source=str(args.data))
+    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
+    out = Path(args.out)
+    # both files or neither: the figure is drawn into its temporary first; a failure there
+    # leaves no JSON either
+    with atomic_path(out / "diagnosis.png") as png, atomic_path(out / "diagnosis.json") as js:
+        figure.render(report, arrays, png)
+        js.write_text(text)
+    v = report["verdict"]
+    print(
+        f"{args.data}: verdict {v['effect']}"
+        + (f" (held-out shrink {v['shrink']:.1%})" if v["effect"] != "none" else "")
+        + f"; wrote {out / 'diagnosis.json'}, {out / 'diagnosis.png'}"
+    )
+
+
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
-        {"fit": cmd_fit, "generate": cmd_generate, "recovery": cmd_recovery}[args.command](args)
+        commands = {
+            "fit": cmd_fit,
+            "generate": cmd_generate,
+            "recovery": cmd_recovery,
+            "diagnose": cmd_diagnose,
+        }
+        commands[args.command](args)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -19,7 +19,7 @@ much adding it helps (issue 5; the method, its thresholds and their reasons: doc
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -212,11 +212,14 @@ class _Context:
             mask = np.ones(self.rec.n, dtype=bool)
             mask[f] = False
             idx = M.fit_indices(self.rec.n, mask, M.MAX_FIT_POINTS)
+            st = mr.st
+            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC only
+                st = replace(st, knots=M.knots_for(self.rec, mr.x, mask))
             # warm start from the full fit: the optimum of the training objective is what is
             # scored; starting nearby only saves iterations
-            res = M.fit_structure(self.rec, mr.st, mr.x, idx, max_nfev=100)
+            res = M.fit_structure(self.rec, st, mr.x, idx, max_nfev=100)
             self.fits += 1
-            ho[f] = M.simulate_rows(self.rec, res.x[None, :], mr.st.knots)[f, 0]
+            ho[f] = M.simulate_rows(self.rec, res.x[None, :], st.knots)[f, 0]
             fold_x.append(res.x)
         mr.ho, mr.fold_x = ho, fold_x
         return mr

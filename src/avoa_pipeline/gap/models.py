@@ -55,10 +55,31 @@ _NAMES = (
 )  # fmt: skip
 IDX = {n: k for k, n in enumerate(_NAMES)}
 D0 = len(_NAMES)
-NFULL = D0 + N_KNOTS
-KNOT_NAMES = tuple(f"d{j}" for j in range(N_KNOTS))
+KNOT_NAMES = tuple(f"d{j}" for j in range(N_KNOTS))  # correction at the knots (derived)
+SHAPE_NAMES = tuple(f"u{j}" for j in range(N_KNOTS - 2))  # its free coordinates
+U0 = D0 + N_KNOTS
+NFULL = U0 + len(SHAPE_NAMES)
 for _j, _n in enumerate(KNOT_NAMES):
     IDX[_n] = D0 + _j
+for _j, _n in enumerate(SHAPE_NAMES):
+    IDX[_n] = U0 + _j
+
+
+def _shape_basis() -> np.ndarray:
+    """(N_KNOTS, N_KNOTS − 2): knot corrections orthogonal to a constant and a linear trend.
+
+    A constant or a tilt of the OCV is already in the base model's reach (Vnom, β, capacity,
+    SOC0); leaving them out of the correction keeps the fit well posed, and keeps ocv_shape
+    from mimicking a voltage offset. Columns: discrete orthogonal polynomials of degree 2..5,
+    scaled to a largest entry of 1 (so u is in volts).
+    """
+    x = np.linspace(-1.0, 1.0, N_KNOTS)
+    q, _ = np.linalg.qr(np.vander(x, N_KNOTS, increasing=True))
+    b = q[:, 2:]
+    return b / np.abs(b).max(axis=0)
+
+
+SHAPE_BASIS = _shape_basis()
 
 BASE_PARAMS = ("vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1")
 EFFECT_PARAMS = {
@@ -66,7 +87,7 @@ EFFECT_PARAMS = {
     "hysteresis": ("hm", "lgamma", "h0"),
     "butler_volmer": ("bvg",),
     "thermal": ("th0", "th1"),
-    "ocv_shape": KNOT_NAMES,
+    "ocv_shape": SHAPE_NAMES,
     "current_offset": ("ioff",),
     "voltage_offset": ("voff",),
     "coulombic_efficiency": ("eta",),
@@ -99,6 +120,7 @@ _REPORT = {
     "voff": ("voltage_offset_v", lambda x: x),
     "eta": ("coulombic_efficiency", lambda x: x),
     **{n: (f"ocv_{n}_v", lambda x: x) for n in KNOT_NAMES},
+    **{n: (f"ocv_shape_{n}_v", lambda x: x) for n in SHAPE_NAMES},
 }
 
 
@@ -111,14 +133,13 @@ def n_effect_params(effect: str) -> int:
 
 
 @nb.njit(cache=True, nogil=True)
-def _simulate(P, cur, dt, uniform, dinv_t, two_rt_f, s_lo, ds, out, tr):
+def _simulate(P, nk, cur, dt, uniform, dinv_t, two_rt_f, s_lo, ds, out, tr):
     """Terminal voltage of every row of ``P`` (internal layout) into ``out`` (n, m).
 
     ``tr`` (4, n) records SOC, h, v1 + v2 and the thermal R0 factor of row 0 when non-empty.
     """
     m = P.shape[0]
     n = cur.shape[0]
-    nk = P.shape[1] - D0
     record = tr.shape[0] > 0
     vnom = np.empty(m)
     omb = np.empty(m)
@@ -275,12 +296,14 @@ class Knots:
 
 def simulate_rows(rec: Record, P: np.ndarray, knots: Knots, traces: bool = False):
     """Voltage (n, m) of parameter rows ``P`` (m, NFULL); with traces, also (4, n) of row 0."""
-    P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+    P = np.array(np.atleast_2d(P), dtype=float)  # a copy: the knot columns are derived here
+    P[:, D0:U0] = P[:, U0:] @ SHAPE_BASIS.T
     out = np.empty((rec.n, P.shape[0]))
     tr = np.empty((4, rec.n)) if traces else np.empty((0, 0))
     _simulate(
-        P, rec.i, rec.dt, rec.uniform, rec.dinv_t, rec.two_rt_f, knots.lo, knots.step, out, tr
-    )
+        P, N_KNOTS, rec.i, rec.dt, rec.uniform, rec.dinv_t, rec.two_rt_f, knots.lo, knots.step,
+        out, tr,
+    )  # fmt: skip
     return (out, tr) if traces else out
 
 
@@ -289,7 +312,7 @@ def ocv(x: np.ndarray, soc: np.ndarray, knots: Knots) -> np.ndarray:
     sc = np.clip(np.asarray(soc, dtype=float), 0.0, 1.2)
     omb = 10.0 ** x[IDX["lc"]]
     v = x[IDX["vnom"]] * sc / (omb + (1.0 - omb) * sc)
-    d = x[D0:]
+    d = SHAPE_BASIS @ x[U0:]
     if np.any(d != 0.0):
         v = v + np.interp(sc, knots.grid(), d)
     return v + x[IDX["voff"]]
@@ -341,7 +364,7 @@ def bounds_for(rec: Record) -> dict[str, tuple[float, float]]:
         "ioff": (-0.1 * imax, 0.1 * imax),
         "voff": (-0.3, 0.3),
         "eta": (0.7, 1.0),
-        **{n: (-0.5, 0.5) for n in KNOT_NAMES},
+        **{n: (-0.5, 0.5) for n in SHAPE_NAMES},
     }
 
 
@@ -436,7 +459,7 @@ def fit_structure(
     x0: np.ndarray,
     idx: np.ndarray,
     max_nfev: int = 200,
-    tol: float = 1e-9,
+    tol: float = 1e-8,
 ) -> FitResult:
     """Least-squares fit of the free parameters of ``st`` from full vector ``x0``.
 
@@ -596,8 +619,10 @@ class Fitted:
             names.extend(EFFECT_PARAMS[e])
         params = {_REPORT[n][0]: float(_REPORT[n][1](x[IDX[n]])) for n in names}
         if "ocv_shape" in st.effects:
+            d = SHAPE_BASIS @ x[U0:]
             for j, s in enumerate(st.knots.grid()):
                 params[f"ocv_knot{j}_soc"] = float(s)
+                params[f"ocv_d{j}_v"] = float(d[j])
         if "thermal" in st.effects or "butler_volmer" in st.effects:
             params["tref_k"] = rec.tref_k
         return cls(st.effects, x.copy(), st.knots, rec.tref_k, st.free, rmse, params)
@@ -639,9 +664,15 @@ COARSE_POINTS = 2500
 is refined on the full set."""
 
 
-def knots_for(rec: Record, x: np.ndarray) -> Knots:
-    """ocv_shape knots spread evenly over the SOC range the fitted base model visits."""
+def knots_for(rec: Record, x: np.ndarray, mask: np.ndarray | None = None) -> Knots:
+    """ocv_shape knots spread evenly over the SOC range that model ``x`` visits on ``mask``.
+
+    Beyond the knots the correction stays flat: a model fitted without some SOC range does not
+    extrapolate a polynomial into it.
+    """
     soc = np.clip(x[IDX["soc0"]] - rec.charge_ah() / 10.0 ** x[IDX["lq"]], 0.0, 1.2)
+    if mask is not None:
+        soc = soc[mask]
     lo, hi = float(soc.min()), float(soc.max())
     if hi - lo < 1e-3:
         lo, hi = lo - 5e-4, hi + 5e-4
