@@ -238,3 +238,33 @@ def test_evaluate_writes_every_table_from_files(tmp_path):
         assert path.stat().st_size > 0
     target = pd.read_csv(out["target"])
     assert list(target["result"][:2]) == ["PASS", "PASS"]
+
+
+def test_paper_scenarios_fade_is_absorbed_by_the_base_model(tmp_path):
+    from avoa_pipeline import config
+
+    cfg = config.load()
+    fade = ev.paper_dataset(cfg, 2, 2, tmp_path / "s2c2.csv")
+    # fade is a new parameter set of the same model: nothing is left after the refit
+    assert fade["raw_residual_mv"] > 10.0
+    assert fade["effect_residual_mv"] < 0.01
+    load = ev.paper_dataset(cfg, 3, 2, tmp_path / "s3c2.csv")
+    assert 0.0 < load["effect_residual_mv"] < load["raw_residual_mv"]
+    meta = json.loads((tmp_path / "s3c2.json").read_text())
+    assert meta["gap"]["expected"] == "current_offset"
+    diag = tmp_path / "d.json"
+    diag.write_text(json.dumps({"verdict": {"effect": "none", "shrink": 0.0}}))
+    row = ev.paper_record(tmp_path / "s3c2.json", diag)
+    # a load current the base model absorbs below 1.5 x noise cannot be asked of a diagnosis
+    assert row["detectable"] == (load["effect_residual_mv"] >= 1.5 * load["noise_rmse_mv"])
+    assert row["as_expected"] == (row["expected_verdict"] == "none")
+
+
+def test_figures_are_written(tmp_path):
+    df = _hand_made()
+    ev.fig_confusion(df, tmp_path / "c.png")
+    ev.fig_accuracy(ev.accuracy(df), tmp_path / "a.png")
+    ev.fig_shrink(df, tmp_path / "s.png")
+    ev.fig_detection_limit(ev.detection_limit(df), tmp_path / "d.png")
+    for name in "casd":
+        assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"

@@ -36,12 +36,16 @@ if GAP:
     def gap_pybamm_records():
         return [f"pybamm/{n}" for n in GAP["pybamm"]]
 
+    # canonical real records (workflow/rules/real.smk) to diagnose, when the data are there
+    GAP_REAL = list(GAP.get("real", [])) if REAL_PRESENT else []
+
     def gap_outputs():
         return [
             *(f"results/gap/{t}.csv" for t in GAP_TABLES),
             "results/gap/paper_scenarios.csv",
             "results/gap/pybamm.csv",
             *(f"results/gap/figures/{f}.png" for f in GAP_FIGURES),
+            *(["results/gap/real.csv"] if GAP_REAL else []),
         ]
 
     rule gap_data:
@@ -116,11 +120,39 @@ if GAP:
             "results/gap/data/{record}.csv",
         output:
             "results/gap/diagnoses/{record}.json",
+        wildcard_constraints:
+            record=r"(?!real/)[\w/.-]+",
         log:
             "logs/gap/diagnoses/{record}.log",
         threads: 1
         run:
             gap_eval.diagnose_job(input[0], output[0], log[0], workers=workflow.cores)
+
+    rule gap_diagnose_real:
+        """One diagnosis of a canonical real record (CSV only; its sidecar is not read)."""
+        input:
+            f"{PAN_CANON}/{{name}}.csv",
+        output:
+            "results/gap/diagnoses/real/{name}.json",
+        wildcard_constraints:
+            name=_regex(GAP_REAL),
+        log:
+            "logs/gap/diagnoses/real/{name}.log",
+        threads: 1
+        run:
+            gap_eval.diagnose_job(input[0], output[0], log[0], workers=workflow.cores)
+
+    rule gap_real_table:
+        """Verdicts on real records: what the paper's model misses on measured cells."""
+        input:
+            data=[f"{PAN_CANON}/{n}.csv" for n in GAP_REAL],
+            diag=[f"results/gap/diagnoses/real/{n}.json" for n in GAP_REAL],
+        output:
+            report("results/gap/real.csv", category="Gap diagnosis", subcategory="Real records"),
+        log:
+            "logs/gap/real.log",
+        run:
+            gap_eval.table_job(gap_eval.real_record, input.data, input.diag, output[0], log[0])
 
     rule gap_evaluate:
         """Confusion matrix, accuracy, detection limit, shrink, target check."""
@@ -169,6 +201,7 @@ if GAP:
             tables=[f"results/gap/{t}.csv" for t in GAP_TABLES],
             paper="results/gap/paper_scenarios.csv",
             pybamm="results/gap/pybamm.csv",
+            real=["results/gap/real.csv"] if GAP_REAL else [],
         output:
             *(report(f"results/gap/figures/{f}.png", category="Gap diagnosis",
                      subcategory="Withheld effects") for f in GAP_FIGURES),
