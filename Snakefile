@@ -28,4 +28,4 @@ rule all:
         all_figures(),
         "results/tables/claims.csv",
         real_outputs(),
-        gap_outputs(),
+        GAP_OUTPUTS,

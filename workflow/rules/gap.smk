@@ -1,61 +1,25 @@
 # Issue 5, "Checked on withheld effects": datasets with one hidden effect (and PyBaMM records and
 # the paper's scenarios), one diagnosis job per record, tables and figures. Optional: without a
 # `gap:` section in the config no rule here runs.
+from functools import partial
+
 import avoa_pipeline.gap.evaluate as gap_eval
-from avoa_pipeline.gap import EFFECTS
-from avoa_pipeline.gap import withheld as gap_withheld
 
 GAP = config.get("gap")
-GAP_TABLES = ("records", "confusion", "accuracy", "detection_limit", "shrink", "target")
-GAP_FIGURES = ("confusion", "accuracy", "shrink", "detection_limit")
-
-
-def _regex(values):
-    # a never-matching pattern for an empty list (the rule then makes nothing)
-    return "|".join(map(str, values)) if values else "(?!x)x"
+GAP_PLAN = gap_eval.plan(GAP, real_present=REAL_PRESENT)
+GAP_OUTPUTS = GAP_PLAN["outputs"]
 
 
 if GAP:
-    GAP_FULL = sorted(GAP["replicates"])
-    GAP_CONTROL_ONLY = sorted(set(GAP["control_replicates"]) - set(GAP["replicates"]))
-    GAP_FULL_NAMES = gap_withheld.names(GAP, GAP_FULL[0]) if GAP_FULL else []
-    GAP_CONTROL_NAMES = gap_withheld.names({**GAP, "replicates": []}, -1)
-
-    def gap_records():
-        """Every withheld-effect dataset as profile/rN/name (no extension)."""
-        out = []
-        for profile in GAP["profiles"]:
-            for rep in gap_withheld.all_replicates(GAP):
-                names = GAP_FULL_NAMES if rep in GAP["replicates"] else GAP_CONTROL_NAMES
-                out += [f"{profile}/r{rep}/{n}" for n in names]
-        return out
-
-    def gap_paper_records():
-        return [f"paper/s{s}c{c}" for s in GAP["paper_scenarios"] for c in GAP["paper_cases"]]
-
-    def gap_pybamm_records():
-        return [f"pybamm/{n}" for n in GAP["pybamm"]]
-
-    # canonical real records (workflow/rules/real.smk) to diagnose, when the data are there
-    GAP_REAL = list(GAP.get("real", [])) if REAL_PRESENT else []
-
-    def gap_outputs():
-        return [
-            *(f"results/gap/{t}.csv" for t in GAP_TABLES),
-            "results/gap/paper_scenarios.csv",
-            "results/gap/pybamm.csv",
-            *(f"results/gap/figures/{f}.png" for f in GAP_FIGURES),
-            *(["results/gap/real.csv"] if GAP_REAL else []),
-        ]
 
     rule gap_data:
         """Every effect × magnitude × noise dataset (and the controls) of one base cell."""
         output:
             expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
-                   name=GAP_FULL_NAMES, ext=("csv", "json")),
+                   name=GAP_PLAN["full_names"], ext=("csv", "json")),
         wildcard_constraints:
-            profile=_regex(GAP["profiles"]),
-            replicate=_regex(GAP_FULL),
+            profile=gap_eval.regex(GAP["profiles"]),
+            replicate=gap_eval.regex(GAP_PLAN["full_replicates"]),
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
@@ -69,10 +33,10 @@ if GAP:
         """The `none` controls of a base cell that carries no effect datasets."""
         output:
             expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
-                   name=GAP_CONTROL_NAMES, ext=("csv", "json")),
+                   name=GAP_PLAN["control_names"], ext=("csv", "json")),
         wildcard_constraints:
-            profile=_regex(GAP["profiles"]),
-            replicate=_regex(GAP_CONTROL_ONLY),
+            profile=gap_eval.regex(GAP["profiles"]),
+            replicate=gap_eval.regex(GAP_PLAN["control_only"]),
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
@@ -105,7 +69,7 @@ if GAP:
             csv="results/gap/data/pybamm/{name}.csv",
             meta="results/gap/data/pybamm/{name}.json",
         wildcard_constraints:
-            name=_regex(GAP["pybamm"]),
+            name=gap_eval.regex(GAP["pybamm"]),
         log:
             "logs/gap/data/pybamm/{name}.log",
         params:
@@ -135,7 +99,7 @@ if GAP:
         output:
             "results/gap/diagnoses/real/{name}.json",
         wildcard_constraints:
-            name=_regex(GAP_REAL),
+            name=gap_eval.regex(GAP_PLAN["real"]),
         log:
             "logs/gap/diagnoses/real/{name}.log",
         threads: 1
@@ -145,8 +109,8 @@ if GAP:
     rule gap_real_table:
         """Verdicts on real records: what the paper's model misses on measured cells."""
         input:
-            data=[f"{PAN_CANON}/{n}.csv" for n in GAP_REAL],
-            diag=[f"results/gap/diagnoses/real/{n}.json" for n in GAP_REAL],
+            data=[f"{PAN_CANON}/{n}.csv" for n in GAP_PLAN["real"]],
+            diag=[f"results/gap/diagnoses/real/{n}.json" for n in GAP_PLAN["real"]],
         output:
             report("results/gap/real.csv", category="Gap diagnosis", subcategory="Real records"),
         log:
@@ -157,11 +121,11 @@ if GAP:
     rule gap_evaluate:
         """Confusion matrix, accuracy, detection limit, shrink, target check."""
         input:
-            data=[f"results/gap/data/{r}.json" for r in gap_records()],
-            diag=[f"results/gap/diagnoses/{r}.json" for r in gap_records()],
+            data=[f"results/gap/data/{r}.json" for r in GAP_PLAN["records"]],
+            diag=[f"results/gap/diagnoses/{r}.json" for r in GAP_PLAN["records"]],
         output:
             **{t: report(f"results/gap/{t}.csv", category="Gap diagnosis",
-                         subcategory="Withheld effects") for t in GAP_TABLES},
+                         subcategory="Withheld effects") for t in gap_eval.TABLES},
         params:
             threshold=GAP["threshold"],
         log:
@@ -172,21 +136,22 @@ if GAP:
     rule gap_paper_table:
         """What the paper's scenarios look like to a model without load or fade."""
         input:
-            data=[f"results/gap/data/{r}.json" for r in gap_paper_records()],
-            diag=[f"results/gap/diagnoses/{r}.json" for r in gap_paper_records()],
+            data=[f"results/gap/data/{r}.json" for r in GAP_PLAN["paper"]],
+            diag=[f"results/gap/diagnoses/{r}.json" for r in GAP_PLAN["paper"]],
         output:
             report("results/gap/paper_scenarios.csv", category="Gap diagnosis",
                    subcategory="Paper scenarios"),
         log:
             "logs/gap/paper_scenarios.log",
         run:
-            gap_eval.table_job(gap_eval.paper_record, input.data, input.diag, output[0], log[0])
+            gap_eval.table_job(partial(gap_eval.paper_record, threshold=GAP["threshold"]),
+                               input.data, input.diag, output[0], log[0])
 
     rule gap_pybamm_table:
         """Verdicts on the PyBaMM records against the effects each holds."""
         input:
-            data=[f"results/gap/data/{r}.json" for r in gap_pybamm_records()],
-            diag=[f"results/gap/diagnoses/{r}.json" for r in gap_pybamm_records()],
+            data=[f"results/gap/data/{r}.json" for r in GAP_PLAN["pybamm"]],
+            diag=[f"results/gap/diagnoses/{r}.json" for r in GAP_PLAN["pybamm"]],
         output:
             report("results/gap/pybamm.csv", category="Gap diagnosis", subcategory="PyBaMM"),
         log:
@@ -198,13 +163,13 @@ if GAP:
         """Figures: confusion matrix, accuracy, shrink, detection limit."""
         input:
             nb="notebooks/gap_validation.ipynb",
-            tables=[f"results/gap/{t}.csv" for t in GAP_TABLES],
+            tables=[f"results/gap/{t}.csv" for t in gap_eval.TABLES],
             paper="results/gap/paper_scenarios.csv",
             pybamm="results/gap/pybamm.csv",
-            real=["results/gap/real.csv"] if GAP_REAL else [],
+            real=["results/gap/real.csv"] if GAP_PLAN["real"] else [],
         output:
             *(report(f"results/gap/figures/{f}.png", category="Gap diagnosis",
-                     subcategory="Withheld effects") for f in GAP_FIGURES),
+                     subcategory="Withheld effects") for f in gap_eval.FIGURES),
             nb="results/notebooks/gap_validation.ipynb",
         log:
             "logs/notebooks/gap_validation.log",
@@ -215,9 +180,5 @@ if GAP:
     rule gap:
         """The withheld-effect check: every table and figure of this file."""
         input:
-            gap_outputs(),
+            GAP_OUTPUTS,
 
-else:
-
-    def gap_outputs():
-        return []

@@ -621,3 +621,51 @@ def demo_records(base_seed: int = 1, out_dir=None) -> pd.DataFrame:
         diagnose_file(csv, folder / f"{effect}.diagnosis.json")
         pairs.append((folder / f"{effect}.json", folder / f"{effect}.diagnosis.json"))
     return records(pairs)
+
+
+# --- the workflow's plan (workflow/rules/gap.smk) ----------------------------------------------
+
+TABLES = ("records", "confusion", "accuracy", "detection_limit", "shrink", "target")
+FIGURES = ("confusion", "accuracy", "shrink", "detection_limit")
+
+
+def regex(values) -> str:
+    """A wildcard constraint for exactly ``values`` (never matching when there are none)."""
+    return "|".join(map(str, values)) if values else "(?!x)x"
+
+
+def plan(gcfg: dict | None, real_present: bool = False) -> dict:
+    """Every record and output of the gap rules for the config's ``gap:`` section."""
+    from . import withheld
+
+    if not gcfg:
+        return {"outputs": []}
+    full = sorted(gcfg["replicates"])
+    control_only = sorted(set(gcfg["control_replicates"]) - set(full))
+    full_names = withheld.names(gcfg, full[0]) if full else []
+    control_names = withheld.names({**gcfg, "replicates": []}, -1)
+    records_ = [
+        f"{profile}/r{rep}/{name}"
+        for profile in gcfg["profiles"]
+        for rep in withheld.all_replicates(gcfg)
+        for name in (full_names if rep in full else control_names)
+    ]
+    real = list(gcfg.get("real", [])) if real_present else []
+    outputs = [
+        *(f"results/gap/{t}.csv" for t in TABLES),
+        "results/gap/paper_scenarios.csv",
+        "results/gap/pybamm.csv",
+        *(f"results/gap/figures/{f}.png" for f in FIGURES),
+        *(["results/gap/real.csv"] if real else []),
+    ]
+    return {
+        "full_replicates": full,
+        "control_only": control_only,
+        "full_names": full_names,
+        "control_names": control_names,
+        "records": records_,
+        "paper": [f"paper/s{s}c{c}" for s in gcfg["paper_scenarios"] for c in gcfg["paper_cases"]],
+        "pybamm": [f"pybamm/{n}" for n in gcfg["pybamm"]],
+        "real": real,
+        "outputs": outputs,
+    }
