@@ -124,8 +124,37 @@ _REPORT = {
 }
 
 
-def n_effect_params(effect: str) -> int:
-    return len(EFFECT_PARAMS[effect])
+_INVERSE = {
+    "beta": ("lc", lambda v: np.log10(1.0 - v)),
+    "capacity_ah": ("lq", np.log10),
+    "tau1_s": ("ltau1", np.log10),
+    "tau2_s": ("ltau2", np.log10),
+    "hysteresis_gamma": ("lgamma", np.log10),
+}
+
+
+def vector(params: dict) -> np.ndarray:
+    """Internal full vector from report-named parameters (absent ones neutral)."""
+    by_report = {rep: name for name, (rep, _) in _REPORT.items()}
+    x = NEUTRAL.copy()
+    for key, value in params.items():
+        if key in _INVERSE:
+            name, fn = _INVERSE[key]
+            x[IDX[name]] = fn(float(value))
+        elif key in by_report and by_report[key] not in KNOT_NAMES:
+            x[IDX[by_report[key]]] = float(value)
+        elif key not in ("tref_k",) and not key.startswith(("ocv_knot", "ocv_d")):
+            raise KeyError(f"unknown parameter {key!r}")
+    return x
+
+
+def simulate_params(frame: pd.DataFrame, params: dict, knots: Knots | None = None) -> np.ndarray:
+    """Terminal voltage of ``frame``'s current under report-named ``params`` (tests, benchmarks).
+
+    ``knots``: where the ocv_shape correction lives (default SOC 0-1).
+    """
+    rec = Record.from_frame(frame, tref_k=params.get("tref_k"))
+    return simulate_rows(rec, vector(params)[None, :], knots or Knots(0.0, 0.2))[:, 0]
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1,0 +1,175 @@
+"""The gap diagnosis: `none` on the base model's own data, the right effect on data with one
+strong effect, its JSON, and the CLI's one-line errors that write nothing."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_gap_models import TRUTH, profile_frame, with_voltage
+
+from avoa_pipeline.cli import main
+from avoa_pipeline.gap import EFFECTS, VERDICTS, diagnose, figure
+from avoa_pipeline.gap import models as M
+
+
+@pytest.fixture(scope="module")
+def base_report():
+    frame = with_voltage(profile_frame(), TRUTH, noise_v=1e-3, seed=1)
+    return diagnose.diagnose(frame, source="base.csv")
+
+
+def test_base_model_data_gives_none(base_report):
+    assert base_report["verdict"]["effect"] == "none"
+    assert base_report["ladder"] == []
+    # quantised 1 mV noise: sqrt(1 + 1/12) = 1.04 mV
+    assert base_report["base"]["noise_floor_mv"] == pytest.approx(1.04, rel=0.1)
+    assert base_report["base"]["rmse_mv"] == pytest.approx(1.04, rel=0.1)
+
+
+def test_report_keys_and_json(base_report):
+    r = base_report
+    assert {"base", "localization", "candidates", "verdict", "ladder"} <= r.keys()
+    assert {"parameters", "rmse_mv", "noise_floor_mv"} <= r["base"].keys()
+    for region in r["localization"]:
+        assert {"region", "share", "rmse_mv"} <= region.keys()
+    groups = {reg["group"] for reg in r["localization"]}
+    assert {"mode", "direction", "since_step", "soc", "current", "temperature"} <= groups
+    assert sorted(c["effect"] for c in r["candidates"]) == sorted(EFFECTS)
+    for c in r["candidates"]:
+        assert {"effect", "heldout_rmse_mv", "shrink", "delta_bic"} <= c.keys()
+    assert r["verdict"]["effect"] in VERDICTS
+    assert sum(reg["share"] for reg in r["localization"] if reg["group"] == "mode") == (
+        pytest.approx(1.0)
+    )
+    json.dumps(r, allow_nan=False)
+
+
+def test_thermal_needs_a_varying_temperature():
+    frame = with_voltage(profile_frame(temperature=False), TRUTH, noise_v=1e-3)
+    rec = M.Record.from_frame(frame)
+    assert diagnose.applicable(rec, "thermal") == (False, "no temperature_c column")
+
+
+@pytest.fixture(scope="module")
+def second_rc_run(tmp_path_factory):
+    truth = {**TRUTH, "r2_ohm": 0.01, "tau2_s": 1000.0}
+    frame = with_voltage(profile_frame(), truth, noise_v=1e-3, seed=2)
+    path = tmp_path_factory.mktemp("rc") / "rc.csv"
+    frame.to_csv(path, index=False)
+    out = path.parent / "out"
+    assert main(["diagnose", str(path), "--out", str(out)]) == 0
+    return json.loads((out / "diagnosis.json").read_text()), out
+
+
+def test_cli_finds_a_second_rc_branch(second_rc_run):
+    report, out = second_rc_run
+    assert report["verdict"]["effect"] == "second_rc"
+    assert report["verdict"]["shrink"] > 0.5
+    assert report["verdict"]["heldout_rmse_after_mv"] < 1.2  # down to the noise
+    assert report["ladder"][0]["effect"] == "second_rc"
+    assert (out / "diagnosis.png").stat().st_size > 10_000
+
+
+def test_strong_hysteresis_is_found():
+    truth = {**TRUTH, "hysteresis_m_v": 0.01, "hysteresis_gamma": 100.0}
+    frame = with_voltage(profile_frame(), truth, noise_v=1e-3, seed=3)
+    report = diagnose.diagnose(frame)
+    assert report["verdict"]["effect"] == "hysteresis"
+    row = next(c for c in report["candidates"] if c["effect"] == "hysteresis")
+    assert row["pays"]
+    assert row["delta_bic"] < -10
+
+
+def _csv(tmp_path, frame, name="d.csv"):
+    path = tmp_path / name
+    frame.to_csv(path, index=False)
+    return path
+
+
+def _good(n=3000):
+    frame = profile_frame([(300, 0.0), (1200, 2.0), (600, 0.0), (600, -1.5), (n - 2700, 0.0)])
+    return with_voltage(frame, TRUTH, noise_v=1e-3)
+
+
+def _bad_inputs():
+    g = _good()
+    nan = g.copy()
+    nan.loc[10, "voltage_v"] = np.nan
+    back = g.copy()
+    back.loc[20, "time_s"] = 5.0
+    ma = g.copy()
+    ma["current_a"] *= 1000.0
+    mv = g.copy()
+    mv["voltage_v"] *= 1000.0
+    return {
+        "missing column": (g.drop(columns="voltage_v"), [], "voltage_v"),
+        "NaN": (nan, [], "voltage_v"),
+        "time backwards": (back, [], "time_s"),
+        "too short": (g.iloc[:1500], [], "samples"),
+        "current in mA": (ma, [], "mA"),
+        "voltage in mV": (mv, [], "voltage_v"),
+        "capacity <= 0": (g, ["--capacity-ah", "0"], "capacity"),
+        "capacity not a number": (g, ["--capacity-ah", "x"], "capacity"),
+        "soc0 > 1": (g, ["--soc0", "1.5"], "soc0"),
+        "soc0 < 0": (g, ["--soc0", "-0.1"], "soc0"),
+        "mA for the capacity": (
+            g.assign(current_a=g["current_a"] * 40),
+            ["--capacity-ah", "1"],
+            "mA",
+        ),
+    }
+
+
+@pytest.mark.parametrize("case", list(_bad_inputs()))
+def test_cli_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, case):
+    frame, extra, word = _bad_inputs()[case]
+    path = _csv(tmp_path, frame)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(path), "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith("error: ")
+    assert word in err
+    assert not out.exists()
+
+
+def test_missing_file_is_one_line(tmp_path, capsys):
+    assert main(["diagnose", str(tmp_path / "nope.csv"), "--out", str(tmp_path / "o")]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
+    path = _csv(tmp_path, _good())
+    monkeypatch.setattr(diagnose, "run", lambda *a, **k: ({"verdict": {"effect": "none"}}, {}))
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("figure failed")
+
+    monkeypatch.setattr(figure, "render", broken)
+    with pytest.raises(RuntimeError):
+        main(["diagnose", str(path), "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out" / "diagnosis.json").exists()
+    assert not list((tmp_path / "out").glob("*"))
+
+
+def test_diagnose_rejects_a_frame_in_milliamperes():
+    frame = _good()
+    frame["current_a"] *= 1000.0
+    with pytest.raises(diagnose.DataError, match="mA"):
+        diagnose.diagnose(frame, source="frame")
+
+
+def test_noise_floor_ignores_smooth_misfit():
+    rec = M.Record.from_frame(_good())
+    rng = np.random.default_rng(0)
+    smooth = 0.005 * np.sin(rec.t / 300.0)
+    est = diagnose.noise_floor(rec, smooth + 0.002 * rng.standard_normal(rec.n))
+    assert est == pytest.approx(0.002, rel=0.05)
+
+
+def test_frame_input_accepts_no_temperature():
+    frame = _good().drop(columns="temperature_c")
+    checked = diagnose.validate(frame, "f")
+    assert list(checked.columns) == ["time_s", "current_a", "voltage_v"]
+    assert isinstance(checked, pd.DataFrame)
