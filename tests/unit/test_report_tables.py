@@ -4,6 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import aggregate
 from avoa_pipeline.model.battery import CASES, PARAM_NAMES
 from avoa_pipeline.optimizers import ALGORITHMS, PAPER_LABELS
 from avoa_pipeline.report import tables
@@ -200,3 +201,16 @@ def test_write_table_writes_nothing_on_error(tmp_path):
     with pytest.raises(TypeError):
         tables.write_table([1, 2], tmp_path / "u", "caption")
     assert not (tmp_path / "u.csv").exists()
+
+
+def test_param_table_of_a_pair_not_run_shows_the_truth_and_the_papers_error():
+    truth = {"vnom": 3.73, "q": 2.57, "vdis": 3.53, "r0": 0.0536, "rtr": 0.0053, "tau": 109.7}
+    empty = aggregate.empty_runs()
+    t = tables.param_table(empty, paper_params(), 1, 2, truth=truth).set_index(["Quantity", "Row"])
+    vnom = tables.param_label("vnom")
+    assert t.loc[(vnom, "ours (median-ISE run)"), "True"] == pytest.approx(3.73)
+    printed = t.loc[(vnom, "paper")].drop("True").dropna()
+    assert len(printed) > 0
+    err = t.loc[(vnom, "paper rel. err. (%)")].drop("True").dropna()
+    np.testing.assert_allclose(err, 100 * (printed / 3.73 - 1))
+    assert np.isnan(t.loc[(tables.ISE_LABEL, "ours mean"), "True"])  # needs data: not known

@@ -318,7 +318,11 @@ def median_run(sub: pd.DataFrame) -> pd.Series | None:
 
 
 def param_table(
-    runs: pd.DataFrame, paper_params: pd.DataFrame | None, scenario: int, case: int
+    runs: pd.DataFrame,
+    paper_params: pd.DataFrame | None,
+    scenario: int,
+    case: int,
+    truth: dict | None = None,
 ) -> pd.DataFrame:
     """Tables 4-19: identified parameters and ISE of one scenario × case, ours against the paper.
 
@@ -338,6 +342,9 @@ def param_table(
     floor): ``ours mean``, ``ours sd`` (over seeds, ddof 1), ``ours median``, ``ours best``,
     ``ours worst``, ``paper``; and ``seed of median run``, ``seeds`` (runs with an ISE).
     Missing values are NaN (the paper's Table 12, S3/C1, prints no ISE row; Table 22 has it).
+    ``truth`` (parameter → fresh-cell value, e.g. the config's ``true_params`` of the case's
+    temperature) fills the parameters' ``True`` column and the paper's relative errors when no
+    run of this pair gives them (a pair the configuration does not run).
     """
     if case not in CASES:
         raise ValueError(f"unknown case {case}")
@@ -355,7 +362,10 @@ def param_table(
     med = {a: median_run(sub[sub["algorithm"] == a]) for a in algos}
 
     def true_of(col: str) -> float:
-        return float(sub[col].median()) if col in sub and sub[col].notna().any() else np.nan
+        if col in sub and sub[col].notna().any():
+            return float(sub[col].median())
+        name = col.removeprefix("true_")
+        return float((truth or {}).get(name, np.nan)) if name in PARAM_NAMES else np.nan
 
     rows = []
 
