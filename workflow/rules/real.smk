@@ -51,6 +51,162 @@ rule panasonic_import:
                                    log[0])
 
 
+from avoa_pipeline.real import drive_cycles as real_dc
+
+PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
+PAN_OUT = "results/real/panasonic"
+PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
+PAN_GAP = real_dc.gap_available()
+
+
+def pan_canon(name):
+    return f"{PAN_CANON}/{real_jobs.canonical_name(name)}.csv"
+
+
+def pan_train(w):
+    return pan_canon(f"{w.ptemp}/{PAN_EXP['train'][w.ptemp]}")
+
+
+def pan_tests(temp):
+    """Unseen drive cycles at ``temp``: cycle name → canonical CSV."""
+    return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
+
+
+def pan_fit_records():
+    out = [f"{PAN_OUT}/fits/{t}/{m}/{a}.json" for t in PAN_EXP_TEMPS
+           for m in real_dc.PAPER_MODELS for a in PAN_EXP["algorithms"]]
+    out += [f"{PAN_OUT}/fits/{t}/c20.json" for t in PAN_EXP_TEMPS]
+    if PAN_GAP:
+        out += [f"{PAN_OUT}/fits/{t}/gap.json" for t in PAN_EXP_TEMPS]
+    return out
+
+
+if PAN_EXP_TEMPS:
+    REAL_TARGETS += [
+        "results/real/drive_cycle_rmse.csv",
+        "results/real/figures/panasonic_drive_cycles.png",
+    ]
+
+
+rule panasonic_ocv:
+    """The C/20 discharge curve as an SOC → OCV table."""
+    input:
+        pan_canon("25degC/ocv_c20") if PANASONIC else [],
+    output:
+        csv=f"{PAN_OUT}/ocv_c20.csv",
+        meta=f"{PAN_OUT}/ocv_c20.json",
+    log:
+        "logs/real/panasonic/ocv_c20.log",
+    run:
+        real_jobs.panasonic_ocv(input[0], output.csv, log[0])
+
+
+rule panasonic_fit_paper:
+    """The paper's model (with or without the RC branch), one optimizer, all seeds, fitted to
+    the training drive cycle and run on the unseen ones."""
+    input:
+        train=pan_train,
+        tests=lambda w: list(pan_tests(w.ptemp).values()),
+    output:
+        f"{PAN_OUT}/fits/{{ptemp}}/{{pmodel}}/{{algorithm}}.json",
+    log:
+        "logs/real/panasonic/fits/{ptemp}/{pmodel}/{algorithm}.log",
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        pmodel="|".join(real_dc.PAPER_MODELS),
+        algorithm="|".join(PAN_EXP.get("algorithms", [])) or "none",
+    params:
+        exp=PAN_EXP,
+        base_seed=config["base_seed"],
+    threads: 1
+    run:
+        real_jobs.paper_fit_job(config, wildcards.ptemp, wildcards.pmodel, wildcards.algorithm,
+                                input.train, pan_tests(wildcards.ptemp), output[0], log[0],
+                                workers=workflow.cores)
+
+
+rule panasonic_fit_c20:
+    """The C/20-OCV circuits (least squares), fitted to the training cycle, run on the others."""
+    input:
+        train=pan_train,
+        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        ocv=f"{PAN_OUT}/ocv_c20.csv",
+    output:
+        f"{PAN_OUT}/fits/{{ptemp}}/c20.json",
+    log:
+        "logs/real/panasonic/fits/{ptemp}/c20.log",
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        train=lambda w: PAN_EXP["train"][w.ptemp],
+    threads: 1
+    run:
+        real_jobs.c20_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
+                              input.ocv, output[0], log[0], workers=workflow.cores)
+
+
+rule panasonic_fit_gap:
+    """The gap diagnosis of the training cycle and the model it recommends (avoa_pipeline.gap)."""
+    input:
+        train=pan_train,
+        tests=lambda w: list(pan_tests(w.ptemp).values()),
+    output:
+        json=f"{PAN_OUT}/fits/{{ptemp}}/gap.json",
+        pred=f"{PAN_OUT}/fits/{{ptemp}}/gap_predictions.parquet",
+    log:
+        "logs/real/panasonic/fits/{ptemp}/gap.log",
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        train=lambda w: PAN_EXP["train"][w.ptemp],
+    threads: 1
+    run:
+        real_jobs.gap_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
+                              output.json, output.pred, log[0], workers=workflow.cores)
+
+
+rule panasonic_drive_cycle_table:
+    """Experiment 1's table: RMSE and maximum error per temperature × unseen cycle × model."""
+    input:
+        fits=pan_fit_records(),
+        gap=[f"{PAN_OUT}/fits/{t}/gap_predictions.parquet" for t in PAN_EXP_TEMPS] if PAN_GAP else [],
+        tests=[pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS for c in real_dc.unseen_cycles(config, t)],
+        ocv=f"{PAN_OUT}/ocv_c20.csv",
+    output:
+        csv="results/real/drive_cycle_rmse.csv",
+        runs=f"{PAN_OUT}/drive_cycle_runs.csv",
+        pred=f"{PAN_OUT}/figure_predictions.parquet",
+    log:
+        "logs/real/panasonic/drive_cycle_table.log",
+    run:
+        real_jobs.drive_cycle_table(
+            config, input.fits, input.gap,
+            {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
+             for c in real_dc.unseen_cycles(config, t)},
+            input.ocv, output.csv, output.runs, output.pred, log[0])
+
+
+rule panasonic_drive_cycles_notebook:
+    """Figure (measured against predicted voltage on an unseen cycle) and table of experiment 1."""
+    input:
+        nb="notebooks/real_drive_cycles.ipynb",
+        csv="results/real/drive_cycle_rmse.csv",
+        runs=f"{PAN_OUT}/drive_cycle_runs.csv",
+        pred=f"{PAN_OUT}/figure_predictions.parquet",
+    output:
+        report(ext("results/real/figures/panasonic_drive_cycles", FIG_EXT),
+               category="Real data", subcategory="Panasonic drive cycles"),
+        report(ext("results/real/tables/panasonic_drive_cycle_rmse", TABLE_EXT),
+               category="Real data", subcategory="Panasonic drive cycles"),
+        nb="results/notebooks/real_drive_cycles.ipynb",
+    log:
+        "logs/notebooks/real_drive_cycles.log",
+    shell:
+        papermill("{input.nb}", "{output.nb}", "{log}", rmse_csv="{input.csv}",
+                  runs_csv="{input.runs}", predictions="{input.pred}",
+                  figures_dir="results/real/figures", tables_dir="results/real/tables")
+
+
 # ------------------------------------------------------------------------------------------------
 # Samsung 30Q and NASA B0005: their rules go below this line (they add to REAL_TARGETS).
 # ------------------------------------------------------------------------------------------------

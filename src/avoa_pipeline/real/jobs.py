@@ -32,3 +32,166 @@ def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
         f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah out "
         f"(tester: {side['discharged_ah_tester_counter']:.4f} Ah) from {side['source_file']}",
     )
+
+
+# --- experiment 1 ------------------------------------------------------------------------------
+
+
+def _frames(paths: dict) -> dict:
+    from . import canonical
+
+    return {name: canonical.read(path)[0] for name, path in paths.items()}
+
+
+def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
+    """The C/20 discharge curve as an SOC → OCV table (CSV + JSON with its capacity)."""
+    from ..io import atomic_path, write_json
+    from . import canonical, drive_cycles
+
+    frame, side = canonical.read(canonical_csv)
+    ocv = drive_cycles.c20_ocv(frame, source=str(canonical_csv))
+    with atomic_path(out_csv) as tmp:
+        ocv.to_csv(tmp, index=False)
+    meta = {**ocv.attrs, "source": str(canonical_csv), "source_file": side["source_file"]}
+    write_json(meta, Path(out_csv).with_suffix(".json"))
+    _log(log, f"wrote {out_csv}: C/20 discharge {meta['capacity_ah']:.4f} Ah at "
+              f"{meta['current_a']:.4f} A")  # fmt: skip
+
+
+def _pool_run(workers, fn, *args) -> None:
+    """Run ``fn(*args)`` in the workflow's worker-process pool (see avoa_pipeline.workflow)."""
+    from .. import workflow
+
+    workflow._pool(workers).submit(fn, *args).result()
+
+
+def paper_fit_job(cfg, temp, model, algorithm, train_csv, tests: dict, out_json, log=None,
+                  workers=1) -> None:  # fmt: skip
+    _pool_run(workers, paper_fit_one, dict(cfg), temp, model, algorithm, train_csv, dict(tests),
+              out_json, log)  # fmt: skip
+
+
+def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
+    import numba
+
+    from ..io import write_json
+    from . import drive_cycles
+
+    numba.set_num_threads(1)
+    train = _frames({"train": train_csv})["train"]
+    rec = drive_cycles.paper_fit(cfg, temp, model, algorithm, train, _frames(tests))
+    rec["train_record"] = str(train_csv)
+    write_json(rec, out_json)
+    med = drive_cycles.median_run(rec["runs"])
+    _log(log, f"{model} {algorithm} {temp}: median-seed train RMSE {med['train_rmse_mv']:.1f} mV; "
+              + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in med["cycles"].items())
+              + f" mV; {sum(r['wall_s'] for r in rec['runs']):.1f} s")  # fmt: skip
+
+
+def c20_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, out_json, log=None, workers=1):
+    _pool_run(workers, c20_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv, out_json,
+              log)  # fmt: skip
+
+
+def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
+    import pandas as pd
+
+    from ..io import write_json
+    from . import drive_cycles
+
+    train = _frames({"train": train_csv})["train"]
+    rec = drive_cycles.c20_fits(cfg, temp, train, _frames(tests), pd.read_csv(ocv_csv))
+    rec["train_record"] = str(train_csv)
+    write_json(rec, out_json)
+    _log(log, "; ".join(
+        f"{m} train {r['train_rmse_mv']:.1f} mV, "
+        + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
+        for m, r in rec["models"].items()))  # fmt: skip
+
+
+def gap_fit_job(cfg, temp, train_csv, tests: dict, out_json, out_parquet, log=None, workers=1):
+    _pool_run(workers, gap_fit_one, temp, train_csv, dict(tests), out_json, out_parquet, log)
+
+
+def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None:
+    import pandas as pd
+
+    from ..io import atomic_path, write_json
+    from . import drive_cycles
+
+    train = _frames({"train": train_csv})["train"]
+    rec = drive_cycles.gap_fits(temp, train, _frames(tests), source=str(train_csv))
+    preds = rec.pop("predictions")
+    rows = [
+        pd.DataFrame(
+            {"temperature": temp, "cycle": cycle, "model": model, "model_v": v}
+        )
+        for model, per_cycle in preds.items()
+        for cycle, v in per_cycle.items()
+    ]
+    rec["train_record"] = str(train_csv)
+    with atomic_path(out_parquet) as tmp:
+        pd.concat(rows, ignore_index=True).to_parquet(tmp, index=False)
+    write_json(rec, out_json)
+    per_model = "; ".join(
+        f"{m} " + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
+        for m, r in rec["models"].items()
+    )
+    _log(log, f"{temp}: recommended {rec['recommended_effects']}; {per_model} mV; "
+              f"diagnosis {rec['diagnose_wall_s']:.0f} s")  # fmt: skip
+
+
+def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_csv, out_runs,
+                      out_predictions, log=None) -> None:  # fmt: skip
+    """``drive_cycle_rmse.csv``, the per-seed rows, and the figure cycles' predicted voltages."""
+    import json
+
+    import pandas as pd
+
+    from ..io import atomic_path
+    from . import drive_cycles as dc
+
+    cfg = dict(cfg)
+    records = [json.loads(Path(p).read_text()) for p in fit_jsons]
+    temps = cfg["real"]["panasonic"]["temperatures"]
+    ambient = {t: float(s["ambient_c"]) for t, s in temps.items()}
+    summary, runs = dc.table(records, ambient)
+    exp = dc.experiment(cfg)
+    qdis = float(exp["qdis_ah"])
+    ocv = pd.read_csv(ocv_csv)
+    # the measured and predicted voltage of each temperature's figure cycle, one row per sample
+    traces = []
+    for temp, cycle in (exp.get("figure_cycle") or {}).items():
+        key = f"{temp}/{cycle}"
+        if key not in tests:
+            continue
+        frame = _frames({key: tests[key]})[key]
+        base = {"temperature": temp, "cycle": cycle, "time_s": frame["time_s"].to_numpy(),
+                "current_a": frame["current_a"].to_numpy(),
+                "measured_v": frame["voltage_v"].to_numpy()}  # fmt: skip
+        for rec in records:
+            if rec["temperature"] != temp:
+                continue
+            if "runs" in rec:
+                run = dc.median_run(rec["runs"])
+                v = dc.paper_simulate(run["params"], frame, dc.PAPER_MODELS[rec["model"]], qdis)
+                traces.append(pd.DataFrame({**base, "model": f"{rec['model']}_{rec['algorithm']}",
+                                            "model_v": v}))  # fmt: skip
+            elif "recommended_effects" not in rec:
+                for name, m in rec["models"].items():
+                    v = dc.c20_simulate(m["params"], frame, ocv)
+                    traces.append(pd.DataFrame({**base, "model": name, "model_v": v}))
+        for path in gap_parquets:
+            g = pd.read_parquet(path)
+            g = g[(g["temperature"] == temp) & (g["cycle"] == cycle)]
+            for name, part in g.groupby("model", sort=False):
+                traces.append(pd.DataFrame({**base, "model": name,
+                                            "model_v": part["model_v"].to_numpy()}))  # fmt: skip
+    for df, path in ((summary, out_csv), (runs, out_runs)):
+        with atomic_path(path) as tmp:
+            df.to_csv(tmp, index=False)
+    cols = ["temperature", "cycle", "time_s", "current_a", "measured_v", "model", "model_v"]
+    pred = pd.concat(traces, ignore_index=True)[cols] if traces else pd.DataFrame(columns=cols)
+    with atomic_path(out_predictions) as tmp:
+        pred.to_parquet(tmp, index=False)
+    _log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
