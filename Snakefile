@@ -29,3 +29,11 @@ rule all:
         "results/tables/claims.csv",
         real_outputs(),
         GAP_OUTPUTS,
+
+
+rule paper:
+    """The reproduction alone: Tables 1-24, Figures 1-21 and the claims (`snakemake -j2 paper`)."""
+    input:
+        all_tables(),
+        all_figures(),
+        "results/tables/claims.csv",
