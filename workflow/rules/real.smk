@@ -56,7 +56,7 @@ from avoa_pipeline.real import drive_cycles as real_dc
 PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
 PAN_OUT = "results/real/panasonic"
 PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
-PAN_GAP = real_dc.gap_available()
+PAN_GAP = bool(PAN_EXP.get("gap", True)) and real_dc.gap_available()
 
 
 def pan_canon(name):
