@@ -1,4 +1,5 @@
-"""Panasonic 18650PF import: sign, resampling with charge conserved, HPPC merge, soak trim, errors.
+"""Panasonic 18650PF: import (sign, resampling with charge conserved, HPPC merge, soak trim,
+errors) and the pieces of experiment 1.
 
 Tests on real files read them from the configured data root (never copied into the repository)
 and are skipped where that root is absent.
@@ -15,7 +16,9 @@ import scipy.io
 from scipy.interpolate import PPoly
 
 from avoa_pipeline.errors import ConfigError, DataError
+from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, ise, simulate
 from avoa_pipeline.real import canonical, panasonic
+from avoa_pipeline.real import drive_cycles as dc
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -205,3 +208,97 @@ def test_records_need_a_checksum_for_every_file(cfg):
     with pytest.raises(ConfigError, match=r"real\.panasonic \(25degC/us06\).*no entry"):
         panasonic.records(broken)
     assert panasonic.records({k: v for k, v in cfg.items() if k != "real"}) == {}
+
+
+# --- experiment 1: the pieces of src/avoa_pipeline/real/drive_cycles.py -------------------------
+
+
+
+def _drive_frame(n=3000, seed=0):
+    rng = np.random.default_rng(seed)
+    cur = np.clip(np.repeat(rng.normal(1.0, 2.0, n // 10), 10), -3, 8)
+    cur[:30] = 0.0  # starts at rest, as the drive cycles do
+    return pd.DataFrame({"time_s": np.arange(n, dtype=float), "current_a": cur,
+                         "voltage_v": 4.0, "temperature_c": 25.0})  # fmt: skip
+
+
+def test_paper_soc0_inverts_the_rational_ocv():
+    P = np.array([[4.1, 2.9, 3.6, 0.03, 0.01, 30.0], [4.3, 2.5, 3.5, 0.05, 0.01, 30.0]])
+    target_v, i0 = 3.9, 0.5
+    s0 = dc.paper_soc0(P, target_v - P[:, 3] * i0, i0, qdis=1.45)
+    beta = dc._beta(P, 1.45)
+    ocv = P[:, 0] * s0 / (1.0 - beta * (1.0 - s0))
+    np.testing.assert_allclose(ocv, target_v, rtol=1e-12)
+    # above Vnom the cell is full, not beyond
+    assert dc.paper_soc0(P[:1], 4.5, 0.0, 1.45)[0] == 1.0
+
+
+def test_paper_objective_is_the_kernel_ise_from_the_estimated_start():
+    frame = _drive_frame()
+    truth = np.array([4.1, 2.9, 3.6, 0.03, 0.01, 30.0])
+    s0 = float(dc.paper_soc0(truth[None, :], 4.05, 0.0, 1.45)[0])
+    spec = ModelSpec(True, np.ones(6), None, s0, 1.45)
+    frame["voltage_v"] = simulate(truth, frame["current_a"].to_numpy(), 1.0, spec)["voltage_v"]
+    prob = dc.PaperProblem(PARAM_NAMES, np.zeros(6), np.ones(6),
+                           frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy(), 1.0,
+                           True, 1.45)  # fmt: skip
+    X = np.array([truth, truth * 1.01])
+    got = prob.objective(X)
+    assert got[0] < 1e-20  # the truth, started where its own OCV says, reproduces the record
+    s0b = float(dc.paper_soc0(X[1:], frame["voltage_v"][0], frame["current_a"][0], 1.45)[0])
+    want = ise(X[1:], frame["current_a"], frame["voltage_v"], 1.0,
+               ModelSpec(True, np.ones(6), None, s0b, 1.45))[0]  # fmt: skip
+    assert got[1] == pytest.approx(want, rel=1e-12)
+    np.testing.assert_allclose(dc.paper_simulate(dict(zip(PARAM_NAMES, truth, strict=True)),
+                                                 frame, True, 1.45), frame["voltage_v"],
+                               atol=1e-12)  # fmt: skip
+
+
+def _ocv_table():
+    soc = np.linspace(0, 1, 201)
+    return pd.DataFrame({"soc": soc, "ocv_v": 3.0 + 1.2 * soc - 0.3 * (1 - soc) ** 4})
+
+
+def test_c20_ocv_from_a_constant_current_discharge():
+    n = 20000
+    cur = np.r_[np.zeros(100), np.full(n, 0.145), np.zeros(100)]
+    table = _ocv_table()
+    q = np.r_[np.zeros(100), np.arange(n) * 0.145 / 3600, np.full(100, n * 0.145 / 3600)]
+    soc = 1 - q / (n * 0.145 / 3600)
+    volt = np.interp(soc, table.soc, table.ocv_v) - 0.01 * (cur > 0)
+    frame = pd.DataFrame({"time_s": np.arange(cur.size, dtype=float), "current_a": cur,
+                          "voltage_v": volt, "temperature_c": 25.0})  # fmt: skip
+    ocv = dc.c20_ocv(frame)
+    assert ocv.attrs["capacity_ah"] == pytest.approx(n * 0.145 / 3600, rel=1e-12)
+    assert np.all(np.diff(ocv["ocv_v"]) > 0)
+    np.testing.assert_allclose(ocv["ocv_v"], np.interp(ocv.soc, table.soc, table.ocv_v) - 0.01,
+                               atol=2e-4)  # fmt: skip
+
+
+def test_c20_fit_recovers_a_known_circuit():
+    frame = _drive_frame(4000, seed=3)
+    ocv = _ocv_table()
+    truth = {"q": 2.7, "r0": 0.03, "r1": 0.015, "tau1": 20.0, "offset": 0.01}
+    frame["voltage_v"] = 3.0  # c20_simulate starts from V0: give it the true rest voltage
+    frame.loc[0, "voltage_v"] = np.interp(0.95, ocv.soc, ocv.ocv_v) + truth["offset"]
+    frame["voltage_v"] = dc.c20_simulate(truth, frame, ocv)
+    rec = dc.c20_fit("c20_rc", frame, ocv)
+    assert rec["train_rmse_mv"] < 1e-3
+    for name, value in truth.items():
+        assert rec["params"][name] == pytest.approx(value, rel=1e-3), name
+
+
+def test_table_takes_medians_over_seeds():
+    runs = [{"seed": s, "train_rmse_mv": float(s), "cycles": {"us06": {"rmse_mv": 10.0 * s,
+             "max_err_mv": 100.0 * s}}} for s in (1, 2, 5)]  # fmt: skip
+    records = [
+        {"temperature": "25degC", "model": "paper_rc", "algorithm": "gto", "runs": runs},
+        {"temperature": "25degC", "models": {"c20_rc": {"train_rmse_mv": 1.0, "cycles": {
+            "us06": {"rmse_mv": 7.0, "max_err_mv": 70.0}}}}},
+    ]  # fmt: skip
+    summary, detail = dc.table(records, {"25degC": 25.0})
+    assert list(summary.columns) == list(dc.TABLE_COLUMNS)
+    row = summary.set_index("model").loc["paper_rc_gto"]
+    assert (row["rmse_mv"], row["max_err_mv"]) == (20.0, 200.0)
+    assert len(detail) == 4
+    assert dc.median_run(runs)["seed"] == 2

@@ -1,0 +1,93 @@
+"""``python -m avoa_pipeline.real``: the Panasonic import and experiment 1 without Snakemake.
+
+    python -m avoa_pipeline.real list
+    python -m avoa_pipeline.real panasonic-import 25degC/us06 --out us06.csv
+    python -m avoa_pipeline.real drive-cycles --out-dir DIR [--temperature 25degC]
+
+``drive-cycles`` imports what it needs into ``DIR`` and runs experiment 1 as the workflow does
+(one process, no pool). Samsung and NASA: ``python -m avoa_pipeline.real.cells_cli``.
+Expected errors print one line on stderr and exit 2; nothing is half-written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .. import config as config_mod
+from ..errors import UserError
+
+
+def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
+    from . import drive_cycles as dc
+    from . import jobs, panasonic
+
+    exp = dc.experiment(cfg)
+    temps = temps or list(exp["train"])
+    canon = out_dir / "canonical"
+
+    def record(name):
+        path = canon / f"{jobs.canonical_name(name)}.csv"
+        if not path.is_file():
+            panasonic.import_named(cfg, name, path)
+        return path
+
+    ocv = out_dir / "ocv_c20.csv"
+    jobs.panasonic_ocv(record("25degC/ocv_c20"), ocv)
+    fits, gaps, all_tests = [], [], {}
+    for temp in temps:
+        if temp not in exp["train"]:
+            raise UserError(f"--temperature {temp}: not in real.panasonic.experiment.train")
+        train = record(f"{temp}/{exp['train'][temp]}")
+        tests = {c: record(f"{temp}/{c}") for c in dc.unseen_cycles(cfg, temp)}
+        all_tests.update({f"{temp}/{c}": p for c, p in tests.items()})
+        for model in dc.PAPER_MODELS:
+            for alg in exp["algorithms"]:
+                fits.append(out_dir / "fits" / temp / model / f"{alg}.json")
+                jobs.paper_fit_one(cfg, temp, model, alg, train, tests, fits[-1])
+        fits.append(out_dir / "fits" / temp / "c20.json")
+        jobs.c20_fit_one(cfg, temp, train, tests, ocv, fits[-1])
+        if exp.get("gap", True) and dc.gap_available():
+            fits.append(out_dir / "fits" / temp / "gap.json")
+            gaps.append(out_dir / "fits" / temp / "gap_predictions.parquet")
+            jobs.gap_fit_one(temp, train, tests, fits[-1], gaps[-1])
+    out = out_dir / "drive_cycle_rmse.csv"
+    jobs.drive_cycle_table(cfg, fits, gaps, all_tests, ocv, out, out_dir / "drive_cycle_runs.csv",
+                           out_dir / "figure_predictions.parquet")  # fmt: skip
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m avoa_pipeline.real", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    ap.add_argument("--config", default=None, help="config file (default: config/config.yaml)")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub.add_parser("list", help="the Panasonic records the config names")
+    p = sub.add_parser("panasonic-import", help="one Panasonic test → canonical CSV + JSON")
+    p.add_argument("name", help="<temperature>/<test>, e.g. 25degC/us06 (see `list`)")
+    p.add_argument("--out", required=True, type=Path)
+    d = sub.add_parser("drive-cycles", help="experiment 1 into a folder")
+    d.add_argument("--out-dir", required=True, type=Path)
+    d.add_argument("--temperature", action="append", help="only this one (repeatable)")
+    args = ap.parse_args(argv)
+    try:
+        from . import panasonic
+
+        cfg = config_mod.load(args.config)
+        if args.cmd == "list":
+            for name, rec in panasonic.records(cfg).items():
+                print(f"{name}\t{rec['test_type']}\t{'; '.join(rec['keys'])}")
+        elif args.cmd == "panasonic-import":
+            side = panasonic.import_named(cfg, args.name, args.out)
+            print(f"wrote {args.out}: {side['n_samples']} samples")
+        else:
+            print(f"wrote {_drive_cycles(cfg, args.out_dir, args.temperature)}")
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
