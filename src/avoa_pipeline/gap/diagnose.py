@@ -517,15 +517,16 @@ def choose(ctx: _Context, rows: list[dict], cands: dict[str, ModelRun]) -> str |
     return best["effect"]
 
 
-def _try_effects(ctx, ref: ModelRun, effects_now: tuple, remaining, prescreen: bool):
-    """Fit ref + each remaining effect; cross-validate those that can pay."""
+def _try_effects(ctx, ref: ModelRun, effects_now: tuple, remaining, cv: bool):
+    """Fit ref + each remaining effect; with ``cv``, cross-validate those that can pay (a full
+    fit with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error)."""
     cands = {}
     for e in remaining:
         st = ctx.structure((*effects_now, e), ref.st.knots)
         c = ctx.fit(st, M.effect_starts(ctx.rec, ref.x, e))
         if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
             c = ctx.run(st, _with_neutral(ref.x, e))
-        if not prescreen or bic(c.rss, ctx.rec.n, c.k) - bic(ref.rss, ctx.rec.n, ref.k) < BIC_MAX:
+        if cv and bic(c.rss, ctx.rec.n, c.k) - bic(ref.rss, ctx.rec.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
         cands[e] = c
     return cands
@@ -553,7 +554,7 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
 
     # 3a. candidates' full fits (before the CV, so that the base can be re-polished)
     effects = [e for e in EFFECTS if applicable(rec, e)[0]]
-    cands = _try_effects(ctx, base, (), effects, prescreen=False)
+    cands = _try_effects(ctx, base, (), effects, cv=False)
     # a candidate whose effect parameters, set back to neutral, fit better than the base found a
     # better base optimum: refit the base from there (the base must be at its best)
     for e, c in cands.items():
@@ -621,7 +622,7 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         added = (winner,)
         remaining = [e for e in effects if e != winner]
         while remaining:
-            step = _try_effects(ctx, final, added, remaining, prescreen=True)
+            step = _try_effects(ctx, final, added, remaining, cv=True)
             step_rows = judge(ctx, final, step)
             nxt = choose(ctx, step_rows, step)
             if nxt is None:

@@ -162,86 +162,94 @@ def simulate_params(frame: pd.DataFrame, params: dict, knots: Knots | None = Non
 
 
 @nb.njit(cache=True, nogil=True)
-def _simulate(P, nk, cur, dt, uniform, dinv_t, two_rt_f, s_lo, ds, out, tr):
-    """Terminal voltage of every row of ``P`` (internal layout) into ``out`` (n, m).
+def _simulate(P, nk, cur, dt, uniform, dinv_t, two_rt_f, s_lo, ds, sel, out, tr):
+    """Terminal voltage of every row of ``P`` (internal layout) at the selected samples.
 
-    ``tr`` (4, n) records SOC, h, v1 + v2 and the thermal R0 factor of row 0 when non-empty.
+    ``sel[k]``: the row of ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (4, n)
+    records SOC, h, v1 + v2 and the thermal R0 factor of row 0 when non-empty.
+    An effect whose parameter is neutral in every row is skipped (the flags below do not change
+    within the loops, so the compiler can take the branches out of them).
     """
     m = P.shape[0]
     n = cur.shape[0]
     record = tr.shape[0] > 0
-    vnom = np.empty(m)
-    omb = np.empty(m)
-    beta = np.empty(m)
-    q3600 = np.empty(m)
-    a1 = np.empty(m)
-    a2 = np.empty(m)
-    gam = np.empty(m)
-    shape = np.zeros(m, dtype=np.bool_)
-    soc = np.empty(m)
-    h = np.empty(m)
+    vnom = P[:, 0].copy()
+    omb = 10.0 ** P[:, 1]
+    beta = 1.0 - omb
+    q3600 = 3600.0 * 10.0 ** P[:, 2]
+    soc = P[:, 3].copy()
+    r0 = P[:, 4].copy()
+    r1 = P[:, 5].copy()
+    tau1 = 10.0 ** P[:, 6]
+    r2 = P[:, 7].copy()
+    tau2 = 10.0 ** P[:, 8]
+    hm = P[:, 9].copy()
+    gam = 10.0 ** P[:, 10]
+    h = P[:, 11].copy()
+    bvg = P[:, 12].copy()
+    th0 = P[:, 13].copy()
+    th1 = P[:, 14].copy()
+    ioff = P[:, 15].copy()
+    voff = P[:, 16].copy()
+    eta = P[:, 17].copy()
+    d = P[:, D0 : D0 + nk].copy()
+    a1 = np.exp(-dt[0] / tau1)
+    a2 = np.exp(-dt[0] / tau2)
     v1 = np.zeros(m)
     v2 = np.zeros(m)
-    for c in range(m):
-        vnom[c] = P[c, 0]
-        omb[c] = 10.0 ** P[c, 1]
-        beta[c] = 1.0 - omb[c]
-        q3600[c] = 3600.0 * 10.0 ** P[c, 2]
-        soc[c] = P[c, 3]
-        a1[c] = np.exp(-dt[0] / 10.0 ** P[c, 6])
-        a2[c] = np.exp(-dt[0] / 10.0 ** P[c, 8])
-        gam[c] = 10.0 ** P[c, 10]
-        h[c] = P[c, 11]
-        for j in range(nk):
-            if P[c, D0 + j] != 0.0:
-                shape[c] = True
+    hyst = np.any(hm != 0.0)
+    therm0 = np.any(th0 != 0.0)
+    therm1 = np.any(th1 != 0.0)
+    bv = np.any(bvg != 0.0)
+    shape = np.any(d != 0.0)
+    rc2 = np.any(r2 != 0.0)
     for k in range(n):
         dtk = dt[k]
         ik0 = cur[k]
         dinv = dinv_t[k]
         rtf = two_rt_f[k]
+        row = sel[k]
+        if not uniform:
+            for c in range(m):
+                a1[c] = np.exp(-dtk / tau1[c])
+                a2[c] = np.exp(-dtk / tau2[c])
         for c in range(m):
-            i = ik0 + P[c, 15]
+            i = ik0 + ioff[c]
             s = soc[c]
             sc = min(max(s, 0.0), 1.2)  # the rational curve is singular outside
-            ocv = vnom[c] * sc / (omb[c] + beta[c] * sc)
-            if shape[c]:
+            v = vnom[c] * sc / (omb[c] + beta[c] * sc) - v1[c] - v2[c] + voff[c]
+            if shape:
                 x = (sc - s_lo) / ds
                 if x <= 0.0:
-                    ocv += P[c, D0]
+                    v += d[c, 0]
                 elif x >= nk - 1:
-                    ocv += P[c, D0 + nk - 1]
+                    v += d[c, nk - 1]
                 else:
                     j = int(x)
                     w = x - j
-                    ocv += (1.0 - w) * P[c, D0 + j] + w * P[c, D0 + j + 1]
-            f0 = 1.0
-            f1 = 1.0
-            if P[c, 13] != 0.0:
-                f0 = np.exp(P[c, 13] * dinv)
-            if P[c, 14] != 0.0:
-                f1 = np.exp(P[c, 14] * dinv)
-            v = ocv - P[c, 9] * h[c] - f0 * P[c, 4] * i - v1[c] - v2[c] + P[c, 16]
-            if P[c, 12] != 0.0:
-                v -= rtf * np.arcsinh(0.5 * P[c, 12] * i)
-            out[k, c] = v
+                    v += (1.0 - w) * d[c, j] + w * d[c, j + 1]
+            f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
+            f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
+            v -= f0 * r0[c] * i
+            if hyst:
+                v -= hm[c] * h[c]
+            if bv:
+                v -= rtf * np.arcsinh(0.5 * bvg[c] * i)
+            if row >= 0:
+                out[row, c] = v
             if record and c == 0:
                 tr[0, k] = s
                 tr[1, k] = h[c]
                 tr[2, k] = v1[c] + v2[c]
                 tr[3, k] = f0
-            if not uniform:
-                a1[c] = np.exp(-dtk / 10.0 ** P[c, 6])
-                a2[c] = np.exp(-dtk / 10.0 ** P[c, 8])
-            v1[c] = a1[c] * v1[c] + f1 * P[c, 5] * (1.0 - a1[c]) * i
-            v2[c] = a2[c] * v2[c] + f1 * P[c, 7] * (1.0 - a2[c]) * i
-            ie = i if i > 0.0 else P[c, 17] * i
+            v1[c] = a1[c] * v1[c] + f1 * r1[c] * (1.0 - a1[c]) * i
+            if rc2:
+                v2[c] = a2[c] * v2[c] + f1 * r2[c] * (1.0 - a2[c]) * i
+            ie = i if i > 0.0 else eta[c] * i
             dq = ie * dtk / q3600[c]
-            if P[c, 9] != 0.0:
+            if hyst and i != 0.0:
                 e = np.exp(-abs(dq * gam[c]))
-                sg = 1.0 if i > 0.0 else (-1.0 if i < 0.0 else 0.0)
-                if sg != 0.0:
-                    h[c] = e * h[c] + (1.0 - e) * sg
+                h[c] = e * h[c] + (1.0 - e) * (1.0 if i > 0.0 else -1.0)
             soc[c] = s - dq
 
 
@@ -323,15 +331,26 @@ class Knots:
         return self.lo + self.step * np.arange(N_KNOTS)
 
 
-def simulate_rows(rec: Record, P: np.ndarray, knots: Knots, traces: bool = False):
-    """Voltage (n, m) of parameter rows ``P`` (m, NFULL); with traces, also (4, n) of row 0."""
+def simulate_rows(
+    rec: Record, P: np.ndarray, knots: Knots, traces: bool = False, idx: np.ndarray | None = None
+):
+    """Voltage (n, m) of parameter rows ``P`` (m, NFULL); with traces, also (4, n) of row 0.
+
+    ``idx``: return only these samples (sorted), shape (idx.size, m); the whole record is
+    simulated all the same.
+    """
     P = np.array(np.atleast_2d(P), dtype=float)  # a copy: the knot columns are derived here
     P[:, D0:U0] = P[:, U0:] @ SHAPE_BASIS.T
-    out = np.empty((rec.n, P.shape[0]))
+    if idx is None:
+        sel = np.arange(rec.n)
+    else:
+        sel = np.full(rec.n, -1)
+        sel[idx] = np.arange(idx.size)
+    out = np.empty((rec.n if idx is None else idx.size, P.shape[0]))
     tr = np.empty((4, rec.n)) if traces else np.empty((0, 0))
     _simulate(
         P, N_KNOTS, rec.i, rec.dt, rec.uniform, rec.dinv_t, rec.two_rt_f, knots.lo, knots.step,
-        out, tr,
+        sel, out, tr,
     )  # fmt: skip
     return (out, tr) if traces else out
 
@@ -443,8 +462,9 @@ class _Problem:
         self.fi = st.free_idx
         self.vm = rec.v[idx]
         self.shape = "ocv_shape" in st.effects
-        self._cache_x = None
+        self._cache_z = None
         self._cache_v = None
+        self.sel = idx
         if self.shape:
             self.grid = np.linspace(st.knots.lo, st.knots.lo + st.knots.step * (N_KNOTS - 1), 41)
             self.w_mono = 10.0 * np.sqrt(idx.size)
@@ -461,9 +481,9 @@ class _Problem:
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
         x = self.full(z)
-        v = simulate_rows(self.rec, x[None, :], self.st.knots)[:, 0]
-        r = v[self.idx] - self.vm
-        self._cache_x, self._cache_v = z.copy(), r
+        v = simulate_rows(self.rec, x[None, :], self.st.knots, idx=self.sel)[:, 0]
+        self._cache_z, self._cache_v = z.copy(), v
+        r = v - self.vm
         if self.shape:
             r = np.concatenate([r, self._penalty(x)])
         return r
@@ -473,8 +493,13 @@ class _Problem:
         X = np.repeat(self.full(z)[None, :], z.size + 1, axis=0)
         for j, k in enumerate(self.fi):
             X[j + 1, k] += h[j]
-        V = simulate_rows(self.rec, X, self.st.knots)[self.idx]
-        J = (V[:, 1:] - V[:, :1]) / h
+        # least_squares asks for the Jacobian where it has just evaluated the residuals
+        if self._cache_z is not None and np.array_equal(z, self._cache_z):
+            V = simulate_rows(self.rec, X[1:], self.st.knots, idx=self.sel)
+            J = (V - self._cache_v[:, None]) / h
+        else:
+            V = simulate_rows(self.rec, X, self.st.knots, idx=self.sel)
+            J = (V[:, 1:] - V[:, :1]) / h
         if self.shape:
             p0 = self._penalty(X[0])
             Jp = np.stack([(self._penalty(X[j + 1]) - p0) / h[j] for j in range(z.size)], 1)
