@@ -81,3 +81,54 @@ def case_inputs(w):
 def scenario_runs(w):
     s = int(w.nn) - 19
     return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]
+
+# --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
+from avoa_pipeline.real import drive_cycles as real_dc
+from avoa_pipeline.real import jobs as real_jobs
+from avoa_pipeline.real import panasonic as real_panasonic
+
+REAL = config.get("real") or {}
+REAL_ROOT = Path(REAL["root"]) if REAL else None
+REAL_PRESENT = bool(REAL) and REAL_ROOT.is_dir()  # relative to the working directory
+REAL_TARGETS = []  # each section of real.smk adds its outputs; `real` and `all` build them
+
+
+def real_outputs():
+    """The real-data outputs for `all`: none without the data."""
+    return REAL_TARGETS if REAL_PRESENT else []
+
+
+PANASONIC = real_panasonic.records(config)
+PAN_CANON = "results/real/canonical"
+PAN_TEMPS = sorted({n.split("/")[0] for n in PANASONIC})
+PAN_TESTS = sorted({n.split("/")[1] for n in PANASONIC})
+PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
+PAN_OUT = "results/real/panasonic"
+PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
+PAN_GAP = bool(PAN_EXP.get("gap", True)) and real_dc.gap_available()
+
+
+def pan_sources(w):
+    return [str(REAL_ROOT / k) for k in PANASONIC[f"{w.ptemp}/{w.ptest}"]["keys"]]
+
+
+def pan_canon(name):
+    return f"{PAN_CANON}/{real_jobs.canonical_name(name)}.csv"
+
+
+def pan_train(w):
+    return pan_canon(f"{w.ptemp}/{PAN_EXP['train'][w.ptemp]}")
+
+
+def pan_tests(temp):
+    """Unseen drive cycles at ``temp``: cycle name → canonical CSV."""
+    return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
+
+
+def pan_fit_records():
+    out = [f"{PAN_OUT}/fits/{t}/{m}/{a}.json" for t in PAN_EXP_TEMPS
+           for m in real_dc.PAPER_MODELS for a in PAN_EXP["algorithms"]]
+    out += [f"{PAN_OUT}/fits/{t}/c20.json" for t in PAN_EXP_TEMPS]
+    if PAN_GAP:
+        out += [f"{PAN_OUT}/fits/{t}/gap.json" for t in PAN_EXP_TEMPS]
+    return out

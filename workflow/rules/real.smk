@@ -1,33 +1,12 @@
 # Real data (issue "Real data"; docs/real-data.md). Active when the config has `real:` and its data
 # root exists (relative to the working directory); `snakemake -j2 real` builds every real-data
 # output, and `all` includes them then. Sources are read in place and never copied.
-from avoa_pipeline.real import jobs as real_jobs
-from avoa_pipeline.real import panasonic as real_panasonic
-
-REAL = config.get("real") or {}
-REAL_ROOT = Path(REAL["root"]) if REAL else None
-REAL_PRESENT = bool(REAL) and REAL_ROOT.is_dir()
-REAL_TARGETS = []  # every section below adds its outputs; `real` and `all` build them
-
-
-def real_outputs():
-    """The real-data outputs for `all`: none without the data."""
-    return REAL_TARGETS if REAL_PRESENT else []
+# Helpers and constants (REAL, REAL_TARGETS, PANASONIC, pan_*) live in common.smk.
 
 
 # ------------------------------------------------------------------------------------------------
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
-PANASONIC = real_panasonic.records(config)
-PAN_CANON = "results/real/canonical"
-
-
-def pan_sources(w):
-    return [str(REAL_ROOT / k) for k in PANASONIC[f"{w.ptemp}/{w.ptest}"]["keys"]]
-
-
-PAN_TEMPS = sorted({n.split("/")[0] for n in PANASONIC})
-PAN_TESTS = sorted({n.split("/")[1] for n in PANASONIC})
 REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
 
 
@@ -49,36 +28,6 @@ rule panasonic_import:
     run:
         real_jobs.panasonic_import(config, f"{wildcards.ptemp}/{wildcards.ptest}", output.csv,
                                    log[0])
-
-
-from avoa_pipeline.real import drive_cycles as real_dc
-
-PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
-PAN_OUT = "results/real/panasonic"
-PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
-PAN_GAP = bool(PAN_EXP.get("gap", True)) and real_dc.gap_available()
-
-
-def pan_canon(name):
-    return f"{PAN_CANON}/{real_jobs.canonical_name(name)}.csv"
-
-
-def pan_train(w):
-    return pan_canon(f"{w.ptemp}/{PAN_EXP['train'][w.ptemp]}")
-
-
-def pan_tests(temp):
-    """Unseen drive cycles at ``temp``: cycle name → canonical CSV."""
-    return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
-
-
-def pan_fit_records():
-    out = [f"{PAN_OUT}/fits/{t}/{m}/{a}.json" for t in PAN_EXP_TEMPS
-           for m in real_dc.PAPER_MODELS for a in PAN_EXP["algorithms"]]
-    out += [f"{PAN_OUT}/fits/{t}/c20.json" for t in PAN_EXP_TEMPS]
-    if PAN_GAP:
-        out += [f"{PAN_OUT}/fits/{t}/gap.json" for t in PAN_EXP_TEMPS]
-    return out
 
 
 if PAN_EXP_TEMPS:
@@ -115,8 +64,8 @@ rule panasonic_fit_paper:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
         pmodel="|".join(real_dc.PAPER_MODELS),
         algorithm="|".join(PAN_EXP.get("algorithms", [])) or "none",
-    params:
-        exp=PAN_EXP,
+    params:  # what a fit depends on beyond its data (not the figure or the gap switch)
+        exp={k: v for k, v in PAN_EXP.items() if k not in ("figure_cycle", "gap")},
         base_seed=config["base_seed"],
     threads: 1
     run:
