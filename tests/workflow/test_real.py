@@ -86,7 +86,8 @@ def test_real_target_builds_experiment_one(workdir):
 
 def test_canonical_records_and_sidecars(workdir):
     for test in ("hppc", "la92", "us06", "ocv_c20"):
-        frame, side = canonical.read(workdir / f"results/real/canonical/panasonic_25degC_{test}.csv")
+        path = workdir / f"results/real/canonical/panasonic_25degC_{test}.csv"
+        frame, side = canonical.read(path)
         assert tuple(frame.columns) == canonical.COLUMNS
         assert side["ambient_temperature_c"] == 25.0
         assert len(side["source_sha256"]) == 64
