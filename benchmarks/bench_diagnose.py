@@ -65,7 +65,8 @@ def record(n: int, effect: str, seed: int = 0) -> pd.DataFrame:
     if n > 50_000:
         hz = 10.0
         cur = drive_profile(n, rng, hz)
-        params = {**TRUTH, "capacity_ah": 2.57 * n / hz / 3600 / 3.0}  # ~1/3 of it discharged
+        net_ah = float(np.max(np.cumsum(cur)) / hz / 3600.0)
+        params = {**TRUTH, "capacity_ah": 1.6 * net_ah}  # 60 % of the capacity discharged
     else:
         hz = 1.0
         cur = pulse_profile(n, rng)

@@ -377,6 +377,7 @@ class Structure:
     lo: np.ndarray
     hi: np.ndarray
     knots: Knots
+    prior: np.ndarray | None = None  # (n_free, 2): mean, sd (inf: none)
 
     @property
     def free_idx(self) -> np.ndarray:
@@ -416,6 +417,31 @@ def bounds_for(rec: Record) -> dict[str, tuple[float, float]]:
     }
 
 
+PRIOR_SCALE_V = 1e-3
+"""Residual scale (V) of the weak priors below: one prior row weighs like one sample with 1 mV
+noise, so data that inform a parameter outweigh its prior by orders of magnitude."""
+
+
+def priors_for(rec: Record) -> dict[str, tuple[float, float]]:
+    """Weak Gaussian priors (mean, sd; internal coordinates) centred on each effect's neutral
+    value. They matter only where the data say nothing about a parameter — a hysteresis state
+    at the start of a block held out, an efficiency without charge in the training blocks —
+    and there they keep it neutral instead of letting the trust region wander to a bound."""
+    imax = rec.imax()
+    return {
+        "r2": (0.0, 0.1),
+        "hm": (0.0, 0.05),
+        "h0": (0.0, 1.0),
+        "bvg": (0.0, 10.0 / imax),
+        "th0": (0.0, 5000.0),
+        "th1": (0.0, 5000.0),
+        "ioff": (0.0, 0.05 * imax),
+        "voff": (0.0, 0.1),
+        "eta": (1.0, 0.1),
+        **{n: (0.0, 0.05) for n in SHAPE_NAMES},
+    }
+
+
 def structure(
     rec: Record,
     effects=(),
@@ -434,7 +460,9 @@ def structure(
     b = bounds_for(rec)
     lo = np.array([b[n][0] for n in free])
     hi = np.array([b[n][1] for n in free])
-    return Structure(effects, tuple(free), lo, hi, knots or Knots(0.0, 0.2))
+    pr = priors_for(rec)
+    prior = np.array([pr.get(n, (0.0, np.inf)) for n in free])
+    return Structure(effects, tuple(free), lo, hi, knots or Knots(0.0, 0.2), prior)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -465,6 +493,11 @@ class _Problem:
         self._cache_z = None
         self._cache_v = None
         self.sel = idx
+        self.pj = np.zeros(0, dtype=int)
+        if st.prior is not None:
+            self.pj = np.flatnonzero(np.isfinite(st.prior[:, 1]))
+            self.pmu = st.prior[self.pj, 0]
+            self.pw = PRIOR_SCALE_V / st.prior[self.pj, 1]
         if self.shape:
             self.grid = np.linspace(st.knots.lo, st.knots.lo + st.knots.step * (N_KNOTS - 1), 41)
             self.w_mono = 10.0 * np.sqrt(idx.size)
@@ -486,6 +519,8 @@ class _Problem:
         r = v - self.vm
         if self.shape:
             r = np.concatenate([r, self._penalty(x)])
+        if self.pj.size:
+            r = np.concatenate([r, self.pw * (z[self.pj] - self.pmu)])
         return r
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
@@ -504,6 +539,10 @@ class _Problem:
             p0 = self._penalty(X[0])
             Jp = np.stack([(self._penalty(X[j + 1]) - p0) / h[j] for j in range(z.size)], 1)
             J = np.vstack([J, Jp])
+        if self.pj.size:
+            Jq = np.zeros((self.pj.size, z.size))
+            Jq[np.arange(self.pj.size), self.pj] = self.pw
+            J = np.vstack([J, Jq])
         return J
 
 
