@@ -105,11 +105,12 @@ PAIRS = (
         "both follow Ahmadianfar et al. 2021's MATLAB RUN, except that mealpy draws Eq. 18's "
         "mu = 0.5 + U(0, 1) where the reference draws 0.5 + 0.1 randn (mean 1.0 instead of 0.5: "
         "longer steps towards the best and between random agents). On Rosenbrock this makes ours "
-        "worse (30 seeds: medians 1.34 vs 0.92 in 5-D, p = 8e-4; 7.55 vs 6.94 in 10-D, p = 4e-7); "
-        "with mealpy's mu in our code ours is better than mealpy instead (p(ours better) = 6e-7 / "
-        "4e-6), so mu explains the gap. At this test's 10 seeds the direction is stable but the "
-        "significance is not (5-D p < 0.01 in 2 of 4 disjoint seed sets, 10-D in 3 of 4), so "
-        "Rosenbrock is recorded, not asserted",
+        "worse (30 seeds, `compare_mealpy.py --seeds 30`: medians 1.52 vs 0.92 in 5-D, "
+        "p = 6e-7; 7.66 vs 6.94 in 10-D, p = 7e-8); with mealpy's mu in our code ours was better "
+        "than mealpy instead (p(ours better) = 6e-7 / 4e-6, measured before RUN drew its random "
+        "numbers in bulk), so mu explains the gap. Rosenbrock is recorded, not asserted: before "
+        "that change, at this test's 10 seeds the direction was stable but the significance was "
+        "not (5-D p < 0.01 in 2 of 4 disjoint seed sets, 10-D in 3 of 4)",
     ),
     Pair(
         "gwo",
