@@ -47,6 +47,7 @@ ALPHA = 0.01
 BIC_MAX = -10.0
 REGION_MIN_SHARE = 0.02
 TIME_WINDOWS = 20
+UNEXPLAINED_RATIO = 1.2  # base RMSE / noise floor above which a `none` verdict says a gap remains
 STEP_FRACTION = 0.1  # a current step: |ΔI| above this fraction of the 99th-percentile |I|
 REST_FRACTION = 0.02  # at rest: |I| below this fraction of the 99th-percentile |I|
 
@@ -653,6 +654,13 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"])
         verdict["best_candidate"] = best["effect"]
         verdict["best_candidate_shrink"] = best["shrink"]
+        ratio = float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else np.inf
+        verdict["note"] = (
+            "the base model fits to about the noise floor"
+            if ratio < UNEXPLAINED_RATIO
+            else "a misfit beyond the noise floor that no candidate explains on held-out data"
+        )
+    remaining = float(np.sqrt(ctx.ho_loss(final).mean())) / noise_v if noise_v > 0 else None
 
     report = {
         "source": source,
@@ -675,6 +683,7 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         "candidates": rows + skipped,
         "verdict": verdict,
         "ladder": ladder,
+        "final_heldout_rmse_to_noise": remaining,
         "signatures": sig,
         "method": {
             "folds": N_FOLDS,
