@@ -8,6 +8,7 @@
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
 REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
+PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
 
 
 rule panasonic_import:
@@ -94,6 +95,30 @@ rule panasonic_fit_c20:
                               input.ocv, output[0], log[0], workers=workflow.cores)
 
 
+rule panasonic_fit_circuits:
+    """The C/20 circuit with each candidate effect, scored by blocked CV on the training cycle
+    alone, the lowest chosen; all run on the unseen cycles (real/circuits.py)."""
+    input:
+        train=pan_train,
+        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        ocv=f"{PAN_OUT}/ocv_c20.csv",
+        hppc=lambda w: pan_canon(f"{w.ptemp}/hppc") if "hppc" in PAN_CIRCUITS.get("candidates", []) else [],
+    output:
+        f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
+    log:
+        "logs/real/panasonic/fits/{ptemp}/circuits.log",
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        train=lambda w: PAN_EXP["train"][w.ptemp],
+        circuits=PAN_CIRCUITS,
+    threads: 1
+    run:
+        real_jobs.circuit_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
+                                  input.ocv, input.hppc or None, output[0], log[0],
+                                  workers=workflow.cores)
+
+
 rule panasonic_fit_gap:
     """The gap diagnosis of the training cycle and the model it recommends (avoa_pipeline.gap)."""
     input:
@@ -117,7 +142,7 @@ rule panasonic_fit_gap:
 rule panasonic_drive_cycle_table:
     """Experiment 1's table: RMSE and maximum error per temperature × unseen cycle × model."""
     input:
-        fits=pan_fit_records(),
+        fits=pan_fit_records() + [f"{PAN_OUT}/fits/{t}/circuits.json" for t in PAN_EXP_TEMPS if PAN_CIRCUITS],
         gap=[f"{PAN_OUT}/fits/{t}/gap_predictions.parquet" for t in PAN_EXP_TEMPS] if PAN_GAP else [],
         tests=[pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS for c in real_dc.unseen_cycles(config, t)],
         ocv=f"{PAN_OUT}/ocv_c20.csv",
@@ -125,6 +150,7 @@ rule panasonic_drive_cycle_table:
         csv="results/real/drive_cycle_rmse.csv",
         runs=f"{PAN_OUT}/drive_cycle_runs.csv",
         pred=f"{PAN_OUT}/figure_predictions.parquet",
+        cv=f"{PAN_OUT}/circuit_cv.csv",
     log:
         "logs/real/panasonic/drive_cycle_table.log",
     run:
@@ -132,7 +158,7 @@ rule panasonic_drive_cycle_table:
             config, input.fits, input.gap,
             {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
              for c in real_dc.unseen_cycles(config, t)},
-            input.ocv, output.csv, output.runs, output.pred, log[0])
+            input.ocv, output.csv, output.runs, output.pred, log[0], out_cv=output.cv)
 
 
 rule panasonic_drive_cycles_notebook:

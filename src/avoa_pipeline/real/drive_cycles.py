@@ -15,6 +15,9 @@ Models (docs/real-data.md says why each):
   discharge curve (:func:`c20_ocv`) plus a fitted offset; scipy ``least_squares``.
 - ``c20_2rc_lowsoc``: ``c20_rc`` with a second RC branch and resistances that rise at low SOC,
   R(s) = R·(1 + k·exp(−s/σ)); ``least_squares``.
+- ``c20_2rc_lowsoc+<effects>``: ``c20_2rc_lowsoc`` with added effects (:mod:`.circuits`), each
+  scored by blocked cross-validation on the training cycle; ``c20_cv_selected`` is the one with
+  the lowest score (chosen without the unseen cycles).
 - ``gap_<effects>``: the model the gap diagnosis (``avoa_pipeline.gap``) recommends for the
   training cycle, fitted and simulated by ``gap.models`` (rows only when that package is there).
 
@@ -400,7 +403,11 @@ def table(records: list[dict], ambient: dict[str, float]) -> tuple[pd.DataFrame,
                                    "seed": run["seed"], "train_rmse_mv": run["train_rmse_mv"],
                                    **err})  # fmt: skip
         else:
-            for name, m in rec["models"].items():
+            models = dict(rec["models"])
+            if "selected" in rec:  # the circuits' record: its base is c20_2rc_lowsoc's row
+                models.pop("c20_2rc_lowsoc", None)
+                models["c20_cv_selected"] = rec["models"][rec["selected"]]
+            for name, m in models.items():
                 for cycle, err in m["cycles"].items():
                     detail.append({"temperature": temp, "cycle": cycle, "model": name,
                                    "seed": None, "train_rmse_mv": m["train_rmse_mv"],

@@ -142,7 +142,7 @@ def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None
 
 
 def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_csv, out_runs,
-                      out_predictions, log=None) -> None:  # fmt: skip
+                      out_predictions, log=None, out_cv=None) -> None:  # fmt: skip
     """``drive_cycle_rmse.csv``, the per-seed rows, and the figure cycles' predicted voltages."""
     import json
 
@@ -177,6 +177,12 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
                 v = dc.paper_simulate(run["params"], frame, dc.PAPER_MODELS[rec["model"]], qdis)
                 traces.append(pd.DataFrame({**base, "model": f"{rec['model']}_{rec['algorithm']}",
                                             "model_v": v}))  # fmt: skip
+            elif "selected" in rec:
+                from . import circuits
+
+                for name, m in rec["models"].items():
+                    v = circuits.simulate(m["params"], frame, read_ocv(ocv_csv), m["effects"])
+                    traces.append(pd.DataFrame({**base, "model": name, "model_v": v}))
             elif "recommended_effects" not in rec:
                 for name, m in rec["models"].items():
                     v = dc.c20_simulate(m["params"], frame, ocv)
@@ -187,7 +193,18 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
             for name, part in g.groupby("model", sort=False):
                 traces.append(pd.DataFrame({**base, "model": name,
                                             "model_v": part["model_v"].to_numpy()}))  # fmt: skip
-    for df, path in ((summary, out_csv), (runs, out_runs)):
+    cv_rows = [
+        {"temperature_c": ambient[rec["temperature"]], "model": name,
+         "effects": "+".join(m["effects"]), "folds": rec["folds"],
+         "cv_rmse_mv": m["cv_rmse_mv"], "train_rmse_mv": m["train_rmse_mv"],
+         "fold_rmse_mv": " ".join(f"{x:.2f}" for x in m["fold_rmse_mv"]),
+         "selected": name == rec["selected"]}
+        for rec in records if "selected" in rec for name, m in rec["models"].items()
+    ]  # fmt: skip
+    outs = [(summary, out_csv), (runs, out_runs)]
+    if out_cv:
+        outs.append((pd.DataFrame(cv_rows), out_cv))
+    for df, path in outs:
         with atomic_path(path) as tmp:
             df.to_csv(tmp, index=False)
     cols = ["temperature", "cycle", "time_s", "current_a", "measured_v", "model", "model_v"]
@@ -195,3 +212,36 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
     with atomic_path(out_predictions) as tmp:
         pred.to_parquet(tmp, index=False)
     _log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
+
+
+def circuit_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, hppc_csv, out_json, log=None,
+                    workers=1) -> None:  # fmt: skip
+    _pool_run(workers, circuit_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv,
+              hppc_csv, out_json, log)  # fmt: skip
+
+
+def read_ocv(ocv_csv):
+    """The C/20 table with its capacity and current (from the JSON beside it) as attrs."""
+    import json
+
+    import pandas as pd
+
+    ocv = pd.read_csv(ocv_csv)
+    meta = Path(ocv_csv).with_suffix(".json")
+    if meta.exists():
+        ocv.attrs.update(json.loads(meta.read_text()))
+    return ocv
+
+
+def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, log=None) -> None:
+    from ..io import write_json
+    from . import circuits, drive_cycles
+
+    settings = drive_cycles.experiment(cfg)["circuits"]
+    frames = _frames({"train": train_csv, **({"hppc": hppc_csv} if hppc_csv else {})})
+    rec = circuits.choose(temp, frames["train"], _frames(tests), read_ocv(ocv_csv), settings,
+                          hppc=frames.get("hppc"))  # fmt: skip
+    rec["train_record"] = str(train_csv)
+    write_json(rec, out_json)
+    _log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
+        f"{m} CV {r['cv_rmse_mv']:.1f} mV" for m, r in rec["models"].items()))  # fmt: skip

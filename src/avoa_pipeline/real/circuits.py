@@ -1,0 +1,238 @@
+"""C/20-OCV equivalent circuits with optional effects, and their choice by blocked cross-validation
+on the training record alone (experiment 1; docs/real-data.md, "Choosing the circuit").
+
+The base circuit is ``c20_2rc_lowsoc`` of :mod:`.drive_cycles`: the C/20 discharge curve plus a
+fitted offset as OCV, R0 and two RC branches, all resistances scaled by 1 + k·exp(−SOC/σ). Each
+effect below adds one physical mechanism, argued before any fit:
+
+- ``ocv_ir``: the C/20 curve is a *loaded* curve: at 0.145 A the cell sits below its OCV by the
+  steady-state drop I_C20·(R0 + R1 + R2)·scale(SOC), which grows where the resistance rises near
+  empty. The OCV is the curve plus that drop (with the model's own resistances) plus the offset.
+- ``thermal``: resistances × exp(−b·(T − 25 °C)), T the measured cell temperature; the cells warm
+  by up to 7 K (25 °C US06) and 14 K (0 °C US06) during aggressive cycles.
+- ``hyst``: one-state hysteresis (Plett 2004, doi:10.1016/j.jpowsour.2004.02.031, eq. 13):
+  h ← a·h + (1 − a)·sgn(i_charge), a = exp(−γ·|i|·Δt / (3600·Q)); V += M·h.
+- ``rc3``: a third, slow RC branch (τ 500-20,000 s), for diffusion slower than R2's.
+- ``q_c20``: the capacity held at the C/20 test's 2.997 Ah instead of fitted.
+- ``hppc``: the same temperature's HPPC test joins the training data (it covers the SOC below the
+  training drive cycle's end); a record-specific offset is fitted for it.
+
+**Choice.** :func:`blocked_cv`: the training drive cycle is cut into ``folds`` contiguous blocks
+of equal length; for each block the circuit is fitted with that block's residuals left out (the
+simulation runs through it, so the state is carried) and scored on it. The score is the RMSE
+over all held-out samples. Nothing from the unseen cycles enters.
+
+Hand-written numerics: the hysteresis state is a sign-switching recursion that no scipy filter
+expresses, so it is a small compiled loop (numba); the rest are linear filters
+(``scipy.signal.lfilter``) on a table lookup (``numpy.interp``), fitted by scipy ``least_squares``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import numba
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+from scipy.signal import lfilter
+
+from ..errors import ConfigError
+from .drive_cycles import _C20_PARAMS, _step, errors_mv
+
+EFFECTS = ("ocv_ir", "thermal", "hyst", "rc3", "q_c20", "hppc")
+T_REF_C = 25.0  # the C/20 test's temperature: the OCV and its IR correction hold there
+
+_EXTRA = {  # (lower, upper, start values)
+    "b": (0.0, 0.15, (0.02,)),
+    "m": (0.0, 0.05, (0.005,)),
+    "gamma": (0.1, 500.0, (20.0,)),
+    "r3": (1e-5, 0.3, (0.005,)),
+    "tau3": (500.0, 20000.0, (3000.0,)),
+    "offset_hppc": (-0.2, 0.2, (0.0,)),
+}
+_BOX = {**_C20_PARAMS, **_EXTRA}
+
+
+def param_names(effects) -> tuple[str, ...]:
+    bad = set(effects) - set(EFFECTS)
+    if bad:
+        raise ConfigError(f"unknown circuit effect(s) {sorted(bad)}; choose from {EFFECTS}")
+    names = ["r0", "r1", "tau1", "r2", "tau2", "offset", "k", "sigma"]
+    if "q_c20" not in effects:
+        names.insert(0, "q")
+    if "thermal" in effects:
+        names.append("b")
+    if "hyst" in effects:
+        names += ["m", "gamma"]
+    if "rc3" in effects:
+        names += ["r3", "tau3"]
+    if "hppc" in effects:
+        names.append("offset_hppc")
+    return tuple(names)
+
+
+@numba.njit(cache=True)
+def _hysteresis(cur, ts, gamma, q):  # pragma: no cover - compiled
+    h = np.empty(cur.size)
+    state = 0.0
+    for n in range(cur.size):
+        h[n] = state
+        a = np.exp(-gamma * abs(cur[n]) * ts / (3600.0 * q))
+        # positive current = discharge: the state tends to −1 while discharging, +1 charging
+        state = a * state - (1.0 - a) * np.sign(cur[n])
+    return h
+
+
+def simulate(params: dict, frame: pd.DataFrame, ocv: pd.DataFrame, effects=(),
+             offset_key: str = "offset") -> np.ndarray:  # fmt: skip
+    """Terminal voltage of the circuit on a canonical record, s0 from its first sample."""
+    grid, table = ocv["soc"].to_numpy(), ocv["ocv_v"].to_numpy()
+    q = float(ocv.attrs.get("capacity_ah", 2.997)) if "q_c20" in effects else params["q"]
+    i_c20 = float(ocv.attrs.get("current_a", 0.145))
+    cur = frame["current_a"].to_numpy()
+    ts = _step(frame)
+    p = params
+    off = p[offset_key]
+    rc = [("r1", "tau1"), ("r2", "tau2")] + ([("r3", "tau3")] if "rc3" in effects else [])
+    r_ss = p["r0"] + sum(p[r] for r, _ in rc)  # steady-state resistance at C/20
+
+    def scale(s):
+        return 1.0 + p["k"] * np.exp(-np.clip(s, -0.5, 2.0) / p["sigma"])
+
+    def ocv_at(s):
+        v = np.interp(s, grid, table) + off
+        if "ocv_ir" in effects:
+            v = v + i_c20 * r_ss * scale(s)
+        return v
+
+    # s0: OCV(s0) = V0 + R0·scale·I0, solved on the grid (the OCV is increasing in SOC)
+    v0 = frame["voltage_v"].iloc[0]
+    target = v0 + p["r0"] * cur[0] * scale(grid)
+    temp_f = 1.0
+    if "thermal" in effects:
+        temp = frame["temperature_c"].to_numpy()
+        temp_f = np.exp(-p["b"] * (temp - T_REF_C))
+        target = v0 + p["r0"] * cur[0] * scale(grid) * temp_f[0]
+    gap = ocv_at(grid) - target
+    s0 = float(np.interp(0.0, gap, grid)) if np.all(np.diff(gap) > 0) else float(
+        np.clip(np.interp(v0 - off, table, grid), 0, 1))  # fmt: skip
+    s0 = min(max(s0, 0.0), 1.0)
+    soc = s0 - np.r_[0.0, np.cumsum(cur[:-1])] * ts / (3600.0 * q)
+    drive = scale(soc) * temp_f * cur
+    v = ocv_at(soc) - p["r0"] * drive
+    for r, tau in rc:
+        a = np.exp(-ts / p[tau])
+        v = v - lfilter([0.0, p[r] * (1.0 - a)], [1.0, -a], drive)
+    if "hyst" in effects:
+        v = v + p["m"] * _hysteresis(np.ascontiguousarray(cur, dtype=float), ts, p["gamma"], q)
+    return v
+
+
+def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | None = None,
+        mask: np.ndarray | None = None, start: dict | None = None) -> dict:  # fmt: skip
+    """Least squares on the training record's samples where ``mask`` (default: all), plus the
+    HPPC record if the ``hppc`` effect is on; the best of the start values' grid, or one run
+    from ``start`` (a previous fit's parameters)."""
+    effects = tuple(effects)
+    names = param_names(effects)
+    if "hppc" in effects and hppc is None:
+        raise ConfigError("circuit effect 'hppc' needs the HPPC record")
+    lb = np.array([_BOX[n][0] for n in names])
+    ub = np.array([_BOX[n][1] for n in names])
+    volt = train["voltage_v"].to_numpy()
+    keep = np.ones(volt.size, bool) if mask is None else np.asarray(mask, bool)
+    weight_h = 0.0
+    if "hppc" in effects:
+        # the HPPC record weighs as much in total as the training samples kept
+        weight_h = np.sqrt(keep.sum() / len(hppc))
+        v_h = hppc["voltage_v"].to_numpy()
+
+    def residual(x):
+        p = dict(zip(names, x, strict=True))
+        r = (simulate(p, train, ocv, effects) - volt)[keep]
+        if weight_h:
+            rh = simulate(p, hppc, ocv, effects, offset_key="offset_hppc") - v_h
+            r = np.r_[r, weight_h * rh]
+        return r
+
+    starts = [[]]
+    for n in names:
+        starts = [[*s, v] for s in starts for v in _BOX[n][2]]
+    if start is not None:
+        starts = [[start[n] for n in names]]
+    best = None
+    t0 = time.perf_counter()
+    for x0 in starts:
+        res = least_squares(residual, np.clip(x0, lb, ub), bounds=(lb, ub), x_scale="jac")
+        if best is None or res.cost < best.cost:
+            best = res
+    params = dict(zip(names, map(float, best.x), strict=True))
+    r = simulate(params, train, ocv, effects) - volt
+    return {
+        "effects": list(effects),
+        "params": params,
+        "train_rmse_mv": 1e3 * float(np.sqrt(np.mean(r[keep] ** 2))),
+        "nfev": int(best.nfev),
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
+def blocked_cv(effects, train: pd.DataFrame, ocv: pd.DataFrame, folds: int,
+               hppc: pd.DataFrame | None = None, start: dict | None = None) -> dict:  # fmt: skip
+    """Leave-one-block-out RMSE on the training record (blocks contiguous in time); each fold's
+    fit starts from ``start`` (the fit to the whole record) if given."""
+    if folds < 2:
+        raise ConfigError(f"config: field real.panasonic.experiment.circuits.folds: {folds} < 2")
+    n = len(train)
+    edges = np.linspace(0, n, folds + 1).astype(int)
+    volt = train["voltage_v"].to_numpy()
+    sq = 0.0
+    per_fold = []
+    for a, b in itertools.pairwise(edges):
+        mask = np.ones(n, bool)
+        mask[a:b] = False
+        rec = fit(effects, train, ocv, hppc=hppc, mask=mask, start=start)
+        e = simulate(rec["params"], train, ocv, effects)[a:b] - volt[a:b]
+        sq += float(np.sum(e**2))
+        per_fold.append(1e3 * float(np.sqrt(np.mean(e**2))))
+    return {"cv_rmse_mv": 1e3 * float(np.sqrt(sq / n)), "fold_rmse_mv": per_fold}
+
+
+def model_name(effects) -> str:
+    return "c20_2rc_lowsoc" + "".join("+" + e for e in effects)
+
+
+def choose(temp: str, train: pd.DataFrame, tests: dict[str, pd.DataFrame], ocv: pd.DataFrame,
+           settings: dict, hppc: pd.DataFrame | None = None) -> dict:  # fmt: skip
+    """Every candidate (the base, then each effect of ``settings['candidates']`` alone) fitted to
+    the whole training record and scored by :func:`blocked_cv`; then all effects that lowered
+    the base's CV RMSE by at least ``settings['min_gain']`` (relative) together as one more
+    candidate. The selected model has the lowest CV RMSE. Every candidate is then run on the
+    unseen cycles and reported, selected or not."""
+    folds = int(settings["folds"])
+    min_gain = float(settings.get("min_gain", 0.02))
+    out = {"temperature": temp, "folds": folds, "min_gain": min_gain, "models": {}}
+
+    def run(effects):
+        t0 = time.perf_counter()
+        rec = fit(effects, train, ocv, hppc=hppc)
+        rec.update(blocked_cv(effects, train, ocv, folds, hppc=hppc, start=rec["params"]))
+        rec["wall_s"] = time.perf_counter() - t0
+        rec["cycles"] = {}
+        for c, f in tests.items():
+            rec["cycles"][c] = errors_mv(simulate(rec["params"], f, ocv, effects), f)
+        out["models"][model_name(effects)] = rec
+        return rec["cv_rmse_mv"]
+
+    base = run(())
+    gains = []
+    for eff in settings["candidates"]:
+        cv = run((eff,))
+        if cv <= base * (1.0 - min_gain):
+            gains.append(eff)
+    if len(gains) > 1:
+        run(tuple(e for e in EFFECTS if e in gains))
+    out["selected"] = min(out["models"], key=lambda m: out["models"][m]["cv_rmse_mv"])
+    return out
