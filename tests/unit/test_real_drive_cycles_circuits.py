@@ -59,7 +59,9 @@ def test_thermal_lowers_the_drop_when_the_cell_is_warmer():
 
 def test_hysteresis_state_moves_towards_the_current_sign():
     h = ci._hysteresis(np.r_[np.full(500, 3.0), np.full(500, -3.0)], 1.0, 200.0, 2.8)
-    assert h[499] < -0.5 and h[-1] > 0.5 and np.all(np.abs(h) <= 1)
+    assert h[499] < -0.5
+    assert h[-1] > 0.5
+    assert np.all(np.abs(h) <= 1)
 
 
 def test_fit_recovers_a_circuit_with_effects():
