@@ -35,6 +35,7 @@ def _small_config(root: Path) -> dict:
         budget={"pop_size": 8, "iterations": 15},
         figure_cycle={"25degC": "us06"},
         gap=False,
+        circuits={"folds": 2, "min_gain": 0.0, "candidates": ["q_c20", "hppc"]},
     )
     used = {t25["hppc"], t25["hppc_steps"], *t25["drive_cycles"].values(), pan["ocv_c20"]}
     real["sources"] = {k: v for k, v in real["sources"].items() if k in used}
@@ -73,11 +74,20 @@ def test_real_target_builds_experiment_one(workdir):
     assert set(rmse["cycle"]) == {"us06"}  # la92 was the training cycle
     assert set(rmse["model"]) == {
         "paper_rc_nelder_mead", "paper_rc_avoa", "paper_norc_nelder_mead", "paper_norc_avoa",
-        "c20_rc", "c20_2rc_lowsoc",
-    }  # fmt: skip
+        "c20_rc", "c20_2rc_lowsoc", "c20_2rc_lowsoc+q_c20", "c20_2rc_lowsoc+hppc",
+        "c20_cv_selected",
+    } | ({"c20_2rc_lowsoc+q_c20+hppc"} & set(rmse["model"]))  # fmt: skip
     assert (rmse["temperature_c"] == 25.0).all()
     assert (rmse["rmse_mv"] > 0).all()
     assert (rmse["max_err_mv"] >= rmse["rmse_mv"]).all()
+    cv = pd.read_csv(workdir / "results/real/panasonic/circuit_cv.csv")
+    assert cv["selected"].sum() == 1
+    sel = cv.loc[cv["selected"], "model"].iloc[0]
+    assert cv.loc[cv["selected"], "cv_rmse_mv"].iloc[0] == cv["cv_rmse_mv"].min()
+    assert "c20_2rc_lowsoc" in set(cv["model"])
+    chosen = rmse.set_index("model")["rmse_mv"]
+    if sel != "c20_2rc_lowsoc":
+        assert chosen["c20_cv_selected"] == chosen[sel]
     for stem in ("results/real/figures/panasonic_drive_cycles.png",
                  "results/real/figures/panasonic_drive_cycles.pdf",
                  "results/real/tables/panasonic_drive_cycle_rmse.md"):  # fmt: skip
