@@ -177,12 +177,12 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
                 v = dc.paper_simulate(run["params"], frame, dc.PAPER_MODELS[rec["model"]], qdis)
                 traces.append(pd.DataFrame({**base, "model": f"{rec['model']}_{rec['algorithm']}",
                                             "model_v": v}))  # fmt: skip
-            elif "selected" in rec:
+            elif "selected" in rec:  # only the CV-selected circuit is drawn
                 from . import circuits
 
-                for name, m in rec["models"].items():
-                    v = circuits.simulate(m["params"], frame, read_ocv(ocv_csv), m["effects"])
-                    traces.append(pd.DataFrame({**base, "model": name, "model_v": v}))
+                m = rec["models"][rec["selected"]]
+                v = circuits.simulate(m["params"], frame, read_ocv(ocv_csv), m["effects"])
+                traces.append(pd.DataFrame({**base, "model": "c20_cv_selected", "model_v": v}))
             elif "recommended_effects" not in rec:
                 for name, m in rec["models"].items():
                     v = dc.c20_simulate(m["params"], frame, ocv)
