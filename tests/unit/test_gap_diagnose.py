@@ -173,3 +173,32 @@ def test_frame_input_accepts_no_temperature():
     checked = diagnose.validate(frame, "f")
     assert list(checked.columns) == ["time_s", "current_a", "voltage_v"]
     assert isinstance(checked, pd.DataFrame)
+
+
+@pytest.mark.parametrize("per_fold", [1, 4])
+def test_folds_partition_the_record_and_batches_stay_in_blocks(per_fold):
+    n = 2003
+    folds = diagnose.folds_of(n, 5, per_fold)
+    assert len(folds) == 5
+    np.testing.assert_array_equal(np.sort(np.concatenate(folds)), np.arange(n))
+    blocks = diagnose.blocks_of(n, 5, per_fold)
+    block_of = np.empty(n, dtype=int)
+    for j, b in enumerate(blocks):
+        block_of[b] = j
+    for batch in diagnose.batches_of(n, 5, per_fold):
+        assert np.all(np.diff(batch) == 1)  # contiguous
+        assert len(set(block_of[batch])) == 1
+
+
+def test_loss_tests_see_a_systematic_gain_and_ignore_noise():
+    rng = np.random.default_rng(0)
+    n = 5000
+    batches = diagnose.batches_of(n)
+    a = rng.standard_normal(n) ** 2
+    same = diagnose.batch_rank_test(a, rng.standard_normal(n) ** 2, batches)[1]
+    better = diagnose.batch_rank_test(a, 0.8 * a, batches)[1]
+    assert same > 0.01
+    assert better < 1e-6
+    t, _, se = diagnose.loss_test(a, 0.8 * a, batches)
+    assert t > 10
+    assert se > 0

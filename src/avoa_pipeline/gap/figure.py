@@ -62,7 +62,8 @@ def render(report: dict, arrays: dict, path: str | Path) -> None:
         ax.plot(th, 1e3 * (arrays["v"] - after_ho)[sl], color="#4c72b0", lw=0.6,
                 label=f"base + {verdict}, held out")  # fmt: skip
     ax.axhspan(-noise, noise, color="0.85", zorder=0, label="± noise floor")
-    for e in np.linspace(th[0], th[-1], report["method"]["folds"] + 1)[1:-1]:
+    n_blocks = report["method"]["folds"] * report["method"].get("blocks_per_fold", 1)
+    for e in np.linspace(th[0], th[-1], n_blocks + 1)[1:-1]:
         ax.axvline(e, color="0.5", lw=0.5, ls=":")
     ax.set_xlabel("time (h); dotted: cross-validation blocks")
     ax.set_ylabel("measured − model (mV)")
