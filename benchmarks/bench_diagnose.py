@@ -1,11 +1,14 @@
-"""Seconds per gap diagnosis for records of 2,000, 15,000 and 200,000 samples.
+"""Seconds per gap diagnosis for records of 2,000, 15,000 and 200,000 samples; with ``--sweep``,
+the verdicts on a small grid of the diagnosis' own effects (a self-check, not the validation:
+that is the independent generator of ``gap/withheld.py``).
 
 Records are simulated from the diagnosis' own base model (plus, with ``--effect``, one effect)
 with 1 mV noise quantised to 1 mV: a pulse/rest/charge profile at 1 Hz for 2k and 15k samples, a
 drive-cycle-like random current at 10 Hz for 200k. Prints measured times; asserts nothing.
 
-    OPENBLAS_NUM_THREADS=1 nice -n 19 .venv/bin/python benchmarks/bench_diagnose.py
+    nice -n 19 .venv/bin/python benchmarks/bench_diagnose.py
     ... --sizes 15000 --effect hysteresis --repeat 3
+    ... --sweep 6        # 6 replicates x (control + 8 effects x 2 magnitudes)
 """
 
 from __future__ import annotations
@@ -80,12 +83,74 @@ def record(n: int, effect: str, seed: int = 0) -> pd.DataFrame:
     return frame
 
 
+SWEEP = {
+    "none": [{}],
+    "second_rc": [{"r2_ohm": 0.005, "tau2_s": 600.0}, {"r2_ohm": 0.015, "tau2_s": 2000.0}],
+    "hysteresis": [
+        {"hysteresis_m_v": 0.003, "hysteresis_gamma": 50.0},
+        {"hysteresis_m_v": 0.01, "hysteresis_gamma": 200.0},
+    ],
+    "butler_volmer": [{"bv_inv_i0_per_a": 1.0}, {"bv_inv_i0_per_a": 3.0}],
+    "thermal": [
+        {"thermal_theta_r0_k": 2000.0, "thermal_theta_rc_k": 2000.0},
+        {"thermal_theta_r0_k": 5000.0},
+    ],
+    "ocv_shape": [{"ocv_shape_u0_v": 0.005}, {"ocv_shape_u1_v": 0.01, "ocv_shape_u2_v": -0.005}],
+    "current_offset": [{"current_offset_a": 0.01}, {"current_offset_a": 0.03}],
+    "voltage_offset": [{"voltage_offset_v": 0.005}, {"voltage_offset_v": 0.02}],
+    "coulombic_efficiency": [{"coulombic_efficiency": 0.99}, {"coulombic_efficiency": 0.96}],
+}
+
+
+def sweep(replicates: int) -> None:
+    """Replicate r: 6,000 or 15,000 samples, 0.5/1/2 mV noise, its own profile and SOC0."""
+    print(f"{'rep':>3} {'effect':>20} {'mag':>3} {'excess/noise':>12} {'verdict':>20} {'cpu s':>6}")
+    right = total = right_d = total_d = 0
+    for rep in range(replicates):
+        for effect, mags in SWEEP.items():
+            for m, extra in enumerate(mags):
+                rng = np.random.default_rng(1000 + rep)
+                n = (6000, 15000)[rep % 2]
+                noise = (0.5e-3, 1e-3, 2e-3)[rep % 3]
+                cur = pulse_profile(n, rng)
+                t = np.arange(n, dtype=float)
+                frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 0.0})
+                frame["temperature_c"] = 25.0 + 4 * np.sin(t / 5000 + rep)
+                truth = {**TRUTH, "soc0": rng.uniform(0.6, 1.0), **extra}
+                v = models.simulate_params(frame, truth)
+                frame["voltage_v"] = np.round((v + noise * rng.standard_normal(n)) / 1e-3) * 1e-3
+                frame["current_a"] = np.round((cur + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
+                c0 = time.process_time()
+                r = diagnose.diagnose(frame)
+                base, floor = r["base"]["rmse_mv"], r["base"]["noise_floor_mv"]
+                excess = np.sqrt(max(base**2 - floor**2, 0.0)) / floor
+                ok = r["verdict"]["effect"] == effect
+                total += 1
+                right += ok
+                if effect == "none" or excess >= 1.5:
+                    total_d += 1
+                    right_d += ok
+                print(
+                    f"{rep:3d} {effect:>20} {m:3d} {excess:12.2f} {r['verdict']['effect']:>20} "
+                    f"{time.process_time() - c0:6.1f}",
+                    flush=True,
+                )
+    print(
+        f"right: {right}/{total} in all; {right_d}/{total_d} of the controls and the effects "
+        "whose base residual exceeds the noise by >= 1.5x (excess = sqrt(rmse^2 - floor^2))"
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[2000, 15000, 200000])
     p.add_argument("--effect", default="hysteresis", choices=sorted(EFFECT))
     p.add_argument("--repeat", type=int, default=1)
+    p.add_argument("--sweep", type=int, default=0, metavar="REPLICATES")
     args = p.parse_args()
+    if args.sweep:
+        sweep(args.sweep)
+        return
     diagnose.diagnose(record(2000, "none"))  # compile / load the numba cache outside the timing
     print(f"{'samples':>8} {'effect':>14} {'verdict':>22} {'fits':>5} {'seconds':>8}")
     for n in args.sizes:

@@ -7,11 +7,12 @@ much adding it helps (issue 5; the method, its thresholds and their reasons: doc
 3. Which: every effect of :data:`EFFECTS` added to the base, refitted, and judged on data it was
    not fitted on: k contiguous blocks in time, each held out in turn (the state is simulated
    through the whole record; only the held-out block is scored). A candidate *pays* when
-   (a) its held-out squared error is lower than the base's by more than noise explains — a
-   Diebold–Mariano test on the per-sample loss differential with batch-means variance,
-   one-sided, Bonferroni over the candidates at family level ALPHA — and (b) its full-record fit
-   has ΔBIC < BIC_MAX. Among those that pay, the largest held-out shrink wins, unless a candidate
-   with fewer parameters is within one standard error of it (the one-standard-error rule).
+   (a) it removes at least MIN_SHRINK of the held-out squared error, (b) by more than noise
+   explains: the per-batch mean loss differential passes a batch-means t-test (Diebold–Mariano)
+   or a signed-rank test, one-sided, Bonferroni over both tests and the candidates at family
+   level ALPHA, and (c) its full-record fit has ΔBIC < BIC_MAX. Among those that pay, the largest
+   held-out shrink wins, unless a candidate with fewer parameters is within one standard error
+   of it (the one-standard-error rule).
 4. How far: held-out error before and after, overall and in the gap's region; then the ladder adds
    effects greedily by the same rule until none pays.
 """
@@ -42,14 +43,16 @@ VOLTAGE_RANGE_V = (0.5, 6.0)
 """Cell voltages outside this are taken for a wrong unit (mV) or a pack."""
 
 N_FOLDS = 5
-BLOCKS_PER_FOLD = 1
-"""Contiguous blocks per fold (fold j holds blocks j, j + k, ...). One: each fold is a fifth of
-the record. With 4 (shorter blocks spread over the record) the held-out blocks lie between
-training data, which suits a record that visits each SOC once, but a flexible candidate can then
-learn a slowly varying misfit from the neighbouring blocks; with structural misfit correlated
-over long spans, long blocks are the conservative choice (docs/gap-diagnosis.md)."""
+BLOCKS_PER_FOLD = 4
+"""Contiguous blocks per fold: the record is cut into N_FOLDS × 4 = 20 blocks and fold j holds
+blocks j, j + 5, j + 10, j + 15, so each held-out block lies between training data. With one
+block per fold (a fifth of the record), a record that visits each SOC once makes every model
+extrapolate in SOC, where capacity, SOC0, Vnom and β are not identifiable: the held-out error was
+dominated by that, whatever the effect (a 40 mV hysteresis fitted to the noise on the full record
+but lost to ocv_shape held out). The price: a candidate can carry a slow misfit from the
+neighbouring blocks into the held-out one (docs/gap-diagnosis.md)."""
 BATCHES_PER_FOLD = 20
-ALPHA = 0.01
+ALPHA = 0.05
 BIC_MAX = -10.0
 MIN_SHRINK = 0.05
 """A candidate must remove at least this share of the held-out ISE: a significant but smaller
@@ -524,14 +527,20 @@ def judge(ctx: _Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict
             row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
         else:
             loss = ctx.ho_loss(c)
-            t, _, _ = loss_test(loss_ref, loss, ctx.batches)
-            wins, p = batch_rank_test(loss_ref, loss, ctx.batches)
+            t, p_mean, _ = loss_test(loss_ref, loss, ctx.batches)
+            wins, p_rank = batch_rank_test(loss_ref, loss, ctx.batches)
             shrink = 1.0 - float(loss.sum()) / ise_ref
+            # two tests, each at ALPHA / (2 m): the mean test sees a gain confined to a few
+            # batches (an effect that acts only in pulses), the rank test a gain spread over most
+            # batches that one unpredictable block hides from the mean
+            p = min(1.0, 2.0 * min(p_mean, p_rank))
             row.update(
                 heldout_rmse_mv=1e3 * float(np.sqrt(loss.mean())),
                 shrink=shrink,
                 t=t,
+                p_mean=p_mean,
                 batches_better=wins,
+                p_rank=p_rank,
                 p=p,
                 pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
             )
