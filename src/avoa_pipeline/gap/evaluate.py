@@ -622,12 +622,15 @@ def demo_records(base_seed: int = 1, out_dir=None) -> pd.DataFrame:
     the notebook runs on its own. Not a measurement: the workflow's grid is."""
     import tempfile
 
+    if out_dir is None:
+        with tempfile.TemporaryDirectory(prefix="gap-demo-") as tmp:
+            return demo_records(base_seed, tmp)
     from ..synthetic import write
     from . import withheld
 
     picks = [("none", 0.0), ("thermal", 40000.0), ("ocv_shape", 0.05), ("hysteresis", 0.04)]
     pairs = []
-    folder = Path(out_dir or tempfile.mkdtemp(prefix="gap-demo-"))
+    folder = Path(out_dir)
     for effect, mag in picks:
         ds = withheld.make(base_seed, effect, mag, 1.0, "drive", 1)
         ds.meta["name"] = effect
