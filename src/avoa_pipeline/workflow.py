@@ -60,6 +60,45 @@ def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     _log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
 
 
+def coalesce_snakemake_reevaluation() -> bool:
+    """Keep at most one of Snakemake's re-evaluation timers pending (call from the Snakefile).
+
+    Snakemake 9's job rate limiter (default 100 jobs/s) makes every scheduling round start a
+    1-s ``threading.Timer`` whose firing triggers another round, which starts another timer: every
+    finished job adds a timer that then re-arms itself once a second for the rest of the run. On
+    the full grid this grew to ~360 live timer threads and 571 s of Snakemake CPU in a 20-minute
+    run (``benchmarks/bench_workflow.py``). One pending timer gives the limiter the same
+    re-evaluation; it is a daemon so it cannot delay exit. Returns whether the patch applied
+    (False if this Snakemake has no such method: then nothing is changed).
+    """
+    from snakemake.scheduling import job_scheduler
+
+    cls = job_scheduler.JobScheduler
+    original = getattr(cls, "_schedule_reevalutation", None)
+    if original is None or getattr(original, "_coalesced", False):
+        return original is not None
+
+    def schedule_reevaluation(self, delay) -> None:
+        with _REEVAL_LOCK:
+            if getattr(self, "_avoa_reeval_pending", False):
+                return
+            self._avoa_reeval_pending = True
+
+        def fire():
+            with _REEVAL_LOCK:
+                self._avoa_reeval_pending = False
+            self._open_jobs.release()
+
+        timer = threading.Timer(delay, fire)
+        timer.daemon = True
+        timer.start()
+
+    schedule_reevaluation._coalesced = True
+    cls._schedule_reevalutation = schedule_reevaluation
+    return True
+
+
+_REEVAL_LOCK = threading.Lock()
 _POOL: ProcessPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 

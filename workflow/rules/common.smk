@@ -4,6 +4,10 @@ from pathlib import Path
 import avoa_pipeline.workflow as wf
 from avoa_pipeline.model.battery import CASES
 
+# Snakemake's rate-limiter timers otherwise multiply over a run of thousands of short jobs
+# (wf.coalesce_snakemake_reevaluation says how much that cost).
+wf.coalesce_snakemake_reevaluation()
+
 SCENARIOS = [int(s) for s in config["scenarios"]]
 CASE_LIST = [int(c) for c in config["cases"]]
 ALGOS = list(config["algorithms"])
