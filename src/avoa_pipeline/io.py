@@ -54,8 +54,8 @@ def sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
-    """Read ``time_s, current_a, voltage_v[, temperature_c]`` and check what a fit relies on."""
+def read_csv(path: str | Path) -> pd.DataFrame:
+    """A CSV with stripped column names; a missing or unreadable file is a one-line DataError."""
     path = Path(path)
     try:
         df = pd.read_csv(path)
@@ -65,6 +65,13 @@ def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataError(f"{path}: not a readable CSV ({msg})") from None
     df.columns = [str(c).strip() for c in df.columns]
+    return df
+
+
+def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
+    """Read ``time_s, current_a, voltage_v[, temperature_c]`` and check what a fit relies on."""
+    path = Path(path)
+    df = read_csv(path)
     for col in REQUIRED:
         if col not in df.columns:
             raise DataError(f"{path}: missing column {col!r} (need {', '.join(REQUIRED)})")

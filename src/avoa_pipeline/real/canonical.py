@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError
-from ..io import atomic_path, sha256
+from ..io import atomic_path, read_csv, sha256
 
 COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
 
@@ -142,14 +142,7 @@ def write(frame: pd.DataFrame, sidecar: dict, out_csv: str | Path) -> None:
 def read(path_csv: str | Path) -> tuple[pd.DataFrame, dict]:
     """Read a canonical record and its sidecar; the same checks as :func:`write`."""
     path_csv = Path(path_csv)
-    try:
-        frame = pd.read_csv(path_csv)
-    except FileNotFoundError:
-        raise DataError(f"{path_csv}: no such file") from None
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DataError(f"{path_csv}: not a readable CSV ({msg})") from None
-    frame.columns = [str(c).strip() for c in frame.columns]
+    frame = read_csv(path_csv)
     frame = validate(frame, str(path_csv), first_row=2)
     json_path = sidecar_path(path_csv)
     try:

@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError, DataError
+from ..io import read_csv
 from . import canonical
 from .samsung import check_current_sign, data_root, read_numeric_csv
 
@@ -82,12 +83,7 @@ def discharge_keys(cfg: dict) -> list[tuple[int, str, float]]:
 
 
 def read_index(path: Path) -> pd.DataFrame:
-    try:
-        raw = pd.read_csv(path)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DataError(f"{path}: not a readable CSV ({msg})") from None
-    raw.columns = [str(c).strip() for c in raw.columns]
+    raw = read_csv(path)
     for col in INDEX_COLUMNS:
         if col not in raw.columns:
             raise DataError(f"{path}: missing column {col!r} (need {', '.join(INDEX_COLUMNS)})")

@@ -20,6 +20,7 @@ import pandas as pd
 
 from ..config import REPO_ROOT
 from ..errors import ConfigError, DataError
+from ..io import read_csv
 from . import canonical
 
 SOURCE_COLUMNS = ("current", "voltage", "temperature", "soc")
@@ -32,14 +33,7 @@ absolute current: the pulse edges, not sensor noise."""
 def read_numeric_csv(path: str | Path, columns) -> pd.DataFrame:
     """The ``columns`` of a source CSV as floats; one-line DataError naming file, column and row."""
     path = Path(path)
-    try:
-        raw = pd.read_csv(path)
-    except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise DataError(f"{path}: not a readable CSV ({msg})") from None
-    raw.columns = [str(c).strip() for c in raw.columns]
+    raw = read_csv(path)
     out = {}
     for col in columns:
         if col not in raw.columns:
