@@ -35,11 +35,10 @@ import time
 import numba
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
 from ..errors import ConfigError
-from .drive_cycles import _C20_PARAMS, _step, errors_mv
+from .drive_cycles import _C20_PARAMS, _step, errors_mv, multistart_least_squares
 
 EFFECTS = ("ocv_ir", "thermal", "hyst", "rc3", "q_c20", "hppc")
 T_REF_C = 25.0  # the C/20 test's temperature: the OCV and its IR correction hold there
@@ -139,8 +138,6 @@ def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | No
     names = param_names(effects)
     if "hppc" in effects and hppc is None:
         raise ConfigError("circuit effect 'hppc' needs the HPPC record")
-    lb = np.array([_BOX[n][0] for n in names])
-    ub = np.array([_BOX[n][1] for n in names])
     volt = train["voltage_v"].to_numpy()
     keep = np.ones(volt.size, bool) if mask is None else np.asarray(mask, bool)
     weight_h = 0.0
@@ -157,17 +154,10 @@ def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | No
             r = np.r_[r, weight_h * rh]
         return r
 
-    starts = [[]]
-    for n in names:
-        starts = [[*s, v] for s in starts for v in _BOX[n][2]]
-    if start is not None:
-        starts = [[start[n] for n in names]]
-    best = None
     t0 = time.perf_counter()
-    for x0 in starts:
-        res = least_squares(residual, np.clip(x0, lb, ub), bounds=(lb, ub), x_scale="jac")
-        if best is None or res.cost < best.cost:
-            best = res
+    best = multistart_least_squares(
+        residual, names, _BOX, None if start is None else [[start[n] for n in names]]
+    )
     params = dict(zip(names, map(float, best.x), strict=True))
     r = simulate(params, train, ocv, effects) - volt
     return {

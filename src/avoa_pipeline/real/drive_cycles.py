@@ -35,6 +35,7 @@ models are linear filters (``scipy.signal.lfilter``) on a table lookup (``numpy.
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -204,25 +205,32 @@ def c20_simulate(params: dict, frame: pd.DataFrame, ocv: pd.DataFrame) -> np.nda
     return v
 
 
+def multistart_least_squares(residual, names, box: dict, starts=None):
+    """Bounded ``least_squares`` of ``residual`` over the parameters ``names``, whose entries in
+    ``box`` are (lower, upper, start values): one run from every combination of the start values
+    (or from each of ``starts``, if given); the run with the lowest cost wins."""
+    lb = np.array([box[n][0] for n in names])
+    ub = np.array([box[n][1] for n in names])
+    if starts is None:
+        starts = itertools.product(*(box[n][2] for n in names))
+    best = None
+    for x0 in starts:
+        res = least_squares(residual, np.clip(x0, lb, ub), bounds=(lb, ub), x_scale="jac")
+        if best is None or res.cost < best.cost:
+            best = res
+    return best
+
+
 def c20_fit(model: str, frame: pd.DataFrame, ocv: pd.DataFrame) -> dict:
     """Least-squares fit of a C/20 model to ``frame``; the best of a few starts."""
     names = C20_NAMES[model]
-    lb = np.array([_C20_PARAMS[n][0] for n in names])
-    ub = np.array([_C20_PARAMS[n][1] for n in names])
     volt = frame["voltage_v"].to_numpy()
 
     def residual(x):
         return c20_simulate(dict(zip(names, x, strict=True)), frame, ocv) - volt
 
-    starts = [[]]
-    for n in names:
-        starts = [[*s, v] for s in starts for v in _C20_PARAMS[n][2]]
-    best = None
     t0 = time.perf_counter()
-    for x0 in starts:
-        res = least_squares(residual, np.clip(x0, lb, ub), bounds=(lb, ub), x_scale="jac")
-        if best is None or res.cost < best.cost:
-            best = res
+    best = multistart_least_squares(residual, names, _C20_PARAMS)
     params = dict(zip(names, map(float, best.x), strict=True))
     return {
         "params": params,
