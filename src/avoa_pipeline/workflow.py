@@ -60,6 +60,9 @@ def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     _log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
 
 
+_REEVAL_LOCK = threading.Lock()
+
+
 def coalesce_snakemake_reevaluation() -> bool:
     """Keep at most one of Snakemake's re-evaluation timers pending (call from the Snakefile).
 
@@ -98,7 +101,6 @@ def coalesce_snakemake_reevaluation() -> bool:
     return True
 
 
-_REEVAL_LOCK = threading.Lock()
 _POOL: ProcessPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
 

@@ -80,9 +80,7 @@ class LocalSearchAccounting:
             raise BudgetExhausted
         f = np.full(n, np.inf)
         f[:k] = self.tracker.evaluate(X[:k])
-        while self.tracker.nfe >= self._next_mark:
-            self.tracker.end_iteration()
-            self._next_mark += self.pop_size
+        self._close_iterations()
         return f, k == n
 
     def evaluate_one(self, x: np.ndarray) -> float:
@@ -90,10 +88,14 @@ class LocalSearchAccounting:
         if self.remaining < 1:
             raise BudgetExhausted
         f = self.tracker.evaluate_one(x)
+        self._close_iterations()
+        return f
+
+    def _close_iterations(self) -> None:
+        """Close an iteration for every ``pop_size`` evaluations spent since the last one."""
         while self.tracker.nfe >= self._next_mark:
             self.tracker.end_iteration()
             self._next_mark += self.pop_size
-        return f
 
 
 def restart_loop(tracker: Tracker, rng: np.random.Generator, run_once) -> None:
