@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from avoa_pipeline.errors import ConfigError
+from avoa_pipeline.errors import ConfigError, DataError
 from avoa_pipeline.real import circuits as ci
 from avoa_pipeline.real import drive_cycles as dc
 
@@ -91,3 +91,54 @@ def test_blocked_cv_scores_held_out_blocks_only():
 def test_unknown_effect_is_refused():
     with pytest.raises(ConfigError, match="unknown circuit effect"):
         ci.param_names(("warp_drive",))
+
+
+def _hppc_like(ocv, cap=2.9):
+    """Rests of 1,800 s between 0.87-A steps of 0.29 Ah, with rest voltages 20 mV below the
+    table; short 1,200-s rests after a 10-s pulse in between (not OCV points)."""
+    cur, volt, q = [], [], 0.0
+    table = lambda q: float(np.interp(1 - q / cap, ocv["soc"], ocv["ocv_v"])) - 0.02  # noqa: E731
+    for _ in range(4):
+        cur += [0.0] * 1800
+        volt += [table(q)] * 1800
+        cur += [5.0] * 10 + [0.0] * 1200
+        volt += [3.5] * 10 + [3.6] * 1200
+        q += 5.0 * 10 / 3600
+        cur += [0.87] * 1200
+        volt += [3.6] * 1200
+        q += 0.87 * 1200 / 3600
+    cur += [0.0] * 1800
+    volt += [table(q)] * 1800
+    return pd.DataFrame({"time_s": np.arange(len(cur), dtype=float), "current_a": cur,
+                         "voltage_v": volt, "temperature_c": 25.0})  # fmt: skip
+
+
+def test_ocv_hppc_moves_the_table_onto_the_long_rests_only():
+    ocv = _ocv()
+    hppc = _hppc_like(ocv)
+    pts = ci.hppc_rest_points(hppc, 2.9)
+    assert len(pts) == 5  # the opening rest and the four after SOC steps, not the pulse rests
+    q_out = np.array([0, 1, 2, 3, 4]) * (5.0 * 10 + 0.87 * 1200) / 3600
+    assert np.allclose(np.sort(pts[:, 0]), np.sort(1 - q_out / 2.9))
+    moved = ci.table_for(("ocv_hppc",), ocv, hppc)
+    s = pts[:, 0]
+    assert np.allclose(np.interp(s, moved["soc"], moved["ocv_v"]),
+                       np.interp(s, ocv["soc"], ocv["ocv_v"]) - 0.02, atol=1e-6)  # fmt: skip
+    assert np.all(np.diff(moved["ocv_v"]) > 0)
+    # the fitted record keeps its points, and the table is rebuilt from them
+    frame = _frame(1500, seed=5)
+    frame["voltage_v"] = ci.simulate({**BASE, "k": 0.0}, frame, moved, ())
+    rec = ci.fit(("ocv_hppc",), frame, ocv, hppc=hppc)
+    assert rec["train_rmse_mv"] < 0.1
+    assert np.allclose(ci.model_table(rec, ocv)["ocv_v"], moved["ocv_v"])
+    assert ci.model_table({"effects": []}, ocv) is ocv
+
+
+def test_ocv_hppc_needs_the_hppc_record_and_two_rests():
+    ocv = _ocv()
+    with pytest.raises(ConfigError, match="'ocv_hppc' needs the HPPC record"):
+        ci.fit(("ocv_hppc",), _frame(500), ocv)
+    flat = _frame(500)
+    flat["current_a"] = 1.0
+    with pytest.raises(DataError, match="current_a"):
+        ci.table_for(("ocv_hppc",), ocv, flat)

@@ -102,7 +102,7 @@ rule panasonic_fit_circuits:
         train=pan_train,
         tests=lambda w: list(pan_tests(w.ptemp).values()),
         ocv=f"{PAN_OUT}/ocv_c20.csv",
-        hppc=lambda w: pan_canon(f"{w.ptemp}/hppc") if "hppc" in PAN_CIRCUITS.get("candidates", []) else [],
+        hppc=lambda w: pan_canon(f"{w.ptemp}/hppc") if {"hppc", "ocv_hppc"} & set(PAN_CIRCUITS.get("candidates", [])) else [],
     output:
         f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
     log:

@@ -16,6 +16,11 @@ effect below adds one physical mechanism, argued before any fit:
 - ``q_c20``: the capacity held at the C/20 test's 2.997 Ah instead of fitted.
 - ``hppc``: the same temperature's HPPC test joins the training data (it covers the SOC below the
   training drive cycle's end); a record-specific offset is fitted for it.
+- ``ocv_hppc``: the OCV levelled on the rested voltages of the same temperature's HPPC test
+  (:func:`hppc_rest_ocv`). The C/20 curve is one loaded discharge at 25 °C, measured in May on a
+  cell that had by then lost capacity; the HPPC rests are the same week as the drive cycles and at
+  their temperature, 5-10 % SOC apart down to ~8 %. Between the rest points the C/20 curve keeps
+  its shape; at each point it is moved to the rested voltage.
 
 **Choice.** :func:`blocked_cv`: the training drive cycle is cut into ``folds`` contiguous blocks
 of equal length; for each block the circuit is fitted with that block's residuals left out (the
@@ -37,10 +42,13 @@ import numpy as np
 import pandas as pd
 from scipy.signal import lfilter
 
-from ..errors import ConfigError
+from ..errors import ConfigError, DataError
 from .drive_cycles import _C20_PARAMS, _step, errors_mv, multistart_least_squares
+from .panasonic import REST_A
 
-EFFECTS = ("ocv_ir", "thermal", "hyst", "rc3", "q_c20", "hppc")
+EFFECTS = ("ocv_ir", "thermal", "hyst", "rc3", "q_c20", "hppc", "ocv_hppc")
+HPPC_EFFECTS = ("hppc", "ocv_hppc")  # effects that need the HPPC record
+REST_MIN_S = 1500.0  # ocv_hppc: a rest this long (or the opening one) gives an OCV point
 T_REF_C = 25.0  # the C/20 test's temperature: the OCV and its IR correction hold there
 
 _EXTRA = {  # (lower, upper, start values)
@@ -70,6 +78,60 @@ def param_names(effects) -> tuple[str, ...]:
     if "hppc" in effects:
         names.append("offset_hppc")
     return tuple(names)
+
+
+def hppc_rest_points(hppc: pd.DataFrame, capacity_ah: float, min_rest_s: float = REST_MIN_S):
+    """(SOC, rested voltage) at the end of the HPPC record's opening rest and of every later rest
+    (|I| ≤ ``REST_A``) of at least ``min_rest_s``; SOC = 1 − charge out / ``capacity_ah`` (the C/20
+    capacity, so the points sit on the C/20 table's SOC axis)."""
+    cur = hppc["current_a"].to_numpy()
+    volt = hppc["voltage_v"].to_numpy()
+    dt = np.diff(hppc["time_s"].to_numpy(), append=np.nan)
+    charge = np.r_[0.0, np.cumsum(cur[:-1] * dt[:-1])] / 3600.0  # Ah out before each sample
+    rest = np.abs(cur) <= REST_A
+    edges = np.flatnonzero(np.diff(np.r_[0, rest.astype(int), 0]))
+    pts = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        length = hppc["time_s"].iloc[b - 1] - hppc["time_s"].iloc[a]
+        if a == 0 or length >= min_rest_s:
+            pts.append((1.0 - charge[b - 1] / capacity_ah, volt[b - 1]))
+    if len(pts) < 2:
+        raise DataError(f"HPPC record: column 'current_a': {len(pts)} rest(s) of ≥ "
+                        f"{min_rest_s:.0f} s, need 2 for the ocv_hppc table")  # fmt: skip
+    return np.array(sorted(pts))
+
+
+def moved_table(ocv: pd.DataFrame, points) -> pd.DataFrame:
+    """The C/20 table moved onto (SOC, OCV) ``points``: at each point by (its voltage − the
+    table's at that SOC), linearly in between, constant beyond the first and last point; kept
+    strictly increasing for the inverse lookup. ``attrs['rest_points']`` holds the points."""
+    grid, table = ocv["soc"].to_numpy(), ocv["ocv_v"].to_numpy()
+    pts = np.asarray(points, dtype=float)
+    shift = pts[:, 1] - np.interp(pts[:, 0], grid, table)
+    moved = np.maximum.accumulate(table + np.interp(grid, pts[:, 0], shift))
+    out = pd.DataFrame({"soc": grid, "ocv_v": moved + np.arange(grid.size) * 1e-9})
+    out.attrs.update(ocv.attrs)
+    out.attrs["rest_points"] = pts.tolist()
+    return out
+
+
+def table_for(effects, ocv: pd.DataFrame, hppc: pd.DataFrame | None,
+              min_rest_s: float = REST_MIN_S) -> pd.DataFrame:  # fmt: skip
+    """The OCV table a circuit with ``effects`` simulates with: the C/20 table, or with
+    ``ocv_hppc`` that table moved onto the HPPC record's rest points."""
+    if "ocv_hppc" not in effects:
+        return ocv
+    if hppc is None:
+        raise ConfigError("circuit effect 'ocv_hppc' needs the HPPC record")
+    cap = float(ocv.attrs.get("capacity_ah", 2.997))
+    return moved_table(ocv, hppc_rest_points(hppc, cap, min_rest_s))
+
+
+def model_table(model: dict, ocv: pd.DataFrame) -> pd.DataFrame:
+    """The OCV table of a fitted model record (of :func:`choose`): the C/20 table, moved onto
+    the rest points the record kept if it has any."""
+    pts = model.get("ocv_rest_points")
+    return moved_table(ocv, pts) if pts else ocv
 
 
 @numba.njit(cache=True)
@@ -130,14 +192,18 @@ def simulate(params: dict, frame: pd.DataFrame, ocv: pd.DataFrame, effects=(),
 
 
 def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | None = None,
-        mask: np.ndarray | None = None, start: dict | None = None) -> dict:  # fmt: skip
+        mask: np.ndarray | None = None, start: dict | None = None,
+        min_rest_s: float = REST_MIN_S) -> dict:  # fmt: skip
     """Least squares on the training record's samples where ``mask`` (default: all), plus the
     HPPC record if the ``hppc`` effect is on; the best of the start values' grid, or one run
-    from ``start`` (a previous fit's parameters)."""
+    from ``start`` (a previous fit's parameters). With ``ocv_hppc`` the record keeps the rest
+    points its OCV table was moved onto (``ocv_rest_points``; :func:`model_table`)."""
     effects = tuple(effects)
     names = param_names(effects)
-    if "hppc" in effects and hppc is None:
-        raise ConfigError("circuit effect 'hppc' needs the HPPC record")
+    for eff in HPPC_EFFECTS:
+        if eff in effects and hppc is None:
+            raise ConfigError(f"circuit effect {eff!r} needs the HPPC record")
+    ocv = table_for(effects, ocv, hppc, min_rest_s)
     volt = train["voltage_v"].to_numpy()
     keep = np.ones(volt.size, bool) if mask is None else np.asarray(mask, bool)
     weight_h = 0.0
@@ -160,13 +226,16 @@ def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | No
     )
     params = dict(zip(names, map(float, best.x), strict=True))
     r = simulate(params, train, ocv, effects) - volt
-    return {
+    out = {
         "effects": list(effects),
         "params": params,
         "train_rmse_mv": 1e3 * float(np.sqrt(np.mean(r[keep] ** 2))),
         "nfev": int(best.nfev),
         "wall_s": time.perf_counter() - t0,
     }
+    if "rest_points" in ocv.attrs:
+        out["ocv_rest_points"] = ocv.attrs["rest_points"]
+    return out
 
 
 def blocked_cv(effects, train: pd.DataFrame, ocv: pd.DataFrame, folds: int,
@@ -184,7 +253,7 @@ def blocked_cv(effects, train: pd.DataFrame, ocv: pd.DataFrame, folds: int,
         mask = np.ones(n, bool)
         mask[a:b] = False
         rec = fit(effects, train, ocv, hppc=hppc, mask=mask, start=start)
-        e = simulate(rec["params"], train, ocv, effects)[a:b] - volt[a:b]
+        e = simulate(rec["params"], train, model_table(rec, ocv), effects)[a:b] - volt[a:b]
         sq += float(np.sum(e**2))
         per_fold.append(1e3 * float(np.sqrt(np.mean(e**2))))
     return {"cv_rmse_mv": 1e3 * float(np.sqrt(sq / n)), "fold_rmse_mv": per_fold}
@@ -211,8 +280,9 @@ def choose(temp: str, train: pd.DataFrame, tests: dict[str, pd.DataFrame], ocv: 
         rec.update(blocked_cv(effects, train, ocv, folds, hppc=hppc, start=rec["params"]))
         rec["wall_s"] = time.perf_counter() - t0
         rec["cycles"] = {}
+        table = model_table(rec, ocv)
         for c, f in tests.items():
-            rec["cycles"][c] = errors_mv(simulate(rec["params"], f, ocv, effects), f)
+            rec["cycles"][c] = errors_mv(simulate(rec["params"], f, table, effects), f)
         out["models"][model_name(effects)] = rec
         return rec["cv_rmse_mv"]
 

@@ -181,7 +181,8 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
                 from . import circuits
 
                 m = rec["models"][rec["selected"]]
-                v = circuits.simulate(m["params"], frame, read_ocv(ocv_csv), m["effects"])
+                table = circuits.model_table(m, read_ocv(ocv_csv))
+                v = circuits.simulate(m["params"], frame, table, m["effects"])
                 traces.append(pd.DataFrame({**base, "model": "c20_cv_selected", "model_v": v}))
             elif "recommended_effects" not in rec:
                 for name, m in rec["models"].items():
