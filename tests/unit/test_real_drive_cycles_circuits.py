@@ -142,3 +142,15 @@ def test_ocv_hppc_needs_the_hppc_record_and_two_rests():
     flat["current_a"] = 1.0
     with pytest.raises(DataError, match="current_a"):
         ci.table_for(("ocv_hppc",), ocv, flat)
+
+
+def test_cross_cycle_separates_the_circuits_own_error_from_the_transfer():
+    ocv = _ocv()
+    a, b = _frame(1200, seed=6), _frame(1200, seed=7)
+    a["voltage_v"] = ci.simulate({**BASE, "k": 0.0}, a, ocv, ())
+    b["voltage_v"] = ci.simulate({**BASE, "k": 0.0, "r0": 0.05}, b, ocv, ())  # another cell state
+    rows = pd.DataFrame(ci.cross_cycle("25degC", {"a": a, "b": b}, ocv, {"base": ()}))
+    assert len(rows) == 4 and rows["in_sample"].sum() == 2
+    err = rows.set_index(["fit_on", "predict"])["rmse_mv"]
+    assert err["a", "a"] < 0.1 and err["b", "b"] < 0.1  # each record alone: the circuit fits
+    assert err["a", "b"] > 5.0 and err["b", "a"] > 5.0  # across them: the transfer error

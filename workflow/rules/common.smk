@@ -87,6 +87,7 @@ def scenario_runs(w):
     return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]
 
 # --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
+from avoa_pipeline.real import circuits as real_circuits
 from avoa_pipeline.real import drive_cycles as real_dc
 from avoa_pipeline.real import jobs as real_jobs
 from avoa_pipeline.real import panasonic as real_panasonic

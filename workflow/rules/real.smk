@@ -9,6 +9,14 @@
 # ------------------------------------------------------------------------------------------------
 REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
 PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
+if PAN_CIRCUITS:
+    REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
+
+
+def pan_circuit_hppc(w):
+    """The HPPC record, if a circuit candidate needs it."""
+    needs = set(real_circuits.HPPC_EFFECTS) & set(PAN_CIRCUITS.get("candidates", []))
+    return pan_canon(f"{w.ptemp}/hppc") if needs else []
 
 
 rule panasonic_import:
@@ -102,7 +110,7 @@ rule panasonic_fit_circuits:
         train=pan_train,
         tests=lambda w: list(pan_tests(w.ptemp).values()),
         ocv=f"{PAN_OUT}/ocv_c20.csv",
-        hppc=lambda w: pan_canon(f"{w.ptemp}/hppc") if {"hppc", "ocv_hppc"} & set(PAN_CIRCUITS.get("candidates", [])) else [],
+        hppc=pan_circuit_hppc,
     output:
         f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
     log:
@@ -115,6 +123,29 @@ rule panasonic_fit_circuits:
     threads: 1
     run:
         real_jobs.circuit_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
+                                  input.ocv, input.hppc or None, output[0], log[0],
+                                  workers=workflow.cores)
+
+
+rule panasonic_cross_cycle:
+    """Diagnostic: the base and the CV-selected circuit fitted to every drive cycle of the
+    temperature in turn and run on all; the in-sample errors bound what transfer can reach."""
+    input:
+        circuits=f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
+        cycles=lambda w: [pan_train(w)] + list(pan_tests(w.ptemp).values()),
+        ocv=f"{PAN_OUT}/ocv_c20.csv",
+        hppc=pan_circuit_hppc,
+    output:
+        f"{PAN_OUT}/cross_cycle/{{ptemp}}.csv",
+    log:
+        "logs/real/panasonic/cross_cycle/{ptemp}.log",
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    threads: 1
+    run:
+        real_jobs.cross_cycle_job(config, wildcards.ptemp, input.circuits,
+                                  {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
+                                   **pan_tests(wildcards.ptemp)},
                                   input.ocv, input.hppc or None, output[0], log[0],
                                   workers=workflow.cores)
 

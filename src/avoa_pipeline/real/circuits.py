@@ -296,3 +296,22 @@ def choose(temp: str, train: pd.DataFrame, tests: dict[str, pd.DataFrame], ocv: 
         run(tuple(e for e in EFFECTS if e in gains))
     out["selected"] = min(out["models"], key=lambda m: out["models"][m]["cv_rmse_mv"])
     return out
+
+
+def cross_cycle(temp: str, cycles: dict[str, pd.DataFrame], ocv: pd.DataFrame, models: dict,
+                hppc: pd.DataFrame | None = None) -> list[dict]:  # fmt: skip
+    """Diagnostic, not used for any choice: each circuit of ``models`` (name → effects) fitted to
+    every drive cycle of ``cycles`` in turn and run on all of them. The diagonal (fitted and
+    scored on the same cycle) is what the circuit can reach on that cycle at best; an unseen
+    cycle's prediction error above its diagonal is what the transfer from the training cycle
+    costs. One row per (model, cycle fitted on, cycle predicted)."""
+    rows = []
+    for name, effects in models.items():
+        for fit_on, frame in cycles.items():
+            rec = fit(effects, frame, ocv, hppc=hppc)
+            table = model_table(rec, ocv)
+            for predict, other in cycles.items():
+                err = errors_mv(simulate(rec["params"], other, table, effects), other)
+                rows.append({"temperature": temp, "model": name, "fit_on": fit_on,
+                             "predict": predict, "in_sample": fit_on == predict, **err})  # fmt: skip
+    return rows

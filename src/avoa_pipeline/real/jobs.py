@@ -246,3 +246,33 @@ def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, lo
     write_json(rec, out_json)
     _log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
         f"{m} CV {r['cv_rmse_mv']:.1f} mV" for m, r in rec["models"].items()))  # fmt: skip
+
+
+def cross_cycle_job(cfg, temp, circuits_json, cycles: dict, ocv_csv, hppc_csv, out_csv, log=None,
+                    workers=1) -> None:  # fmt: skip
+    _pool_run(workers, cross_cycle_one, dict(cfg), temp, circuits_json, dict(cycles), ocv_csv,
+              hppc_csv, out_csv, log)  # fmt: skip
+
+
+def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv, log=None):
+    """The base circuit and the CV-selected one of ``circuits_json``, each fitted to every drive
+    cycle of the temperature and run on all (``circuits.cross_cycle``)."""
+    import json
+
+    import pandas as pd
+
+    from ..io import atomic_path
+    from . import circuits
+
+    rec = json.loads(Path(circuits_json).read_text())
+    models = {"c20_2rc_lowsoc": ()}
+    models[rec["selected"]] = tuple(rec["models"][rec["selected"]]["effects"])
+    hppc = _frames({"hppc": hppc_csv})["hppc"] if hppc_csv else None
+    rows = circuits.cross_cycle(temp, _frames(cycles), read_ocv(ocv_csv), models, hppc=hppc)
+    df = pd.DataFrame(rows)
+    df.insert(0, "temperature_c", float(cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]))
+    with atomic_path(out_csv) as tmp:
+        df.to_csv(tmp, index=False)
+    diag = df[df["in_sample"]].groupby("model")["rmse_mv"].median()
+    _log(log, f"wrote {out_csv}: {len(df)} rows; median in-sample RMSE " + "; ".join(
+        f"{m} {v:.1f} mV" for m, v in diag.items()))  # fmt: skip
