@@ -21,7 +21,9 @@ from .errors import UserError
 from .names import ALGORITHMS
 
 
-class _Parser(argparse.ArgumentParser):
+class Parser(argparse.ArgumentParser):
+    """argparse with usage errors as one-line :class:`UserError` (exit 2, no usage block)."""
+
     def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
         raise UserError(f"{self.prog}: {message}")
 
@@ -50,8 +52,8 @@ def _algorithm(text: str) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="avoa_pipeline", description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = Parser(prog="avoa_pipeline", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
 
     f = sub.add_parser("fit", help="identify the parameters of one scenario × case")
     f.add_argument("--scenario", type=_int_in("scenario", (1, 2, 3, 4)), required=True)

@@ -119,10 +119,17 @@ def _pool(workers: int) -> ProcessPoolExecutor:
         return _POOL
 
 
+def run_in_pool(workers: int, fn, *args):
+    """``fn(*args)`` in the worker-process pool (made on first use with ``workers`` processes),
+    waited for; what a Snakemake ``run:`` job with numerics calls, so the scheduler's process
+    never computes and no job starts an interpreter."""
+    return _pool(workers).submit(fn, *args).result()
+
+
 def fit_job(cfg, data_csv, scenario, case, algorithm, seed, out_json, log=None, workers=1):
     """A Snakemake fit job: run :func:`fit_one` in the worker pool and wait for it."""
     args = (dict(cfg), data_csv, scenario, case, algorithm, seed, out_json, log)
-    _pool(workers).submit(fit_one, *args).result()
+    run_in_pool(workers, fit_one, *args)
 
 
 def fit_one(

@@ -150,7 +150,10 @@ def test_cross_cycle_separates_the_circuits_own_error_from_the_transfer():
     a["voltage_v"] = ci.simulate({**BASE, "k": 0.0}, a, ocv, ())
     b["voltage_v"] = ci.simulate({**BASE, "k": 0.0, "r0": 0.05}, b, ocv, ())  # another cell state
     rows = pd.DataFrame(ci.cross_cycle("25degC", {"a": a, "b": b}, ocv, {"base": ()}))
-    assert len(rows) == 4 and rows["in_sample"].sum() == 2
+    assert len(rows) == 4
+    assert rows["in_sample"].sum() == 2
     err = rows.set_index(["fit_on", "predict"])["rmse_mv"]
-    assert err["a", "a"] < 0.1 and err["b", "b"] < 0.1  # each record alone: the circuit fits
-    assert err["a", "b"] > 5.0 and err["b", "a"] > 5.0  # across them: the transfer error
+    assert err["a", "a"] < 0.1
+    assert err["b", "b"] < 0.1
+    assert err["a", "b"] > 5.0
+    assert err["b", "a"] > 5.0

@@ -132,8 +132,9 @@ def test_trim_leaves_short_rests_alone():
     out, cut = panasonic.trim_leading_rest(frame, panasonic.Settings())
     assert cut == 0.0
     assert out is frame
-    out, cut = panasonic.trim_leading_rest(frame, panasonic.Settings(max_leading_rest_s=20.0,
-                                                                      keep_rest_s=5.0))
+    out, cut = panasonic.trim_leading_rest(
+        frame, panasonic.Settings(max_leading_rest_s=20.0, keep_rest_s=5.0)
+    )
     assert cut == 25.0
     assert out["time_s"].iloc[0] == 0.0
     assert out["current_a"].iloc[4] == 0.0
@@ -211,7 +212,6 @@ def test_records_need_a_checksum_for_every_file(cfg):
 
 
 # --- experiment 1: the pieces of src/avoa_pipeline/real/drive_cycles.py -------------------------
-
 
 
 def _drive_frame(n=3000, seed=0):

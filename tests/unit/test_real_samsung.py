@@ -183,3 +183,19 @@ def test_cli_error_is_one_line_and_exit_2(capsys, tmp_path):
     assert err.count("\n") == 1
     assert "99degC" in err
     assert not list(tmp_path.iterdir())
+
+
+def test_one_command_line_for_all_real_data(capsys, tmp_path):
+    from avoa_pipeline.real.__main__ import build_parser, main
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert set(sub.choices) == {"list", "panasonic-import", "drive-cycles", "samsung-import",
+                                "nasa-import", "arrhenius", "fade"}  # fmt: skip
+    assert main(["fade", "--record", str(tmp_path / "none.csv"), "--out-states",
+                 str(tmp_path / "s.csv"), "--out-fits", str(tmp_path / "f.csv")]) == 2  # fmt: skip
+    assert main(["no-such-command"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2
+    assert "none.csv" in err[0]
+    assert "no-such-command" in err[1]
+    assert not list(tmp_path.iterdir())

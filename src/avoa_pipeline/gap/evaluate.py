@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import workflow
 from ..io import atomic_path, write_json
 from . import EFFECTS, VERDICTS
 
@@ -36,12 +37,6 @@ SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
 # Jobs run in the Snakemake process (``run:``); the heavy ones hand their work to the workflow's
 # worker-process pool (see avoa_pipeline.workflow): no interpreter start per job, and the
 # scheduler's process is never busy with numerics.
-
-
-def _in_pool(workers, fn, *args):
-    from .. import workflow
-
-    return workflow._pool(workers).submit(fn, *args).result()
 
 
 def _log(path, text: str) -> None:
@@ -64,7 +59,7 @@ def diagnose_file(csv_path, out_json, log=None) -> None:
 
 
 def diagnose_job(csv_path, out_json, log=None, workers=1) -> None:
-    _in_pool(workers, diagnose_file, str(csv_path), str(out_json), log)
+    workflow.run_in_pool(workers, diagnose_file, str(csv_path), str(out_json), log)
 
 
 def _generate(base_seed, gcfg, profile, replicate, out_dir, log):
@@ -77,7 +72,9 @@ def _generate(base_seed, gcfg, profile, replicate, out_dir, log):
 
 def generate_job(base_seed, gcfg, profile, replicate, log=None, workers=1) -> None:
     out_dir = f"results/gap/data/{profile}/r{replicate}"
-    _in_pool(workers, _generate, int(base_seed), dict(gcfg), profile, int(replicate), out_dir, log)
+    workflow.run_in_pool(
+        workers, _generate, int(base_seed), dict(gcfg), profile, int(replicate), out_dir, log
+    )
 
 
 def _pybamm(base_seed, name, out_csv, log):
@@ -91,7 +88,7 @@ def _pybamm(base_seed, name, out_csv, log):
 
 
 def pybamm_job(base_seed, name, out_csv, log=None, workers=1) -> None:
-    _in_pool(workers, _pybamm, int(base_seed), name, str(out_csv), log)
+    workflow.run_in_pool(workers, _pybamm, int(base_seed), name, str(out_csv), log)
 
 
 def paper_job(cfg, scenario, case, out_csv, log=None) -> None:

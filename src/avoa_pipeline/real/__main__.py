@@ -1,12 +1,17 @@
-"""``python -m avoa_pipeline.real``: the Panasonic import and experiment 1 without Snakemake.
+"""``python -m avoa_pipeline.real``: every real-data import and experiment without Snakemake.
 
     python -m avoa_pipeline.real list
     python -m avoa_pipeline.real panasonic-import 25degC/us06 --out us06.csv
     python -m avoa_pipeline.real drive-cycles --out-dir DIR [--temperature 25degC]
+    python -m avoa_pipeline.real samsung-import --temperature 20degC --out s20.csv
+    python -m avoa_pipeline.real arrhenius --hppc 20degC=s20.csv ... --out-rc R --out-arrhenius A
+    python -m avoa_pipeline.real nasa-import --out b0005.csv
+    python -m avoa_pipeline.real fade --record b0005.csv --out-states S --out-fits F
 
 ``drive-cycles`` imports what it needs into ``DIR`` and runs experiment 1 as the workflow does
-(one process, no pool). Samsung and NASA: ``python -m avoa_pipeline.real.cells_cli``.
-Expected errors print one line on stderr and exit 2; nothing is half-written.
+(one process, no pool): paper models, C/20 circuits, the circuit choice, the gap model, the
+cross-cycle diagnostic and the table. Expected errors print one line on stderr and exit 2;
+nothing is half-written.
 """
 
 from __future__ import annotations
@@ -16,12 +21,14 @@ import sys
 from pathlib import Path
 
 from .. import config as config_mod
+from ..cli import Parser
 from ..errors import UserError
+from . import cells_cli
 
 
 def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
+    from . import circuits, jobs, panasonic
     from . import drive_cycles as dc
-    from . import jobs, panasonic
 
     exp = dc.experiment(cfg)
     temps = temps or list(exp["train"])
@@ -48,21 +55,29 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
                 jobs.paper_fit_one(cfg, temp, model, alg, train, tests, fits[-1])
         fits.append(out_dir / "fits" / temp / "c20.json")
         jobs.c20_fit_one(cfg, temp, train, tests, ocv, fits[-1])
+        if exp.get("circuits"):
+            needs_hppc = set(circuits.HPPC_EFFECTS) & set(exp["circuits"]["candidates"])
+            hppc = record(f"{temp}/hppc") if needs_hppc else None
+            fits.append(out_dir / "fits" / temp / "circuits.json")
+            jobs.circuit_fit_one(cfg, temp, train, tests, ocv, hppc, fits[-1])
+            jobs.cross_cycle_one(cfg, temp, fits[-1], {exp["train"][temp]: train, **tests}, ocv,
+                                 hppc, out_dir / "cross_cycle" / f"{temp}.csv")  # fmt: skip
         if exp.get("gap", True) and dc.gap_available():
             fits.append(out_dir / "fits" / temp / "gap.json")
             gaps.append(out_dir / "fits" / temp / "gap_predictions.parquet")
             jobs.gap_fit_one(temp, train, tests, fits[-1], gaps[-1])
     out = out_dir / "drive_cycle_rmse.csv"
     jobs.drive_cycle_table(cfg, fits, gaps, all_tests, ocv, out, out_dir / "drive_cycle_runs.csv",
-                           out_dir / "figure_predictions.parquet")  # fmt: skip
+                           out_dir / "figure_predictions.parquet",
+                           out_cv=out_dir / "circuit_cv.csv")  # fmt: skip
     return out
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m avoa_pipeline.real", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+def build_parser() -> argparse.ArgumentParser:
+    ap = Parser(prog="python -m avoa_pipeline.real", description=__doc__,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     ap.add_argument("--config", default=None, help="config file (default: config/config.yaml)")
-    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=Parser)
     sub.add_parser("list", help="the Panasonic records the config names")
     p = sub.add_parser("panasonic-import", help="one Panasonic test → canonical CSV + JSON")
     p.add_argument("name", help="<temperature>/<test>, e.g. 25degC/us06 (see `list`)")
@@ -70,19 +85,26 @@ def main(argv=None) -> int:
     d = sub.add_parser("drive-cycles", help="experiment 1 into a folder")
     d.add_argument("--out-dir", required=True, type=Path)
     d.add_argument("--temperature", action="append", help="only this one (repeatable)")
-    args = ap.parse_args(argv)
+    cells_cli.add_commands(sub)
+    return ap
+
+
+def main(argv=None) -> int:
     try:
+        args = build_parser().parse_args(argv)
         from . import panasonic
 
         cfg = config_mod.load(args.config)
-        if args.cmd == "list":
+        if args.command == "list":
             for name, rec in panasonic.records(cfg).items():
                 print(f"{name}\t{rec['test_type']}\t{'; '.join(rec['keys'])}")
-        elif args.cmd == "panasonic-import":
+        elif args.command == "panasonic-import":
             side = panasonic.import_named(cfg, args.name, args.out)
             print(f"wrote {args.out}: {side['n_samples']} samples")
-        else:
+        elif args.command == "drive-cycles":
             print(f"wrote {_drive_cycles(cfg, args.out_dir, args.temperature)}")
+        else:
+            cells_cli.run_command(cfg, args)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

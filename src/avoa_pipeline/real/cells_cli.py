@@ -1,9 +1,8 @@
 """Samsung 30Q and NASA B0005: import and experiments 2-3, for Snakemake and the command line.
 
-``python -m avoa_pipeline.real.cells_cli {samsung-import,nasa-import,arrhenius,fade} ...``
-
 The functions below are what the workflow's rules call (in the Snakemake process, with the
-validated config); :func:`main` is the same for a shell. Expected errors print one line on stderr
+validated config); their subcommands (``samsung-import``, ``nasa-import``, ``arrhenius``,
+``fade``) are part of ``python -m avoa_pipeline.real``. Expected errors print one line on stderr
 and exit 2, and leave no output file (every writer is atomic).
 """
 
@@ -14,14 +13,8 @@ import sys
 from collections.abc import Mapping
 from pathlib import Path
 
-from .. import config as config_mod
-from ..errors import ConfigError, UserError
-
-
-def _log(path, text: str) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text.rstrip() + "\n")
+from ..errors import ConfigError
+from .jobs import _log
 
 
 def _real(cfg: Mapping, section: str) -> Mapping:
@@ -128,11 +121,6 @@ def experiments(cfg, workdir) -> dict:
     return {"rc": rc, "arrhenius": table, "fade": states, "fade_fit": fits}
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, exit 2
-        raise UserError(f"{self.prog}: {message}")
-
-
 def _pair(text: str) -> tuple[str, str]:
     key, sep, value = text.partition("=")
     if not sep or not key or not value:
@@ -140,10 +128,8 @@ def _pair(text: str) -> tuple[str, str]:
     return key, value
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="avoa_pipeline.real.cells_cli", description=__doc__.splitlines()[0])
-    p.add_argument("--config", default=None, help="config file (default config/config.yaml)")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+def add_commands(sub) -> None:
+    """The Samsung and NASA subcommands, added to ``python -m avoa_pipeline.real``'s parser."""
     s = sub.add_parser("samsung-import", help="one Samsung HPPC file into the canonical form")
     s.add_argument("--temperature", required=True, help="key of real.samsung.hppc, e.g. 20degC")
     s.add_argument("--out", required=True, help="canonical CSV (sidecar .json beside it)")
@@ -157,25 +143,25 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--record", required=True, help="canonical B0005 record (nasa-import)")
     f.add_argument("--out-states", required=True)
     f.add_argument("--out-fits", required=True)
-    return p
+
+
+def run_command(cfg, args) -> None:
+    """Carry out one subcommand of :func:`add_commands`."""
+    if args.command == "samsung-import":
+        samsung_import(cfg, args.temperature, args.out)
+    elif args.command == "nasa-import":
+        nasa_import(cfg, args.out)
+    elif args.command == "arrhenius":
+        arrhenius(cfg, dict(args.hppc), args.out_rc, args.out_arrhenius)
+    else:
+        fade(cfg, args.record, args.out_states, args.out_fits)
 
 
 def main(argv=None) -> int:
-    try:
-        args = build_parser().parse_args(argv)
-        cfg = config_mod.load(args.config)
-        if args.command == "samsung-import":
-            samsung_import(cfg, args.temperature, args.out)
-        elif args.command == "nasa-import":
-            nasa_import(cfg, args.out)
-        elif args.command == "arrhenius":
-            arrhenius(cfg, dict(args.hppc), args.out_rc, args.out_arrhenius)
-        else:
-            fade(cfg, args.record, args.out_states, args.out_fits)
-    except UserError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    """The same as ``python -m avoa_pipeline.real`` (one command line for all real data)."""
+    from .__main__ import main as real_main
+
+    return real_main(argv)
 
 
 if __name__ == "__main__":

@@ -313,5 +313,6 @@ def cross_cycle(temp: str, cycles: dict[str, pd.DataFrame], ocv: pd.DataFrame, m
             for predict, other in cycles.items():
                 err = errors_mv(simulate(rec["params"], other, table, effects), other)
                 rows.append({"temperature": temp, "model": name, "fit_on": fit_on,
-                             "predict": predict, "in_sample": fit_on == predict, **err})  # fmt: skip
+                             "predict": predict, "in_sample": fit_on == predict,
+                             **err})  # fmt: skip
     return rows

@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import config as config_mod
+from .. import workflow
 
 
 def _log(path, text: str) -> None:
@@ -58,17 +59,20 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
               f"{meta['current_a']:.4f} A")  # fmt: skip
 
 
-def _pool_run(workers, fn, *args) -> None:
-    """Run ``fn(*args)`` in the workflow's worker-process pool (see avoa_pipeline.workflow)."""
-    from .. import workflow
-
-    workflow._pool(workers).submit(fn, *args).result()
-
-
 def paper_fit_job(cfg, temp, model, algorithm, train_csv, tests: dict, out_json, log=None,
                   workers=1) -> None:  # fmt: skip
-    _pool_run(workers, paper_fit_one, dict(cfg), temp, model, algorithm, train_csv, dict(tests),
-              out_json, log)  # fmt: skip
+    workflow.run_in_pool(
+        workers,
+        paper_fit_one,
+        dict(cfg),
+        temp,
+        model,
+        algorithm,
+        train_csv,
+        dict(tests),
+        out_json,
+        log,
+    )
 
 
 def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
@@ -89,8 +93,9 @@ def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=N
 
 
 def c20_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, out_json, log=None, workers=1):
-    _pool_run(workers, c20_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv, out_json,
-              log)  # fmt: skip
+    workflow.run_in_pool(
+        workers, c20_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv, out_json, log
+    )
 
 
 def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
@@ -110,7 +115,9 @@ def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> Non
 
 
 def gap_fit_job(cfg, temp, train_csv, tests: dict, out_json, out_parquet, log=None, workers=1):
-    _pool_run(workers, gap_fit_one, temp, train_csv, dict(tests), out_json, out_parquet, log)
+    workflow.run_in_pool(
+        workers, gap_fit_one, temp, train_csv, dict(tests), out_json, out_parquet, log
+    )
 
 
 def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None:
@@ -123,9 +130,7 @@ def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None
     rec = drive_cycles.gap_fits(temp, train, _frames(tests), source=str(train_csv))
     preds = rec.pop("predictions")
     rows = [
-        pd.DataFrame(
-            {"temperature": temp, "cycle": cycle, "model": model, "model_v": v}
-        )
+        pd.DataFrame({"temperature": temp, "cycle": cycle, "model": model, "model_v": v})
         for model, per_cycle in preds.items()
         for cycle, v in per_cycle.items()
     ]
@@ -217,8 +222,18 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
 
 def circuit_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, hppc_csv, out_json, log=None,
                     workers=1) -> None:  # fmt: skip
-    _pool_run(workers, circuit_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv,
-              hppc_csv, out_json, log)  # fmt: skip
+    workflow.run_in_pool(
+        workers,
+        circuit_fit_one,
+        dict(cfg),
+        temp,
+        train_csv,
+        dict(tests),
+        ocv_csv,
+        hppc_csv,
+        out_json,
+        log,
+    )
 
 
 def read_ocv(ocv_csv):
@@ -250,8 +265,18 @@ def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, lo
 
 def cross_cycle_job(cfg, temp, circuits_json, cycles: dict, ocv_csv, hppc_csv, out_csv, log=None,
                     workers=1) -> None:  # fmt: skip
-    _pool_run(workers, cross_cycle_one, dict(cfg), temp, circuits_json, dict(cycles), ocv_csv,
-              hppc_csv, out_csv, log)  # fmt: skip
+    workflow.run_in_pool(
+        workers,
+        cross_cycle_one,
+        dict(cfg),
+        temp,
+        circuits_json,
+        dict(cycles),
+        ocv_csv,
+        hppc_csv,
+        out_csv,
+        log,
+    )
 
 
 def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv, log=None):
@@ -270,7 +295,8 @@ def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv
     hppc = _frames({"hppc": hppc_csv})["hppc"] if hppc_csv else None
     rows = circuits.cross_cycle(temp, _frames(cycles), read_ocv(ocv_csv), models, hppc=hppc)
     df = pd.DataFrame(rows)
-    df.insert(0, "temperature_c", float(cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]))
+    ambient = cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]
+    df.insert(0, "temperature_c", float(ambient))
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
     diag = df[df["in_sample"]].groupby("model")["rmse_mv"].median()

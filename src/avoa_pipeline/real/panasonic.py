@@ -135,8 +135,7 @@ def wall_clock(df: pd.DataFrame, path) -> np.ndarray:
     worst = float(np.max(np.abs(fitted - sec)))
     if worst > 3.0:  # the files here stay within ~1.2 s of a line
         raise DataError(
-            f"{path}: field 'meas.TimeStamp': disagrees with 'Time' by {worst:.1f} s "
-            "(clock jump?)"
+            f"{path}: field 'meas.TimeStamp': disagrees with 'Time' by {worst:.1f} s (clock jump?)"
         )
     return fitted
 
@@ -346,8 +345,15 @@ def _sidecar(cfg_real: dict, test_type: str, keys: list[str], ambient_c: float, 
     }
 
 
-def import_record(cfg_real: dict, keys: list[str], test_type: str, ambient_c: float, out_csv,
-                  settings: Settings | None = None, trim_soak: bool = False) -> dict:
+def import_record(
+    cfg_real: dict,
+    keys: list[str],
+    test_type: str,
+    ambient_c: float,
+    out_csv,
+    settings: Settings | None = None,
+    trim_soak: bool = False,
+) -> dict:
     """Import one test (one file, or an HPPC pulse file and its SOC-step file) to ``out_csv``.
 
     ``keys`` are paths relative to ``cfg_real['root']``, each with its sha256 in
@@ -447,7 +453,11 @@ def import_named(cfg: dict, name: str, out_csv) -> dict:
         raise ConfigError(f"config field real.panasonic: no record {name!r}")
     real = {**cfg["real"], "root": str(data_root(cfg))}
     return import_record(
-        real, rec["keys"], rec["test_type"], rec["ambient_c"], out_csv,
+        real,
+        rec["keys"],
+        rec["test_type"],
+        rec["ambient_c"],
+        out_csv,
         trim_soak=rec["trim_soak"],
     )
 
