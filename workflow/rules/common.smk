@@ -130,6 +130,15 @@ def pan_tests(temp):
     return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
 
 
+PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
+
+
+def pan_circuit_hppc(w):
+    """The HPPC record, if a circuit candidate needs it."""
+    needs = set(real_circuits.HPPC_EFFECTS) & set(PAN_CIRCUITS.get("candidates", []))
+    return pan_canon(f"{w.ptemp}/hppc") if needs else []
+
+
 def pan_fit_records():
     out = [f"{PAN_OUT}/fits/{t}/{m}/{a}.json" for t in PAN_EXP_TEMPS
            for m in real_dc.PAPER_MODELS for a in PAN_EXP["algorithms"]]

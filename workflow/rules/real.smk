@@ -8,15 +8,8 @@
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
 REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
-PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
 if PAN_CIRCUITS:
     REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
-
-
-def pan_circuit_hppc(w):
-    """The HPPC record, if a circuit candidate needs it."""
-    needs = set(real_circuits.HPPC_EFFECTS) & set(PAN_CIRCUITS.get("candidates", []))
-    return pan_canon(f"{w.ptemp}/hppc") if needs else []
 
 
 rule panasonic_import:
