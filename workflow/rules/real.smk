@@ -71,9 +71,9 @@ rule panasonic_fit_paper:
         base_seed=config["base_seed"],
     threads: 1
     run:
-        real_jobs.paper_fit_job(config, wildcards.ptemp, wildcards.pmodel, wildcards.algorithm,
-                                input.train, pan_tests(wildcards.ptemp), output[0], log[0],
-                                workers=workflow.cores)
+        wf.run_in_pool(workflow.cores, real_jobs.paper_fit_one, dict(config), wildcards.ptemp,
+                       wildcards.pmodel, wildcards.algorithm, input.train,
+                       pan_tests(wildcards.ptemp), output[0], log[0])
 
 
 rule panasonic_fit_c20:
@@ -92,8 +92,8 @@ rule panasonic_fit_c20:
         train=lambda w: PAN_EXP["train"][w.ptemp],
     threads: 1
     run:
-        real_jobs.c20_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
-                              input.ocv, output[0], log[0], workers=workflow.cores)
+        wf.run_in_pool(workflow.cores, real_jobs.c20_fit_one, dict(config), wildcards.ptemp,
+                       input.train, pan_tests(wildcards.ptemp), input.ocv, output[0], log[0])
 
 
 rule panasonic_fit_circuits:
@@ -115,9 +115,9 @@ rule panasonic_fit_circuits:
         circuits=PAN_CIRCUITS,
     threads: 1
     run:
-        real_jobs.circuit_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
-                                  input.ocv, input.hppc or None, output[0], log[0],
-                                  workers=workflow.cores)
+        wf.run_in_pool(workflow.cores, real_jobs.circuit_fit_one, dict(config), wildcards.ptemp,
+                       input.train, pan_tests(wildcards.ptemp), input.ocv, input.hppc or None,
+                       output[0], log[0])
 
 
 rule panasonic_cross_cycle:
@@ -136,11 +136,10 @@ rule panasonic_cross_cycle:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
     threads: 1
     run:
-        real_jobs.cross_cycle_job(config, wildcards.ptemp, input.circuits,
-                                  {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
-                                   **pan_tests(wildcards.ptemp)},
-                                  input.ocv, input.hppc or None, output[0], log[0],
-                                  workers=workflow.cores)
+        wf.run_in_pool(workflow.cores, real_jobs.cross_cycle_one, dict(config), wildcards.ptemp,
+                       input.circuits, {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
+                                        **pan_tests(wildcards.ptemp)},
+                       input.ocv, input.hppc or None, output[0], log[0])
 
 
 rule panasonic_fit_gap:
@@ -159,8 +158,8 @@ rule panasonic_fit_gap:
         train=lambda w: PAN_EXP["train"][w.ptemp],
     threads: 1
     run:
-        real_jobs.gap_fit_job(config, wildcards.ptemp, input.train, pan_tests(wildcards.ptemp),
-                              output.json, output.pred, log[0], workers=workflow.cores)
+        wf.run_in_pool(workflow.cores, real_jobs.gap_fit_one, wildcards.ptemp, input.train,
+                       pan_tests(wildcards.ptemp), output.json, output.pred, log[0])
 
 
 rule panasonic_drive_cycle_table:

@@ -1,6 +1,8 @@
 """What the Panasonic rules of ``workflow/rules/real.smk`` call: one function per rule.
 
-Each runs in the Snakemake process (``run:``), writes its outputs atomically and a one-line log.
+Each writes its outputs atomically and a one-line log. The light ones run in the Snakemake
+process (``run:``); the rules hand the fits (``*_one``) to the workflow's worker-process pool
+(``avoa_pipeline.workflow.run_in_pool``), and ``python -m avoa_pipeline.real`` calls them directly.
 """
 
 from __future__ import annotations
@@ -8,7 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import config as config_mod
-from .. import workflow
 
 
 def _log(path, text: str) -> None:
@@ -59,22 +60,6 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
               f"{meta['current_a']:.4f} A")  # fmt: skip
 
 
-def paper_fit_job(cfg, temp, model, algorithm, train_csv, tests: dict, out_json, log=None,
-                  workers=1) -> None:  # fmt: skip
-    workflow.run_in_pool(
-        workers,
-        paper_fit_one,
-        dict(cfg),
-        temp,
-        model,
-        algorithm,
-        train_csv,
-        dict(tests),
-        out_json,
-        log,
-    )
-
-
 def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
     import numba
 
@@ -92,12 +77,6 @@ def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=N
               + f" mV; {sum(r['wall_s'] for r in rec['runs']):.1f} s")  # fmt: skip
 
 
-def c20_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, out_json, log=None, workers=1):
-    workflow.run_in_pool(
-        workers, c20_fit_one, dict(cfg), temp, train_csv, dict(tests), ocv_csv, out_json, log
-    )
-
-
 def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
     import pandas as pd
 
@@ -112,12 +91,6 @@ def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> Non
         f"{m} train {r['train_rmse_mv']:.1f} mV, "
         + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
         for m, r in rec["models"].items()))  # fmt: skip
-
-
-def gap_fit_job(cfg, temp, train_csv, tests: dict, out_json, out_parquet, log=None, workers=1):
-    workflow.run_in_pool(
-        workers, gap_fit_one, temp, train_csv, dict(tests), out_json, out_parquet, log
-    )
 
 
 def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None:
@@ -220,22 +193,6 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
     _log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
 
 
-def circuit_fit_job(cfg, temp, train_csv, tests: dict, ocv_csv, hppc_csv, out_json, log=None,
-                    workers=1) -> None:  # fmt: skip
-    workflow.run_in_pool(
-        workers,
-        circuit_fit_one,
-        dict(cfg),
-        temp,
-        train_csv,
-        dict(tests),
-        ocv_csv,
-        hppc_csv,
-        out_json,
-        log,
-    )
-
-
 def read_ocv(ocv_csv):
     """The C/20 table with its capacity and current (from the JSON beside it) as attrs."""
     import json
@@ -261,22 +218,6 @@ def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, lo
     write_json(rec, out_json)
     _log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
         f"{m} CV {r['cv_rmse_mv']:.1f} mV" for m, r in rec["models"].items()))  # fmt: skip
-
-
-def cross_cycle_job(cfg, temp, circuits_json, cycles: dict, ocv_csv, hppc_csv, out_csv, log=None,
-                    workers=1) -> None:  # fmt: skip
-    workflow.run_in_pool(
-        workers,
-        cross_cycle_one,
-        dict(cfg),
-        temp,
-        circuits_json,
-        dict(cycles),
-        ocv_csv,
-        hppc_csv,
-        out_csv,
-        log,
-    )
 
 
 def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv, log=None):
