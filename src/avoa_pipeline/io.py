@@ -46,6 +46,13 @@ def write_json(obj, path: str | Path) -> None:
         tmp.write_text(json.dumps(obj, indent=1, sort_keys=False, allow_nan=False) + "\n")
 
 
+def write_log(path: str | Path | None, text: str) -> None:
+    """A job's one-line log (nothing if ``path`` is empty); its folder is made if missing."""
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text.rstrip() + "\n")
+
+
 def sha256(path: str | Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:

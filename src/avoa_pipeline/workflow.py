@@ -18,14 +18,13 @@ import multiprocessing
 import os
 import threading
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numba
 import pandas as pd
 import yaml
 
 from . import aggregate, config, fit, problem, synthetic
-from .io import atomic_path, write_json
+from .io import atomic_path, write_json, write_log
 
 _VALIDATED: dict[str, dict] = {}
 
@@ -41,12 +40,6 @@ def _checked(cfg) -> dict:
     return _VALIDATED[key]
 
 
-def _log(path, text: str) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text.rstrip() + "\n")
-
-
 def effective_config(cfg, out_yaml: str) -> None:
     """The configuration this run used, for notebooks and for the record."""
     cfg = _checked(cfg)
@@ -57,7 +50,7 @@ def effective_config(cfg, out_yaml: str) -> None:
 def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     ds = synthetic.generate(_checked(cfg), int(scenario), int(case))
     synthetic.write(ds, out_csv)
-    _log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
+    write_log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
 
 
 _REEVAL_LOCK = threading.Lock()
@@ -141,7 +134,7 @@ def fit_one(
     prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
     rec = fit.run(cfg, prob, algorithm, int(seed), budget)
     write_json(rec, out_json)
-    _log(
+    write_log(
         log,
         f"{algorithm} s{scenario} c{case} seed {seed}: ISE {rec['best_ise']:.6g}, "
         f"nfe {rec['nfe']}, {rec['wall_s']:.3f} s",
@@ -151,7 +144,7 @@ def fit_one(
 def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None) -> None:
     runs, hist = aggregate.from_files(records)
     aggregate.write(runs, hist, runs_out, hist_out)
-    _log(log, f"{len(runs)} runs, {len(hist)} history rows")
+    write_log(log, f"{len(runs)} runs, {len(hist)} history rows")
 
 
 def concat_aggregates(runs_in, hist_in, runs_out: str, hist_out: str, log: str | None = None):
@@ -162,4 +155,4 @@ def concat_aggregates(runs_in, hist_in, runs_out: str, hist_out: str, log: str |
         with atomic_path(out) as tmp:
             df.to_parquet(tmp, index=False)
         lines.append(f"{out}: {len(df)} rows from {len(paths)} files")
-    _log(log, "\n".join(lines))
+    write_log(log, "\n".join(lines))

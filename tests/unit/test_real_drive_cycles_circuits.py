@@ -140,7 +140,8 @@ def test_ocv_hppc_needs_the_hppc_record_and_two_rests():
         ci.fit(("ocv_hppc",), _frame(500), ocv)
     flat = _frame(500)
     flat["current_a"] = 1.0
-    with pytest.raises(DataError, match="current_a"):
+    flat.attrs["source"] = "hppc.csv"
+    with pytest.raises(DataError, match=r"^hppc\.csv: column 'current_a': 0 rest"):
         ci.table_for(("ocv_hppc",), ocv, flat)
 
 

@@ -135,7 +135,7 @@ PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
 
 def pan_circuit_hppc(w):
     """The HPPC record, if a circuit candidate needs it."""
-    needs = set(real_circuits.HPPC_EFFECTS) & set(PAN_CIRCUITS.get("candidates", []))
+    needs = real_circuits.needs_hppc(PAN_CIRCUITS.get("candidates", []))
     return pan_canon(f"{w.ptemp}/hppc") if needs else []
 
 

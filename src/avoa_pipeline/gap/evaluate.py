@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from .. import workflow
-from ..io import atomic_path, write_json
+from ..io import atomic_path, write_json, write_log
 from . import EFFECTS, VERDICTS
 
 THRESHOLD = 1.5
@@ -39,12 +39,6 @@ SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
 # scheduler's process is never busy with numerics.
 
 
-def _log(path, text: str) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text.rstrip() + "\n")
-
-
 def diagnose_file(csv_path, out_json, log=None) -> None:
     """Diagnose one CSV as a user would (CSV content only) and write the diagnosis JSON."""
     from .diagnose import diagnose, read_record
@@ -55,7 +49,9 @@ def diagnose_file(csv_path, out_json, log=None) -> None:
     wall = time.perf_counter() - start
     write_json({**result, "wall_s": wall, "source": str(csv_path)}, out_json)
     verdict = result["verdict"]
-    _log(log, f"{csv_path}: verdict {verdict['effect']} (shrink {verdict['shrink']}), {wall:.1f} s")
+    write_log(
+        log, f"{csv_path}: verdict {verdict['effect']} (shrink {verdict['shrink']}), {wall:.1f} s"
+    )
 
 
 def diagnose_job(csv_path, out_json, log=None, workers=1) -> None:
@@ -67,7 +63,7 @@ def _generate(base_seed, gcfg, profile, replicate, out_dir, log):
 
     start = time.perf_counter()
     paths = withheld.write_batch(int(base_seed), gcfg, profile, int(replicate), out_dir)
-    _log(log, f"{len(paths)} datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
+    write_log(log, f"{len(paths)} datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
 
 
 def generate_job(base_seed, gcfg, profile, replicate, log=None, workers=1) -> None:
@@ -84,7 +80,7 @@ def _pybamm(base_seed, name, out_csv, log):
     start = time.perf_counter()
     ds = pybamm_data.make(int(base_seed), name)
     write(ds, out_csv)
-    _log(log, f"{out_csv}: {ds.meta['generator']}, {time.perf_counter() - start:.1f} s")
+    write_log(log, f"{out_csv}: {ds.meta['generator']}, {time.perf_counter() - start:.1f} s")
 
 
 def pybamm_job(base_seed, name, out_csv, log=None, workers=1) -> None:
@@ -97,18 +93,18 @@ def paper_job(cfg, scenario, case, out_csv, log=None) -> None:
     checked = dict(cfg)
     config.validate(checked, source="snakemake config")
     info = paper_dataset(checked, int(scenario), int(case), out_csv)
-    _log(log, f"{out_csv}: {info}")
+    write_log(log, f"{out_csv}: {info}")
 
 
 def evaluate_job(data_jsons, diag_jsons, out: dict, threshold, log=None) -> None:
     df = evaluate(list(zip(data_jsons, diag_jsons, strict=True)), out, float(threshold))
-    _log(log, target(df, float(threshold)).to_string(index=False))
+    write_log(log, target(df, float(threshold)).to_string(index=False))
 
 
 def table_job(make_row, data_jsons, diag_jsons, out_csv, log=None) -> None:
     rows = [make_row(d, g) for d, g in zip(data_jsons, diag_jsons, strict=True)]
     write_csv(pd.DataFrame(rows), out_csv)
-    _log(log, f"{out_csv}: {len(rows)} rows")
+    write_log(log, f"{out_csv}: {len(rows)} rows")
 
 
 # --- records -----------------------------------------------------------------------------------

@@ -56,8 +56,8 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
         fits.append(out_dir / "fits" / temp / "c20.json")
         jobs.c20_fit_one(cfg, temp, train, tests, ocv, fits[-1])
         if exp.get("circuits"):
-            needs_hppc = set(circuits.HPPC_EFFECTS) & set(exp["circuits"]["candidates"])
-            hppc = record(f"{temp}/hppc") if needs_hppc else None
+            needs = circuits.needs_hppc(exp["circuits"]["candidates"])
+            hppc = record(f"{temp}/hppc") if needs else None
             fits.append(out_dir / "fits" / temp / "circuits.json")
             jobs.circuit_fit_one(cfg, temp, train, tests, ocv, hppc, fits[-1])
             jobs.cross_cycle_one(cfg, temp, fits[-1], {exp["train"][temp]: train, **tests}, ocv,

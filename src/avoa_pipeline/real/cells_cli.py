@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import ConfigError
-from .jobs import _log
+from ..io import write_log
 
 
 def _real(cfg: Mapping, section: str) -> Mapping:
@@ -29,7 +29,7 @@ def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
 
     _real(cfg, "samsung")
     frame, side = samsung.import_hppc(cfg, temperature, out_csv)
-    _log(log, f"wrote {out_csv}: {len(frame)} samples from {side['source_file']}")
+    write_log(log, f"wrote {out_csv}: {len(frame)} samples from {side['source_file']}")
 
 
 def nasa_import(cfg, out_csv, log=None) -> None:
@@ -37,7 +37,7 @@ def nasa_import(cfg, out_csv, log=None) -> None:
 
     _real(cfg, "nasa")
     frame, side = nasa.import_b0005(cfg, out_csv)
-    _log(log, f"wrote {out_csv}: {len(frame)} samples, {len(side['discharges'])} discharges")
+    write_log(log, f"wrote {out_csv}: {len(frame)} samples, {len(side['discharges'])} discharges")
 
 
 def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> None:
@@ -45,7 +45,7 @@ def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> 
 
     rc, table = arr.run(hppc, _real(cfg, "samsung"), out_rc, out_arrhenius)
     pooled = table[(table["scope"] == "pooled_pulses")].set_index("quantity")
-    _log(
+    write_log(
         log,
         f"wrote {out_rc} ({len(rc)} pulses) and {out_arrhenius}; pooled Ea [kJ/mol]: "
         + ", ".join(f"{q} {r['ea_kj_mol']:.2f}" for q, r in pooled.iterrows()),
@@ -56,7 +56,7 @@ def fade(cfg, record, out_states, out_fits, log=None) -> None:
     from . import fade as fade_mod
 
     table, fits = fade_mod.run(record, _real(cfg, "nasa"), out_states, out_fits)
-    _log(
+    write_log(
         log,
         f"wrote {out_states} ({len(table)} states) and {out_fits}; RMSE: "
         + ", ".join(f"{r.quantity}/{r.law} {r.rmse:.4g}" for r in fits.itertuples()),

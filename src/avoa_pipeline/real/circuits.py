@@ -17,7 +17,7 @@ effect below adds one physical mechanism, argued before any fit:
 - ``hppc``: the same temperature's HPPC test joins the training data (it covers the SOC below the
   training drive cycle's end); a record-specific offset is fitted for it.
 - ``ocv_hppc``: the OCV levelled on the rested voltages of the same temperature's HPPC test
-  (:func:`hppc_rest_ocv`). The C/20 curve is one loaded discharge at 25 °C, measured in May on a
+  (:func:`table_for`). The C/20 curve is one loaded discharge at 25 °C, measured in May on a
   cell that had by then lost capacity; the HPPC rests are the same week as the drive cycles and at
   their temperature, 5-10 % SOC apart down to ~8 %. Between the rest points the C/20 curve keeps
   its shape; at each point it is moved to the rested voltage.
@@ -62,6 +62,11 @@ _EXTRA = {  # (lower, upper, start values)
 _BOX = {**_C20_PARAMS, **_EXTRA}
 
 
+def needs_hppc(candidates) -> bool:
+    """Whether any of these candidate effects needs the same temperature's HPPC record."""
+    return bool(set(HPPC_EFFECTS) & set(candidates))
+
+
 def param_names(effects) -> tuple[str, ...]:
     bad = set(effects) - set(EFFECTS)
     if bad:
@@ -96,7 +101,8 @@ def hppc_rest_points(hppc: pd.DataFrame, capacity_ah: float, min_rest_s: float =
         if a == 0 or length >= min_rest_s:
             pts.append((1.0 - charge[b - 1] / capacity_ah, volt[b - 1]))
     if len(pts) < 2:
-        raise DataError(f"HPPC record: column 'current_a': {len(pts)} rest(s) of ≥ "
+        source = hppc.attrs.get("source", "HPPC record")
+        raise DataError(f"{source}: column 'current_a': {len(pts)} rest(s) of ≥ "
                         f"{min_rest_s:.0f} s, need 2 for the ocv_hppc table")  # fmt: skip
     return np.array(sorted(pts))
 
@@ -115,8 +121,7 @@ def moved_table(ocv: pd.DataFrame, points) -> pd.DataFrame:
     return out
 
 
-def table_for(effects, ocv: pd.DataFrame, hppc: pd.DataFrame | None,
-              min_rest_s: float = REST_MIN_S) -> pd.DataFrame:  # fmt: skip
+def table_for(effects, ocv: pd.DataFrame, hppc: pd.DataFrame | None) -> pd.DataFrame:
     """The OCV table a circuit with ``effects`` simulates with: the C/20 table, or with
     ``ocv_hppc`` that table moved onto the HPPC record's rest points."""
     if "ocv_hppc" not in effects:
@@ -124,7 +129,7 @@ def table_for(effects, ocv: pd.DataFrame, hppc: pd.DataFrame | None,
     if hppc is None:
         raise ConfigError("circuit effect 'ocv_hppc' needs the HPPC record")
     cap = float(ocv.attrs.get("capacity_ah", 2.997))
-    return moved_table(ocv, hppc_rest_points(hppc, cap, min_rest_s))
+    return moved_table(ocv, hppc_rest_points(hppc, cap))
 
 
 def model_table(model: dict, ocv: pd.DataFrame) -> pd.DataFrame:
@@ -192,8 +197,7 @@ def simulate(params: dict, frame: pd.DataFrame, ocv: pd.DataFrame, effects=(),
 
 
 def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | None = None,
-        mask: np.ndarray | None = None, start: dict | None = None,
-        min_rest_s: float = REST_MIN_S) -> dict:  # fmt: skip
+        mask: np.ndarray | None = None, start: dict | None = None) -> dict:  # fmt: skip
     """Least squares on the training record's samples where ``mask`` (default: all), plus the
     HPPC record if the ``hppc`` effect is on; the best of the start values' grid, or one run
     from ``start`` (a previous fit's parameters). With ``ocv_hppc`` the record keeps the rest
@@ -203,7 +207,7 @@ def fit(effects, train: pd.DataFrame, ocv: pd.DataFrame, hppc: pd.DataFrame | No
     for eff in HPPC_EFFECTS:
         if eff in effects and hppc is None:
             raise ConfigError(f"circuit effect {eff!r} needs the HPPC record")
-    ocv = table_for(effects, ocv, hppc, min_rest_s)
+    ocv = table_for(effects, ocv, hppc)
     volt = train["voltage_v"].to_numpy()
     keep = np.ones(volt.size, bool) if mask is None else np.asarray(mask, bool)
     weight_h = 0.0

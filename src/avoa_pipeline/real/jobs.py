@@ -10,12 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import config as config_mod
-
-
-def _log(path, text: str) -> None:
-    if path:
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text.rstrip() + "\n")
+from ..io import write_log
 
 
 def canonical_name(name: str) -> str:
@@ -29,7 +24,7 @@ def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
     cfg = dict(cfg)
     config_mod.validate(cfg, source="snakemake config")
     side = panasonic.import_named(cfg, name, out_csv)
-    _log(
+    write_log(
         log,
         f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah out "
         f"(tester: {side['discharged_ah_tester_counter']:.4f} Ah) from {side['source_file']}",
@@ -42,7 +37,11 @@ def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
 def _frames(paths: dict) -> dict:
     from . import canonical
 
-    return {name: canonical.read(path)[0] for name, path in paths.items()}
+    frames = {}
+    for name, path in paths.items():
+        frames[name] = canonical.read(path)[0]
+        frames[name].attrs["source"] = str(path)  # for error messages that name the file
+    return frames
 
 
 def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
@@ -56,8 +55,8 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
         ocv.to_csv(tmp, index=False)
     meta = {**ocv.attrs, "source": str(canonical_csv), "source_file": side["source_file"]}
     write_json(meta, Path(out_csv).with_suffix(".json"))
-    _log(log, f"wrote {out_csv}: C/20 discharge {meta['capacity_ah']:.4f} Ah at "
-              f"{meta['current_a']:.4f} A")  # fmt: skip
+    write_log(log, f"wrote {out_csv}: C/20 discharge {meta['capacity_ah']:.4f} Ah at "
+                   f"{meta['current_a']:.4f} A")  # fmt: skip
 
 
 def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
@@ -72,9 +71,10 @@ def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=N
     rec["train_record"] = str(train_csv)
     write_json(rec, out_json)
     med = drive_cycles.median_run(rec["runs"])
-    _log(log, f"{model} {algorithm} {temp}: median-seed train RMSE {med['train_rmse_mv']:.1f} mV; "
-              + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in med["cycles"].items())
-              + f" mV; {sum(r['wall_s'] for r in rec['runs']):.1f} s")  # fmt: skip
+    write_log(log, f"{model} {algorithm} {temp}: median-seed train RMSE "
+                   f"{med['train_rmse_mv']:.1f} mV; "
+                   + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in med["cycles"].items())
+                   + f" mV; {sum(r['wall_s'] for r in rec['runs']):.1f} s")  # fmt: skip
 
 
 def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
@@ -87,7 +87,7 @@ def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> Non
     rec = drive_cycles.c20_fits(cfg, temp, train, _frames(tests), pd.read_csv(ocv_csv))
     rec["train_record"] = str(train_csv)
     write_json(rec, out_json)
-    _log(log, "; ".join(
+    write_log(log, "; ".join(
         f"{m} train {r['train_rmse_mv']:.1f} mV, "
         + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
         for m, r in rec["models"].items()))  # fmt: skip
@@ -115,8 +115,8 @@ def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None
         f"{m} " + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
         for m, r in rec["models"].items()
     )
-    _log(log, f"{temp}: recommended {rec['recommended_effects']}; {per_model} mV; "
-              f"diagnosis {rec['diagnose_wall_s']:.0f} s")  # fmt: skip
+    write_log(log, f"{temp}: recommended {rec['recommended_effects']}; {per_model} mV; "
+                   f"diagnosis {rec['diagnose_wall_s']:.0f} s")  # fmt: skip
 
 
 def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_csv, out_runs,
@@ -190,7 +190,7 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
     pred = pd.concat(traces, ignore_index=True)[cols] if traces else pd.DataFrame(columns=cols)
     with atomic_path(out_predictions) as tmp:
         pred.to_parquet(tmp, index=False)
-    _log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
+    write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
 
 
 def read_ocv(ocv_csv):
@@ -216,7 +216,7 @@ def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, lo
                           hppc=frames.get("hppc"))  # fmt: skip
     rec["train_record"] = str(train_csv)
     write_json(rec, out_json)
-    _log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
+    write_log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
         f"{m} CV {r['cv_rmse_mv']:.1f} mV" for m, r in rec["models"].items()))  # fmt: skip
 
 
@@ -241,5 +241,5 @@ def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
     diag = df[df["in_sample"]].groupby("model")["rmse_mv"].median()
-    _log(log, f"wrote {out_csv}: {len(df)} rows; median in-sample RMSE " + "; ".join(
+    write_log(log, f"wrote {out_csv}: {len(df)} rows; median in-sample RMSE " + "; ".join(
         f"{m} {v:.1f} mV" for m, v in diag.items()))  # fmt: skip
