@@ -1,0 +1,609 @@
+"""The one equivalent-circuit model library: a base plus composable elements, one compiled
+simulator for any combination, one parameter registry, one initial-SOC rule.
+
+In the spirit of PyBaMM's Thevenin model (a base and elements assembled from validated options):
+a model is an OCV source (the paper's rational eq. 5, or a measured table), R0, one RC branch, a
+capacity and an initial SOC, plus any of the elements of :data:`EFFECTS`. The paper's model
+(``battery.py``/``kernel.py``), the C/20 circuits of the real-data experiment and the diagnosis's
+candidates are configurations of it. ``gap/withheld.py`` stays independent on purpose (the test
+oracle).
+
+Per sample k (current i positive = discharge, Δt_k = t[k+1] − t[k], zero-order hold; one sign
+convention everywhere):
+
+    i_k     = i_meas,k + b                     current_offset b; with the paper's load resistor
+                                               i_k = i_meas,k + b + V_k/R_load, solved exactly
+    s̃_k     = s_k − δ_k                         diffusion: the OCV sees a surface SOC
+    OCV     = Vnom·s̃/(1 − β(1 − s̃))  or  table(s̃),  + Σ_j d_j·φ_j(s̃)   (ocv_shape: hat functions)
+    g_k     = 1 + k_low·exp(−s_k/σ)            soc_resistance: resistances rise near empty
+    f0, f1  = exp(θ0,1·(1/T_k − 1/T_ref))      thermal (Arrhenius, measured T in K)
+    V_k     = OCV + M·h_k + c − f0·g_k·R0·i_k − Σ_j v_j,k − (2RT/F)·asinh(i_k/(2 i0))
+    v_j,k+1 = a_j·v_j,k + f1·g_k·R_j·(1 − a_j)·i_k,  a_j = exp(−Δt/τ_j),  j = 1..3 (eq. 3)
+    δ_k+1   = a_d·δ_k + (1 − a_d)·κ·i_k,  a_d = exp(−Δt/τ_d)
+    ie_k    = i_k if i_k > 0 else η·i_k        coulombic_efficiency η (charge)
+    h_k+1   = e_k·h_k − (1 − e_k)·sgn(i_k),  e_k = exp(−|γ·ie_k·Δt/(3600 Q)|)
+              (Plett 2004, doi:10.1016/j.jpowsour.2004.02.031, eq. 13: h → −1 while
+              discharging, V += M·h; the only hysteresis convention in the package)
+    s_k+1   = s_k − ie_k·Δt/(3600 Q)           eq. 6
+
+Neutral values (the element is then absent and the model is the base exactly): b = 0, δ: κ = 0,
+d = 0, k_low = 0, θ = 0, M = 0, c = 0, R2 = R3 = 0, 1/i0 = 0, η = 1. So every candidate nests the
+base and elements stack.
+
+Two vectors per parameter set. *Internal* (the optimiser's coordinates, :data:`NAMES`): log10 for
+capacity, time constants, σ and the hysteresis rate, log10(1 − β) for the OCV curvature, and the
+free coordinates u of the OCV correction. *Physical* (the simulator's, :data:`PHYS`): the values
+themselves, with 1 − β and the correction at the knots. :data:`PARAMS` is the one registry: report
+name, transform, neutral value, element, and whether the value belongs to a record (initial state)
+rather than to the cell. Bounds and priors depend on the records' current scale:
+:func:`bounds_for`, :func:`priors_for`.
+
+Why hand-written numerics: the recursion is sequential in time and its current depends on the
+voltage under a load, so it is compiled with numba; one call steps a whole set of parameter rows
+together (time outer, rows inner) so that a finite-difference Jacobian costs one pass. The
+paper's population kernel (``kernel.py``) stays as a specialised fast path for the optimiser grid;
+``tests/unit/test_ecm.py`` shows it is the same model as :func:`paper_rows`' configuration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+import pandas as pd
+from scipy.optimize import brentq
+
+FARADAY = 96485.33212
+GAS_R = 8.314462618
+T_DEFAULT_K = 298.15
+N_KNOTS = 6  # ocv_shape: knots over the visited SOC range (5 segments)
+TABLE_POINTS = 1001  # measured OCV tables are resampled onto this uniform SOC grid (0.1 % steps)
+
+EFFECTS = (
+    "second_rc",
+    "third_rc",
+    "soc_resistance",
+    "diffusion",
+    "hysteresis",
+    "butler_volmer",
+    "thermal",
+    "ocv_shape",
+    "current_offset",
+    "voltage_offset",
+    "coulombic_efficiency",
+)
+"""Elements a model may add to its base, by their one name (config, CLI, JSON, file names)."""
+
+REQUIRES = {"third_rc": "second_rc"}
+"""An element that only makes sense on top of another (a third RC branch after a second)."""
+
+
+@dataclass(frozen=True)
+class Param:
+    report: str  # name in reports and model.json (physical value)
+    transform: str  # "lin", "log10" (x = log10 value) or "log10_1m" (x = log10(1 − value))
+    neutral: float  # internal value at which the element is absent
+    element: str  # "base", "rational" (the rational OCV), "table" or an effect of EFFECTS
+    per_record: bool = False  # an initial state: one value per record, not per cell
+
+
+SHAPE_NAMES = tuple(f"u{j}" for j in range(N_KNOTS - 2))
+
+PARAMS: dict[str, Param] = {
+    "vnom": Param("vnom_v", "lin", 0.0, "rational"),
+    "lc": Param("beta", "log10_1m", 0.0, "rational"),
+    "lq": Param("capacity_ah", "log10", 0.0, "base"),
+    "soc0": Param("soc0", "lin", 0.0, "base", per_record=True),
+    "r0": Param("r0_ohm", "lin", 0.0, "base"),
+    "r1": Param("r1_ohm", "lin", 0.0, "base"),
+    "ltau1": Param("tau1_s", "log10", 1.0, "base"),
+    "r2": Param("r2_ohm", "lin", 0.0, "second_rc"),
+    "ltau2": Param("tau2_s", "log10", 2.0, "second_rc"),
+    "r3": Param("r3_ohm", "lin", 0.0, "third_rc"),
+    "ltau3": Param("tau3_s", "log10", 3.0, "third_rc"),
+    "klow": Param("soc_resistance_k", "lin", 0.0, "soc_resistance"),
+    "lsig": Param("soc_resistance_sigma", "log10", -1.3, "soc_resistance"),
+    "kd": Param("diffusion_soc_per_a", "lin", 0.0, "diffusion"),
+    "ltaud": Param("diffusion_tau_s", "log10", 3.0, "diffusion"),
+    "hm": Param("hysteresis_m_v", "lin", 0.0, "hysteresis"),
+    "lgamma": Param("hysteresis_gamma", "log10", 2.0, "hysteresis"),
+    "h0": Param("hysteresis_h0", "lin", 0.0, "hysteresis", per_record=True),
+    "bvg": Param("bv_inv_i0_per_a", "lin", 0.0, "butler_volmer"),
+    "th0": Param("thermal_theta_r0_k", "lin", 0.0, "thermal"),
+    "th1": Param("thermal_theta_rc_k", "lin", 0.0, "thermal"),
+    "ioff": Param("current_offset_a", "lin", 0.0, "current_offset"),
+    "voff": Param("voltage_offset_v", "lin", 0.0, "voltage_offset"),
+    "eta": Param("coulombic_efficiency", "lin", 1.0, "coulombic_efficiency"),
+    **{n: Param(f"ocv_shape_{n}_v", "lin", 0.0, "ocv_shape") for n in SHAPE_NAMES},
+}
+NAMES = tuple(PARAMS)
+IDX = {n: k for k, n in enumerate(NAMES)}
+NX = len(NAMES)
+NEUTRAL = np.array([PARAMS[n].neutral for n in NAMES])
+BY_REPORT = {p.report: n for n, p in PARAMS.items()}
+
+# physical layout: the internal names without the shape coordinates, then the knot corrections
+N_SCALAR = NX - len(SHAPE_NAMES)
+(VNOM, OMB, Q, SOC0, R0, R1, TAU1, R2, TAU2, R3, TAU3, KLOW, SIG, KD, TAUD, HM, GAM, H0, BVG,
+ TH0, TH1, IOFF, VOFF, ETA) = range(N_SCALAR)  # fmt: skip
+D0 = N_SCALAR
+NP = N_SCALAR + N_KNOTS
+PHYS = (*NAMES[:N_SCALAR], *(f"d{j}" for j in range(N_KNOTS)))
+
+_LOG = np.array([PARAMS[n].transform == "log10" for n in NAMES[:N_SCALAR]])
+_LOG1M = np.array([PARAMS[n].transform == "log10_1m" for n in NAMES[:N_SCALAR]])
+_POW = np.flatnonzero(_LOG | _LOG1M)  # physical = 10**internal (for β the physical column is 1 − β)
+
+
+def element_params(element: str, ocv_kind: str = "rational") -> tuple[str, ...]:
+    """Internal names an element adds (``base``: the base model's, which depend on the OCV)."""
+    if element == "base":
+        base = ("lq", "soc0", "r0", "r1", "ltau1")
+        return (("vnom", "lc") + base) if ocv_kind == "rational" else (*base, "voff")
+    if element not in EFFECTS:
+        raise ValueError(f"unknown element {element!r}; choose from {', '.join(EFFECTS)}")
+    return tuple(n for n, p in PARAMS.items() if p.element == element)
+
+
+def _shape_basis() -> np.ndarray:
+    """(N_KNOTS, N_KNOTS − 2): knot corrections orthogonal to a constant and a linear trend.
+
+    A constant or a tilt of the OCV is already in the base model's reach (Vnom, β, capacity,
+    SOC0, the table's offset); leaving them out of the correction keeps the fit well posed and
+    keeps ocv_shape from mimicking a voltage offset. Columns: discrete orthogonal polynomials of
+    degree 2..5, scaled to a largest entry of 1 (so u is in volts).
+    """
+    x = np.linspace(-1.0, 1.0, N_KNOTS)
+    q, _ = np.linalg.qr(np.vander(x, N_KNOTS, increasing=True))
+    b = q[:, 2:]
+    return b / np.abs(b).max(axis=0)
+
+
+SHAPE_BASIS = _shape_basis()
+
+
+def to_physical(X: np.ndarray) -> np.ndarray:
+    """Physical rows (m, NP) of internal rows (m, NX)."""
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    P = np.empty((X.shape[0], NP))
+    P[:, :N_SCALAR] = X[:, :N_SCALAR]
+    P[:, _POW] = 10.0 ** X[:, _POW]
+    P[:, D0:] = X[:, N_SCALAR:] @ SHAPE_BASIS.T
+    return P
+
+
+def report(x: np.ndarray, names) -> dict[str, float]:
+    """Report-named physical values of the internal ``names`` of vector ``x``."""
+    out = {}
+    for n in names:
+        p, v = PARAMS[n], float(x[IDX[n]])
+        if p.transform == "log10":
+            v = 10.0**v
+        elif p.transform == "log10_1m":
+            v = 1.0 - 10.0**v
+        out[p.report] = v
+    return out
+
+
+def internal_value(report_name: str, value: float) -> tuple[str, float]:
+    """(internal name, internal value) of one report-named physical value."""
+    if report_name not in BY_REPORT:
+        raise KeyError(f"unknown parameter {report_name!r}")
+    n = BY_REPORT[report_name]
+    t = PARAMS[n].transform
+    if t == "log10":
+        return n, float(np.log10(value))
+    if t == "log10_1m":
+        return n, float(np.log10(1.0 - value))
+    return n, float(value)
+
+
+def vector(params: dict) -> np.ndarray:
+    """Internal vector from report-named values (absent ones neutral)."""
+    x = NEUTRAL.copy()
+    for key, value in params.items():
+        if key == "tref_k" or key.startswith(("ocv_knot", "ocv_d")):
+            continue
+        n, v = internal_value(key, value)
+        x[IDX[n]] = v
+    return x
+
+
+# ----------------------------------------------------------------------------------------------
+# the OCV source
+
+
+@dataclass(frozen=True)
+class Knots:
+    """Where the ocv_shape correction lives: N_KNOTS knots from ``lo`` in steps of ``step``."""
+
+    lo: float
+    step: float
+
+    def grid(self) -> np.ndarray:
+        return self.lo + self.step * np.arange(N_KNOTS)
+
+
+@dataclass(frozen=True)
+class OcvTable:
+    """A measured OCV on a uniform SOC grid (``values`` strictly increasing)."""
+
+    lo: float
+    step: float
+    values: np.ndarray
+    capacity_ah: float | None = None  # the slow test's capacity, if it came from one
+    source: str = ""
+
+    @classmethod
+    def from_points(cls, soc, ocv_v, capacity_ah=None, source="") -> OcvTable:
+        soc = np.asarray(soc, dtype=float)
+        v = np.asarray(ocv_v, dtype=float)
+        order = np.argsort(soc)
+        soc, v = soc[order], v[order]
+        grid = np.linspace(soc[0], soc[-1], TABLE_POINTS)
+        vals = np.interp(grid, soc, v)
+        # strictly increasing: the initial-SOC rule inverts the table
+        vals = np.maximum.accumulate(vals) + np.arange(grid.size) * 1e-9
+        step = (soc[-1] - soc[0]) / (TABLE_POINTS - 1)
+        return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source)
+
+    def grid(self) -> np.ndarray:
+        return self.lo + self.step * np.arange(self.values.size)
+
+    def __call__(self, soc) -> np.ndarray:
+        return np.interp(soc, self.grid(), self.values)
+
+
+@dataclass(frozen=True)
+class Config:
+    """A model configuration: the OCV source, the elements added to the base, the load."""
+
+    effects: tuple[str, ...] = ()
+    table: OcvTable | None = None  # None: the paper's rational OCV with free Vnom, β
+    load_ohm: float | None = None  # the paper's load resistor across the cell
+
+    def __post_init__(self):
+        for e in self.effects:
+            if e not in EFFECTS:
+                raise ValueError(f"unknown element {e!r}; choose from {', '.join(EFFECTS)}")
+            if e in REQUIRES and REQUIRES[e] not in self.effects:
+                raise ValueError(f"element {e!r} needs {REQUIRES[e]!r}")
+        if self.table is not None and "voltage_offset" in self.effects:
+            raise ValueError("a table OCV carries its offset in the base; no voltage_offset")
+        if self.load_ohm is not None and "butler_volmer" in self.effects:
+            raise ValueError("the load is solved for a linear ohmic drop; no butler_volmer")
+
+    @property
+    def ocv_kind(self) -> str:
+        return "rational" if self.table is None else "table"
+
+    def names(self) -> tuple[str, ...]:
+        """Internal names of this configuration's parameters (base first, then elements)."""
+        out = list(element_params("base", self.ocv_kind))
+        for e in self.effects:
+            out.extend(element_params(e))
+        return tuple(out)
+
+    def with_effect(self, effect: str) -> Config:
+        return Config((*self.effects, effect), self.table, self.load_ohm)
+
+    @property
+    def name(self) -> str:
+        base = "table" if self.table is not None else "rational"
+        return "+".join((base, *self.effects))
+
+
+def ocv_values(P_row: np.ndarray, soc, knots: Knots, table: OcvTable | None) -> np.ndarray:
+    """OCV (with correction and offset, no hysteresis) of physical row ``P_row`` at ``soc``."""
+    soc = np.asarray(soc, dtype=float)
+    if table is None:
+        sc = np.clip(soc, 0.0, 1.2)
+        omb = P_row[OMB]
+        v = P_row[VNOM] * sc / (omb + (1.0 - omb) * sc)
+    else:
+        sc = soc
+        v = table(sc)
+    d = P_row[D0:]
+    if np.any(d != 0.0):
+        v = v + np.interp(sc, knots.grid(), d)
+    return v + P_row[VOFF]
+
+
+# ----------------------------------------------------------------------------------------------
+# records
+
+
+THERMAL_MIN_RANGE_C = 2.0
+"""The thermal element needs the measured temperature to move at least this much (°C): with
+less, an Arrhenius factor is a constant that R0 and R1 already absorb."""
+
+
+@dataclass(frozen=True)
+class Record:
+    """The inputs a simulation needs, prepared once per record."""
+
+    t: np.ndarray
+    i: np.ndarray
+    v: np.ndarray
+    temp_c: np.ndarray | None
+    dt: np.ndarray  # dt[k] = t[k+1] − t[k]; the last is the median step (never used by V)
+    uniform: bool
+    tref_k: float
+    dinv_t: np.ndarray
+    two_rt_f: np.ndarray
+    source: str = "<data>"
+
+    @property
+    def n(self) -> int:
+        return self.t.size
+
+    @property
+    def temperature_varies(self) -> bool:
+        return self.temp_c is not None and float(np.ptp(self.temp_c)) >= THERMAL_MIN_RANGE_C
+
+    @classmethod
+    def from_frame(cls, frame: pd.DataFrame, tref_k: float | None = None, source=None) -> Record:
+        t = np.ascontiguousarray(frame["time_s"].to_numpy(dtype=float))
+        i = np.ascontiguousarray(frame["current_a"].to_numpy(dtype=float))
+        v = np.ascontiguousarray(frame["voltage_v"].to_numpy(dtype=float))
+        temp = None
+        if "temperature_c" in frame.columns:
+            temp = np.ascontiguousarray(frame["temperature_c"].to_numpy(dtype=float))
+        d = np.diff(t)
+        step = float(np.median(d)) if d.size else 1.0
+        dt = np.append(d, step)
+        uniform = bool(np.all(np.abs(d - step) <= 1e-9 * max(step, 1.0)))
+        if uniform:
+            dt = np.full(t.size, step)
+        tk = np.full(t.size, T_DEFAULT_K) if temp is None else temp + 273.15
+        if tref_k is None:
+            tref_k = float(np.mean(tk))
+        return cls(
+            t=t, i=i, v=v, temp_c=temp, dt=np.ascontiguousarray(dt), uniform=uniform,
+            tref_k=float(tref_k), dinv_t=np.ascontiguousarray(1.0 / tk - 1.0 / tref_k),
+            two_rt_f=np.ascontiguousarray(2.0 * GAS_R * tk / FARADAY),
+            source=str(source if source is not None else frame.attrs.get("source", "<data>")),
+        )  # fmt: skip
+
+    def charge_ah(self) -> np.ndarray:
+        """Charge removed since the start (Ah) at each sample (discharge positive)."""
+        return np.concatenate([[0.0], np.cumsum(self.i[:-1] * self.dt[:-1])]) / 3600.0
+
+    def imax(self) -> float:
+        return max(float(np.quantile(np.abs(self.i), 0.99)), 1e-6)
+
+
+# ----------------------------------------------------------------------------------------------
+# the compiled simulator
+
+
+@nb.njit(cache=True, nogil=True)
+def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
+              g_load, sel, out, tr):  # fmt: skip
+    """Terminal voltage of every physical row of ``P`` at the selected samples.
+
+    ``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
+    ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
+    voltages, the thermal R0 factor and the battery current of row 0 when non-empty. An element
+    whose parameter is neutral in every row is skipped (the flags do not change inside the loops,
+    so the compiler takes the branches out of them).
+    """
+    m = P.shape[0]
+    n = cur.shape[0]
+    record = tr.shape[0] > 0
+    rational = table.shape[0] == 0
+    nt = table.shape[0]
+    vnom = P[:, VNOM].copy()
+    omb = P[:, OMB].copy()
+    beta = 1.0 - omb
+    q3600 = 3600.0 * P[:, Q]
+    soc = P[:, SOC0].copy()
+    r0 = P[:, R0].copy()
+    r1 = P[:, R1].copy()
+    r2 = P[:, R2].copy()
+    r3 = P[:, R3].copy()
+    tau1 = P[:, TAU1].copy()
+    tau2 = P[:, TAU2].copy()
+    tau3 = P[:, TAU3].copy()
+    klow = P[:, KLOW].copy()
+    sig = P[:, SIG].copy()
+    kd = P[:, KD].copy()
+    taud = P[:, TAUD].copy()
+    hm = P[:, HM].copy()
+    gam = P[:, GAM].copy()
+    h = P[:, H0].copy()
+    bvg = P[:, BVG].copy()
+    th0 = P[:, TH0].copy()
+    th1 = P[:, TH1].copy()
+    ioff = P[:, IOFF].copy()
+    voff = P[:, VOFF].copy()
+    eta = P[:, ETA].copy()
+    d = P[:, D0 : D0 + nk].copy()
+    a1 = np.exp(-dt[0] / tau1)
+    a2 = np.exp(-dt[0] / tau2)
+    a3 = np.exp(-dt[0] / tau3)
+    ad = np.exp(-dt[0] / taud)
+    v1 = np.zeros(m)
+    v2 = np.zeros(m)
+    v3 = np.zeros(m)
+    dl = np.zeros(m)
+    hyst = np.any(hm != 0.0)
+    therm0 = np.any(th0 != 0.0)
+    therm1 = np.any(th1 != 0.0)
+    bv = np.any(bvg != 0.0)
+    shape = np.any(d != 0.0)
+    rc2 = np.any(r2 != 0.0)
+    rc3 = np.any(r3 != 0.0)
+    low = np.any(klow != 0.0)
+    diff = np.any(kd != 0.0)
+    load = g_load != 0.0
+    for k in range(n):
+        dtk = dt[k]
+        ik0 = cur[k]
+        dinv = dinv_t[k]
+        rtf = two_rt_f[k]
+        row = sel[k]
+        if not uniform:
+            for c in range(m):
+                a1[c] = np.exp(-dtk / tau1[c])
+                a2[c] = np.exp(-dtk / tau2[c])
+                a3[c] = np.exp(-dtk / tau3[c])
+                ad[c] = np.exp(-dtk / taud[c])
+        for c in range(m):
+            s = soc[c]
+            so = s - dl[c] if diff else s
+            if rational:
+                sc = min(max(so, 0.0), 1.2)  # the rational curve is singular outside
+                e = vnom[c] * sc / (omb[c] + beta[c] * sc)
+            else:
+                x = (so - tab_lo) / tab_step
+                if x <= 0.0:
+                    e = table[0]
+                elif x >= nt - 1:
+                    e = table[nt - 1]
+                else:
+                    j = int(x)
+                    w = x - j
+                    e = (1.0 - w) * table[j] + w * table[j + 1]
+                sc = so
+            if shape:
+                x = (sc - k_lo) / k_step
+                if x <= 0.0:
+                    e += d[c, 0]
+                elif x >= nk - 1:
+                    e += d[c, nk - 1]
+                else:
+                    j = int(x)
+                    w = x - j
+                    e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
+            e += voff[c]
+            if hyst:
+                e += hm[c] * h[c]
+            g = 1.0 + klow[c] * np.exp(-min(max(s, -0.5), 2.0) / sig[c]) if low else 1.0
+            f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
+            f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
+            ro = f0 * g * r0[c]
+            e -= v1[c] + v2[c] + v3[c]
+            ip = ik0 + ioff[c]
+            if load:  # the load's current follows the terminal voltage: solved exactly
+                v = (e - ro * ip) / (1.0 + ro * g_load)
+                i = ip + v * g_load
+            else:
+                i = ip
+                v = e - ro * i
+                if bv:
+                    v -= rtf * np.arcsinh(0.5 * bvg[c] * i)
+            if row >= 0:
+                out[row, c] = v
+            if record and c == 0:
+                tr[0, k] = s
+                tr[1, k] = h[c]
+                tr[2, k] = v1[c] + v2[c] + v3[c]
+                tr[3, k] = f0
+                tr[4, k] = i
+            gi = f1 * g * i
+            v1[c] = a1[c] * v1[c] + r1[c] * (1.0 - a1[c]) * gi
+            if rc2:
+                v2[c] = a2[c] * v2[c] + r2[c] * (1.0 - a2[c]) * gi
+            if rc3:
+                v3[c] = a3[c] * v3[c] + r3[c] * (1.0 - a3[c]) * gi
+            if diff:
+                dl[c] = ad[c] * dl[c] + (1.0 - ad[c]) * kd[c] * i
+            ie = i if i > 0.0 else eta[c] * i
+            dq = ie * dtk / q3600[c]
+            if hyst and i != 0.0:
+                ex = np.exp(-abs(dq * gam[c]))
+                h[c] = ex * h[c] - (1.0 - ex) * (1.0 if i > 0.0 else -1.0)
+            soc[c] = s - dq
+
+
+_NO_TABLE = np.empty(0)
+
+
+def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable | None = None,
+                      load_ohm: float | None = None, traces: bool = False,
+                      idx: np.ndarray | None = None):  # fmt: skip
+    """Voltage (n, m) of physical rows ``P`` (m, NP); with traces, also (5, n) of row 0.
+
+    ``idx``: return only these samples (sorted), shape (idx.size, m); the whole record is
+    simulated all the same.
+    """
+    P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
+    if idx is None:
+        sel = np.arange(rec.n)
+    else:
+        sel = np.full(rec.n, -1)
+        sel[idx] = np.arange(idx.size)
+    out = np.empty((rec.n if idx is None else idx.size, P.shape[0]))
+    tr = np.empty((5, rec.n)) if traces else np.empty((0, 0))
+    tab = _NO_TABLE if table is None else table.values
+    t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
+    g = 0.0 if load_ohm is None else 1.0 / load_ohm
+    _simulate(P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt, rec.uniform,
+              rec.dinv_t, rec.two_rt_f, g, sel, out, tr)  # fmt: skip
+    return (out, tr) if traces else out
+
+
+def simulate_rows(rec: Record, X: np.ndarray, knots: Knots, table: OcvTable | None = None,
+                  load_ohm: float | None = None, traces: bool = False,
+                  idx: np.ndarray | None = None):  # fmt: skip
+    """As :func:`simulate_physical`, for internal rows ``X`` (m, NX)."""
+    return simulate_physical(rec, to_physical(X), knots, table, load_ohm, traces, idx)
+
+
+# ----------------------------------------------------------------------------------------------
+# the paper's configuration
+
+
+def paper_rows(P_paper: np.ndarray, qdis_ah: float, soc0: float, fade_factors=None,
+               dynamics: bool = True) -> np.ndarray:  # fmt: skip
+    """Physical library rows of the paper's model: fresh-cell parameters (vnom, q, vdis, r0,
+    rtr, tau; ``battery.PARAM_NAMES``) with fade applied (eqs. 7-9: effective = fresh × factor)
+    and β from Vocv(Qdis/Q) = Vdis (eq. 5). Without dynamics the RC branch is absent."""
+    E = np.atleast_2d(np.asarray(P_paper, dtype=float))
+    if fade_factors is not None:
+        E = E * np.asarray(fade_factors, dtype=float)
+    vnom, q, vdis, r0, rtr, tau = E.T
+    soc1 = qdis_ah / q
+    beta = (1.0 - vnom * soc1 / vdis) / (1.0 - soc1)
+    P = to_physical(np.repeat(NEUTRAL[None, :], E.shape[0], axis=0))
+    P[:, VNOM], P[:, OMB], P[:, Q], P[:, SOC0], P[:, R0] = vnom, 1.0 - beta, q, soc0, r0
+    P[:, R1] = rtr if dynamics else 0.0
+    P[:, TAU1] = tau if dynamics else 1.0
+    return P
+
+
+# ----------------------------------------------------------------------------------------------
+# the one initial-SOC rule
+
+REST_FRACTION = 0.02
+"""At rest: |I| at most this fraction of the record's 99th-percentile |I| (the logger's offset and
+a cycler's trickle are far below it; any load pulse is far above)."""
+
+
+def starts_at_rest(rec: Record) -> bool:
+    return abs(float(rec.i[0])) <= REST_FRACTION * rec.imax()
+
+
+def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots,
+                      table: OcvTable | None = None) -> float:  # fmt: skip
+    """The initial SOC whose OCV equals the record's first voltage corrected for the ohmic drop:
+    OCV(s0) + M·h0 = V0 + R0·g(s0)·f0·(I0 + b), with no RC voltage (the record is taken to start
+    at rest, or close to it: :func:`starts_at_rest` says which). Solved on [0, 1] (the table's
+    range for a table OCV); clipped to the range's end when the voltage lies beyond it."""
+    p = P_row
+    i0 = float(rec.i[0]) + p[IOFF]
+    f0 = float(np.exp(p[TH0] * rec.dinv_t[0]))
+    v0 = float(rec.v[0]) - p[HM] * p[H0]
+
+    def gap(s: float) -> float:
+        g = 1.0 + p[KLOW] * np.exp(-min(max(s, -0.5), 2.0) / p[SIG]) if p[KLOW] != 0 else 1.0
+        return float(ocv_values(p, np.array([s]), knots, table)[0]) - (v0 + p[R0] * g * f0 * i0)
+
+    lo, hi = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
+    if gap(lo) >= 0:
+        return lo
+    if gap(hi) <= 0:
+        return hi
+    return float(brentq(gap, lo, hi, xtol=1e-10))

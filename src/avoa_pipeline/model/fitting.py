@@ -1,0 +1,473 @@
+"""The one least-squares fit of the model library: several records of one cell at once (shared
+cell parameters, each record its own initial state), bounds and weak priors from the registry,
+multi-start.
+
+Why not a generic wrapper such as PyBOP: the Jacobian is built by simulating every perturbed
+parameter row in one pass of the compiled simulator (``ecm._simulate`` steps rows together), which
+is what makes a finite-difference Jacobian affordable on 10⁴-10⁵ samples; the solver itself is
+scipy's ``least_squares`` (trust-region reflective, box bounds).
+
+Layout of the free vector z: the free cell parameters (``Structure.shared``), then for each record
+its free initial-state parameters (``Structure.per_record``: SOC0, and h0 with hysteresis). Every
+record's residuals weigh alike per sample: the records share one noise level (one cell, one
+logger), so the plain sum of squares is the likelihood's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from . import ecm
+from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
+
+MAX_FIT_POINTS = 20000
+"""Residuals fitted per least-squares problem at most (all records together); longer data are
+thinned by a fixed stride for fitting (the model is always simulated at full resolution and
+scored on every sample)."""
+
+COARSE_POINTS = 2500
+"""Residuals per multi-start trial: the starts are compared on thinned records, and only the best
+is refined on the full set."""
+
+PRIOR_SCALE_V = 1e-3
+"""Residual scale (V) of the weak priors: one prior row weighs like one sample with 1 mV noise, so
+data that inform a parameter outweigh its prior by orders of magnitude."""
+
+
+def _stats(recs: list[Record]) -> dict:
+    swing = max(float(np.ptp(r.charge_ah())) for r in recs)
+    return {
+        "swing": swing,
+        "imax": max(r.imax() for r in recs),
+        "dt": min(float(np.median(r.dt)) for r in recs),
+        "duration": max(float(r.t[-1] - r.t[0]) for r in recs),
+    }
+
+
+def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
+    """Wide, physically plausible bounds (internal coordinates) for a cell's records."""
+    s = _stats(recs)
+    imax = s["imax"]
+    tau_lo = np.log10(max(s["dt"], 0.05))  # a time constant below the step is an R0
+    tau_hi = np.log10(max(min(2e4, 2.0 * s["duration"]), 10.0 * s["dt"]))
+    q_lo = max(0.01, 0.8 * s["swing"])  # no record spans more than 125 % of the capacity
+    return {
+        "vnom": (1.5, 5.0),
+        "lc": (-4.0, np.log10(3.0)),  # β ∈ [−2, 0.9999]: OCV rising with SOC
+        "lq": (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo))),
+        "soc0": (0.0, 1.0),
+        "r0": (0.0, 2.0),
+        "r1": (0.0, 2.0),
+        "ltau1": (tau_lo, tau_hi),
+        "r2": (0.0, 2.0),
+        "ltau2": (tau_lo, tau_hi),
+        "r3": (0.0, 2.0),
+        "ltau3": (tau_lo, tau_hi),
+        # the rise near empty: up to 50× at SOC 0, over an SOC width of 0.5-50 %
+        "klow": (0.0, 50.0),
+        "lsig": (np.log10(0.005), np.log10(0.5)),
+        # surface-SOC lag: at most 30 % of SOC at the record's largest current
+        "kd": (0.0, 0.3 / imax),
+        "ltaud": (tau_lo, tau_hi),
+        "hm": (0.0, 0.3),
+        "lgamma": (-1.0, 4.0),
+        "h0": (-1.0, 1.0),
+        "bvg": (0.0, 100.0 / imax),
+        "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
+        "th1": (0.0, 12000.0),
+        "ioff": (-0.1 * imax, 0.1 * imax),
+        "voff": (-0.3, 0.3),
+        "eta": (0.7, 1.0),
+        **{n: (-0.5, 0.5) for n in ecm.SHAPE_NAMES},
+    }
+
+
+def priors_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
+    """Weak Gaussian priors (mean, sd; internal coordinates) centred on each element's neutral
+    value. They matter only where the data say nothing about a parameter — a hysteresis state at
+    the start of a block held out, an efficiency without charge in the training blocks — and
+    there they keep it neutral instead of letting the trust region wander to a bound."""
+    imax = _stats(recs)["imax"]
+    return {
+        "r2": (0.0, 0.1),
+        "r3": (0.0, 0.1),
+        "klow": (0.0, 5.0),
+        "kd": (0.0, 0.1 / imax),
+        "hm": (0.0, 0.05),
+        "h0": (0.0, 1.0),
+        "bvg": (0.0, 10.0 / imax),
+        "th0": (0.0, 5000.0),
+        "th1": (0.0, 5000.0),
+        "ioff": (0.0, 0.05 * imax),
+        "eta": (1.0, 0.1),
+        "voff": (0.0, 0.1),
+        **{n: (0.0, 0.05) for n in ecm.SHAPE_NAMES},
+    }
+
+
+@dataclass
+class Structure:
+    """Which parameters of a configuration are free, their bounds, priors and OCV knots."""
+
+    config: Config
+    shared: tuple[str, ...]
+    per_record: tuple[str, ...]
+    n_records: int
+    lo: np.ndarray
+    hi: np.ndarray
+    prior: np.ndarray  # (nz, 2): mean, sd (inf: none)
+    knots: Knots = field(default_factory=lambda: Knots(0.0, 0.2))
+
+    @property
+    def effects(self) -> tuple[str, ...]:
+        return self.config.effects
+
+    @property
+    def free(self) -> tuple[str, ...]:
+        """Free parameter names, per-record ones once (for counting: :attr:`k` counts them all)."""
+        return self.shared + self.per_record
+
+    @property
+    def k(self) -> int:
+        return len(self.shared) + self.n_records * len(self.per_record)
+
+    @property
+    def shared_idx(self) -> np.ndarray:
+        return np.array([IDX[n] for n in self.shared], dtype=int)
+
+    @property
+    def record_idx(self) -> np.ndarray:
+        return np.array([IDX[n] for n in self.per_record], dtype=int)
+
+    def z_of(self, X: np.ndarray) -> np.ndarray:
+        """The free vector of per-record internal rows ``X`` (R, NX)."""
+        parts = [X[0, self.shared_idx]] + [X[r, self.record_idx] for r in range(self.n_records)]
+        return np.concatenate(parts)
+
+    def rows(self, z: np.ndarray, X0: np.ndarray) -> np.ndarray:
+        """Per-record internal rows: ``X0`` with the free values of ``z`` written in."""
+        X = np.array(X0, dtype=float)
+        ns, npr = len(self.shared), len(self.per_record)
+        X[:, self.shared_idx] = z[:ns]
+        for r in range(self.n_records):
+            X[r, self.record_idx] = z[ns + r * npr : ns + (r + 1) * npr]
+        return X
+
+
+def structure(recs: list[Record], config: Config, knots: Knots | None = None,
+              fix_capacity: bool = False, fix_soc0: bool = False) -> Structure:  # fmt: skip
+    names = config.names()
+    shared = [n for n in names if not ecm.PARAMS[n].per_record]
+    per = [n for n in names if ecm.PARAMS[n].per_record]
+    if fix_capacity:
+        shared.remove("lq")
+    if fix_soc0:
+        per.remove("soc0")
+    b = bounds_for(recs)
+    pr = priors_for(recs)
+    if config.table is not None:  # a table's offset is part of its base: no pull towards 0
+        pr.pop("voff")
+    z_names = shared + per * len(recs)
+    lo = np.array([b[n][0] for n in z_names])
+    hi = np.array([b[n][1] for n in z_names])
+    prior = np.array([pr.get(n, (0.0, np.inf)) for n in z_names])
+    return Structure(config, tuple(shared), tuple(per), len(recs), lo, hi, prior,
+                     knots or Knots(0.0, 0.2))  # fmt: skip
+
+
+# ----------------------------------------------------------------------------------------------
+# fitting
+
+
+@dataclass
+class FitResult:
+    X: np.ndarray  # per-record internal rows (R, NX)
+    cost_fit: float  # 0.5 · sum of squared fitting residuals (on the fitted samples)
+    nfev: int
+
+
+def fit_indices(n: int, mask: np.ndarray | None, max_points: int) -> np.ndarray:
+    """Samples fitted: those in ``mask``, thinned by a fixed stride to at most ``max_points``."""
+    idx = np.arange(n) if mask is None else np.flatnonzero(mask)
+    stride = int(np.ceil(idx.size / max(max_points, 1)))
+    return idx[::stride] if stride > 1 else idx
+
+
+def indices(recs: list[Record], masks, max_points: int) -> list[np.ndarray]:
+    """Per record, the samples fitted; the point budget is shared in proportion to their size."""
+    masks = masks if masks is not None else [None] * len(recs)
+    sizes = [r.n if m is None else int(np.sum(m)) for r, m in zip(recs, masks, strict=True)]
+    total = max(sum(sizes), 1)
+    return [fit_indices(r.n, m, max(1, int(max_points * s / total)))
+            for r, m, s in zip(recs, masks, sizes, strict=True)]  # fmt: skip
+
+
+def _fd_steps(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    h = 1e-6 * np.maximum(np.abs(z), 1e-2 * (hi - lo))
+    return np.where(z + h > hi, -h, h)
+
+
+class Problem:
+    """Residuals and their forward-difference Jacobian for least_squares, one simulator pass per
+    record per call."""
+
+    def __init__(self, recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray]):
+        self.recs, self.st, self.idxs = recs, st, idxs
+        self.X0 = np.array(X0, dtype=float)
+        self.vm = [r.v[i] for r, i in zip(recs, idxs, strict=True)]
+        self.shape = "ocv_shape" in st.effects
+        self._cache_z = None
+        self._cache_v = None
+        self.pj = np.flatnonzero(np.isfinite(st.prior[:, 1]))
+        self.pmu = st.prior[self.pj, 0]
+        self.pw = PRIOR_SCALE_V / st.prior[self.pj, 1]
+        if self.shape:
+            self.grid = np.linspace(st.knots.lo, st.knots.lo + st.knots.step * (N_KNOTS - 1), 41)
+            self.w_mono = 10.0 * np.sqrt(sum(i.size for i in idxs))
+
+    def _sim(self, r: int, X: np.ndarray) -> np.ndarray:
+        c = self.st.config
+        return ecm.simulate_rows(self.recs[r], X, self.st.knots, c.table, c.load_ohm,
+                                 idx=self.idxs[r])  # fmt: skip
+
+    def _penalty(self, x: np.ndarray) -> np.ndarray:
+        # monotone OCV: a falling step between grid points costs as much as w_mono volts
+        p = ecm.to_physical(x)[0]
+        d = np.diff(ecm.ocv_values(p, self.grid, self.st.knots, self.st.config.table))
+        return self.w_mono * np.minimum(d, 0.0)
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        X = self.st.rows(z, self.X0)
+        v = [self._sim(r, X[r : r + 1])[:, 0] for r in range(len(self.recs))]
+        self._cache_z, self._cache_v = z.copy(), v
+        parts = [vr - vm for vr, vm in zip(v, self.vm, strict=True)]
+        if self.shape:
+            parts.append(self._penalty(X[0]))
+        if self.pj.size:
+            parts.append(self.pw * (z[self.pj] - self.pmu))
+        return np.concatenate(parts)
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        st = self.st
+        h = _fd_steps(z, st.lo, st.hi)
+        X = st.rows(z, self.X0)
+        ns, npr = len(st.shared), len(st.per_record)
+        cached = self._cache_z is not None and np.array_equal(z, self._cache_z)
+        blocks = []
+        for r in range(len(self.recs)):
+            cols = list(range(ns)) + list(range(ns + r * npr, ns + (r + 1) * npr))
+            rows = np.repeat(X[r : r + 1], len(cols) + (0 if cached else 1), axis=0)
+            off = 0 if cached else 1
+            for j, col in enumerate(cols):
+                zj = z.copy()
+                zj[col] += h[col]
+                rows[j + off] = st.rows(zj, self.X0)[r]
+            V = self._sim(r, rows)
+            v0 = self._cache_v[r] if cached else V[:, 0]
+            Jr = np.zeros((V.shape[0], z.size))
+            Jr[:, cols] = (V[:, off:] - v0[:, None]) / h[cols]
+            blocks.append(Jr)
+        if self.shape:
+            p0 = self._penalty(X[0])
+            Jp = np.zeros((p0.size, z.size))
+            for j in range(ns):
+                zj = z.copy()
+                zj[j] += h[j]
+                Jp[:, j] = (self._penalty(st.rows(zj, self.X0)[0]) - p0) / h[j]
+            blocks.append(Jp)
+        if self.pj.size:
+            Jq = np.zeros((self.pj.size, z.size))
+            Jq[np.arange(self.pj.size), self.pj] = self.pw
+            blocks.append(Jq)
+        return np.vstack(blocks)
+
+
+def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
+                  max_nfev: int = 200, tol: float = 1e-8) -> FitResult:  # fmt: skip
+    """Least-squares fit of the free parameters of ``st`` from per-record rows ``X0``."""
+    X0 = np.atleast_2d(np.asarray(X0, dtype=float))
+    if X0.shape[0] == 1 and len(recs) > 1:
+        X0 = np.repeat(X0, len(recs), axis=0)
+    prob = Problem(recs, st, X0, idxs)
+    span = st.hi - st.lo
+    # strictly inside the box: trf needs an interior start
+    z0 = np.clip(st.z_of(X0), st.lo + 1e-10 * span, st.hi - 1e-10 * span)
+    res = least_squares(prob.residuals, z0, jac=prob.jacobian, bounds=(st.lo, st.hi),
+                        method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+                        max_nfev=max_nfev)  # fmt: skip
+    return FitResult(st.rows(res.x, X0), float(res.cost), int(res.nfev))
+
+
+def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60,
+            max_nfev=200) -> FitResult:  # fmt: skip
+    """Multi-start: each start on thinned records, the best refined on the fitted samples."""
+    idx_full = indices(recs, masks, MAX_FIT_POINTS)
+    if len(starts) == 1:
+        return fit_structure(recs, st, starts[0], idx_full, max_nfev=max_nfev)
+    idx_c = indices(recs, masks, COARSE_POINTS)
+    trials = [fit_structure(recs, st, x0, idx_c, max_nfev=max_nfev_coarse) for x0 in starts]
+    best = min(trials, key=lambda r: r.cost_fit)
+    return fit_structure(recs, st, best.X, idx_full, max_nfev=max_nfev)
+
+
+def knots_for(recs, X: np.ndarray, masks=None) -> Knots:
+    """ocv_shape knots spread evenly over the SOC range the model visits on the (masked) records.
+
+    Beyond the knots the correction stays flat: a model fitted without some SOC range does not
+    extrapolate a polynomial into it.
+    """
+    lo, hi = np.inf, -np.inf
+    masks = masks if masks is not None else [None] * len(recs)
+    for r, (rec, m) in enumerate(zip(recs, masks, strict=True)):
+        soc = X[r, IDX["soc0"]] - rec.charge_ah() / 10.0 ** X[r, IDX["lq"]]
+        soc = np.clip(soc if m is None else soc[m], 0.0, 1.2)
+        if soc.size:
+            lo, hi = min(lo, float(soc.min())), max(hi, float(soc.max()))
+    if hi - lo < 1e-3:
+        lo, hi = lo - 5e-4, hi + 5e-4
+    return Knots(lo, (hi - lo) / (N_KNOTS - 1))
+
+
+# ----------------------------------------------------------------------------------------------
+# starts
+
+
+def r0_guess(recs) -> float:
+    """R0 from the voltage jumps at large current steps (median −ΔV/ΔI)."""
+    est = []
+    for rec in recs:
+        di, dv = np.diff(rec.i), np.diff(rec.v)
+        big = np.abs(di) > 0.2 * rec.imax()
+        e = -dv[big] / di[big]
+        est.append(e[np.isfinite(e) & (e > 0)])
+    est = np.concatenate(est) if est else np.empty(0)
+    return float(np.clip(np.median(est), 1e-4, 1.0)) if est.size else 0.05
+
+
+def base_starts(recs, config: Config, capacity_ah=None, soc0=None) -> list[np.ndarray]:
+    """A handful of base-model starts (each (R, NX)) spread over capacity, SOC0 and τ1."""
+    b = bounds_for(recs)
+    swing = max(_stats(recs)["swing"], 1e-6)
+    r0 = r0_guess(recs)
+    if capacity_ah:
+        caps = [capacity_ah]
+    elif config.table is not None and config.table.capacity_ah:
+        caps = [config.table.capacity_ah]  # the slow test measured it
+    else:
+        caps = [1.25 * swing, 3.0 * swing, 10.0 * swing]
+    starts = []
+    for cap in caps:
+        cap = float(np.clip(cap, 10 ** b["lq"][0], 10 ** b["lq"][1]))
+        x = NEUTRAL.copy()
+        x[IDX["lq"]] = np.log10(cap)
+        x[IDX["r0"]] = r0
+        x[IDX["r1"]] = 0.5 * r0
+        x[IDX["ltau1"]] = np.clip(np.log10(60.0), *b["ltau1"])
+        if config.table is not None:
+            X = np.repeat(x[None, :], len(recs), axis=0)
+            for r, rec in enumerate(recs):
+                P = ecm.to_physical(X[r])[0]
+                X[r, IDX["soc0"]] = (soc0 if soc0 is not None else
+                                     ecm.soc0_from_voltage(P, rec, Knots(0, 0.2), config.table))
+            starts.append(X)
+            continue
+        fractions = (0.9, 0.4) if soc0 is None else (None,)
+        for f in fractions:
+            X = np.repeat(x[None, :], len(recs), axis=0)
+            for r, rec in enumerate(recs):
+                q = rec.charge_ah()
+                s_hi = 1.0 + float(np.min(q)) / cap  # SOC0 such that SOC stays ≤ 1
+                s_lo = float(np.max(q)) / cap  # ... and ≥ 0
+                if soc0 is not None:
+                    X[r, IDX["soc0"]] = soc0
+                elif s_lo >= s_hi:
+                    X[r, IDX["soc0"]] = float(np.clip(0.5 * (s_lo + s_hi), 0, 1))
+                else:
+                    X[r, IDX["soc0"]] = float(np.clip(s_lo + f * (s_hi - s_lo), 0.02, 1.0))
+            X[:, IDX["vnom"]], X[:, IDX["lc"]] = _ocv_start(recs, X, cap, r0, b)
+            starts.append(X)
+    return starts
+
+
+def _ocv_start(recs, X, cap, r0, b):
+    """Vnom and log10(1−β) fitted to v + R0·i against the coulomb-counted SOC (no dynamics)."""
+    s_all, y_all = [], []
+    for r, rec in enumerate(recs):
+        soc = np.clip(X[r, IDX["soc0"]] - rec.charge_ah() / cap, 0.0, 1.2)
+        sel = slice(None, None, max(1, rec.n // 2000))
+        s_all.append(soc[sel])
+        y_all.append((rec.v + r0 * rec.i)[sel])
+    s, y = np.concatenate(s_all), np.concatenate(y_all)
+
+    def res(p):
+        omb = 10.0 ** p[1]
+        return p[0] * s / (omb + (1 - omb) * s) - y
+
+    p0 = np.array([np.clip(np.max(y) + 0.05, *b["vnom"]), -1.0])
+    r = least_squares(res, p0, bounds=([b["vnom"][0], b["lc"][0]], [b["vnom"][1], b["lc"][1]]))
+    return r.x[0], r.x[1]
+
+
+def effect_starts(recs, X_base: np.ndarray, effect: str) -> list[np.ndarray]:
+    """Starts for one added element from fitted rows (their other parameters kept)."""
+    b = bounds_for(recs)
+    imax = _stats(recs)["imax"]
+    out = []
+
+    def with_(**kw):
+        X = np.array(X_base, dtype=float)
+        for k, v in kw.items():
+            X[:, IDX[k]] = np.clip(v, *b[k])
+        out.append(X)
+
+    lt1 = X_base[0, IDX["ltau1"]]
+    r1 = max(X_base[0, IDX["r1"]], 1e-4)
+    if effect == "second_rc":
+        with_(r2=0.3 * r1, ltau2=lt1 - 1.0)
+        with_(r2=0.3 * r1, ltau2=lt1 + 1.0)
+    elif effect == "third_rc":
+        lt2 = X_base[0, IDX["ltau2"]]
+        slow, fast = max(lt1, lt2), min(lt1, lt2)
+        with_(r3=0.3 * r1, ltau3=slow + 1.0)
+        with_(r3=0.3 * r1, ltau3=fast - 1.0)
+    elif effect == "soc_resistance":
+        for k, sig in ((0.5, 0.05), (2.0, 0.1)):
+            with_(klow=k, lsig=np.log10(sig))
+    elif effect == "diffusion":
+        for ltd in (2.0, 3.0):
+            with_(kd=0.02 / imax, ltaud=ltd)
+    elif effect == "hysteresis":
+        for lg in (1.0, 2.0, 3.0):
+            with_(hm=0.01, lgamma=lg, h0=0.0)
+    elif effect == "butler_volmer":
+        with_(bvg=1.0 / imax)
+        with_(bvg=5.0 / imax)
+    elif effect == "thermal":
+        with_(th0=3000.0, th1=3000.0)
+    elif effect == "ocv_shape":
+        with_()
+    elif effect == "current_offset":
+        with_(ioff=0.0)
+    elif effect == "voltage_offset":
+        with_(voff=0.0)
+    elif effect == "coulombic_efficiency":
+        with_(eta=0.98)
+    else:
+        raise ValueError(f"unknown element {effect!r}")
+    return out
+
+
+def neutralise(X: np.ndarray, effects) -> np.ndarray:
+    """Rows with the parameters of ``effects`` set back to neutral (the element removed)."""
+    Y = np.array(X, dtype=float)
+    for e in effects:
+        for n in ecm.element_params(e):
+            Y[:, IDX[n]] = NEUTRAL[IDX[n]]
+    return Y
+
+
+def with_knots(st: Structure, knots: Knots) -> Structure:
+    return replace(st, knots=knots)

@@ -1,0 +1,227 @@
+"""The model library: the paper's configuration is the paper's kernel, each element is neutral at
+its neutral values and acts away from them, elements stack, fits recover known parameters (one
+record and several at once)."""
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from avoa_pipeline import problem
+from avoa_pipeline.model import ecm, fitting
+from avoa_pipeline.model import kernel as K
+
+TRUTH = {
+    "vnom_v": 3.73,
+    "beta": 0.932,
+    "capacity_ah": 2.57,
+    "soc0": 0.95,
+    "r0_ohm": 0.0536,
+    "r1_ohm": 0.0153,
+    "tau1_s": 109.7,
+}
+
+# an element's parameters away from neutral (each visibly changes the voltage)
+ACTIVE = {
+    "second_rc": {"r2_ohm": 0.01, "tau2_s": 1000.0},
+    "third_rc": {"r2_ohm": 0.01, "tau2_s": 1000.0, "r3_ohm": 0.01, "tau3_s": 5000.0},
+    "soc_resistance": {"soc_resistance_k": 3.0, "soc_resistance_sigma": 0.3},
+    "diffusion": {"diffusion_soc_per_a": 0.02, "diffusion_tau_s": 600.0},
+    "hysteresis": {"hysteresis_m_v": 0.01, "hysteresis_gamma": 100.0, "hysteresis_h0": 0.0},
+    "butler_volmer": {"bv_inv_i0_per_a": 2.0},
+    "thermal": {"thermal_theta_r0_k": 4000.0, "thermal_theta_rc_k": 4000.0},
+    "ocv_shape": {"ocv_shape_u0_v": 0.01, "ocv_shape_u1_v": -0.005},
+    "current_offset": {"current_offset_a": 0.02},
+    "voltage_offset": {"voltage_offset_v": 0.01},
+    "coulombic_efficiency": {"coulombic_efficiency": 0.97},
+}
+# parameters that only matter once their element's main parameter leaves neutral
+DORMANT = {
+    "tau2_s": 20.0, "tau3_s": 50.0, "hysteresis_gamma": 500.0, "hysteresis_h0": 0.7,
+    "soc_resistance_sigma": 0.2, "diffusion_tau_s": 30.0,
+}  # fmt: skip
+
+
+def profile_frame(segments=None, temperature=True) -> pd.DataFrame:
+    segments = segments or [
+        (300, 0.0), (1200, 2.0), (600, 0.0), (300, 1.0), (300, 0.0), (1200, -1.75),
+        (600, 0.0), (200, 3.0), (400, 0.0), (400, -1.0), (500, 0.0),
+    ]  # fmt: skip
+    cur = np.concatenate([np.full(d, c) for d, c in segments])
+    t = np.arange(cur.size, dtype=float)
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": np.zeros_like(t)})
+    if temperature:
+        frame["temperature_c"] = 25.0 + 3.0 * np.sin(t / 3000.0)
+    return frame
+
+
+def simulate(frame, params, config=None, knots=None):
+    rec = ecm.Record.from_frame(frame)
+    cfg = config or ecm.Config()
+    return ecm.simulate_rows(rec, ecm.vector(params), knots or ecm.Knots(0.0, 0.2), cfg.table,
+                             cfg.load_ohm)[:, 0]  # fmt: skip
+
+
+def with_voltage(frame, params, noise_v=0.0, seed=0, config=None):
+    out = frame.copy()
+    v = simulate(frame, params, config)
+    if noise_v:
+        rng = np.random.default_rng(seed)
+        v = np.round((v + noise_v * rng.standard_normal(v.size)) / 1e-3) * 1e-3
+    out["voltage_v"] = v
+    return out
+
+
+@pytest.mark.parametrize("scenario", [1, 2, 3, 4])
+@pytest.mark.parametrize("case", [1, 2, 3, 4])
+def test_paper_configuration_is_the_papers_kernel(cfg, scenario, case):
+    """The library's paper configuration (rational OCV through Vdis/Qdis, fade as parameter
+    scaling, the load solved exactly) gives the kernel's voltage to 1e-12 V on every
+    scenario × case, at the truth and at random points of the search box."""
+    prob = problem.build(cfg, scenario, case)
+    spec = prob.spec
+    rng = np.random.default_rng(100 * scenario + case)
+    X = np.vstack([prob.truth[prob.free_index], prob.lb + rng.random((3, len(prob.names))) *
+                   (prob.ub - prob.lb)])  # fmt: skip
+    frame = pd.DataFrame({"time_s": prob.time_s, "current_a": prob.current_a,
+                          "voltage_v": prob.voltage_v})  # fmt: skip
+    rec = ecm.Record.from_frame(frame)
+    for x in X:
+        p_fresh = prob.full(x)[0]
+        eff = np.ascontiguousarray(p_fresh * spec.fade_factors)
+        ref = K.simulate_one(eff, rec.i, prob.ts, spec.soc0, spec.qdis_ah, spec.g_load,
+                             spec.dynamics)[0]  # fmt: skip
+        P = ecm.paper_rows(p_fresh, spec.qdis_ah, spec.soc0, spec.fade_factors, spec.dynamics)
+        ours = ecm.simulate_physical(rec, P, ecm.Knots(0, 0.2), load_ohm=spec.load_ohm)[:, 0]
+        np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("effect", ecm.EFFECTS)
+def test_element_neutral_is_base_and_active_differs(effect):
+    frame = profile_frame()
+    base = simulate(frame, TRUTH)
+    x = ecm.vector(TRUTH)
+    # the element's other parameters set to non-default values change nothing while it is neutral
+    for name in ecm.element_params(effect):
+        rep = ecm.PARAMS[name].report
+        if rep in DORMANT:
+            x[ecm.IDX[name]] = ecm.internal_value(rep, DORMANT[rep])[1]
+    rec = ecm.Record.from_frame(frame)
+    neutral = ecm.simulate_rows(rec, x, ecm.Knots(0.0, 0.2))[:, 0]
+    np.testing.assert_array_equal(neutral, base)
+    active = simulate(frame, {**TRUTH, **ACTIVE[effect]})
+    assert np.sqrt(np.mean((active - base) ** 2)) > 1e-3  # at least 1 mV RMS
+
+
+def test_hysteresis_follows_pletts_sign():
+    """Plett's convention: discharging drives h towards −1 and V += M·h, so after a long
+    discharge the voltage sits M below the hysteresis-free model, after a long charge M above."""
+    frame = profile_frame([(100, 0.0), (3000, 1.0), (100, 0.0), (3000, -1.0), (100, 0.0)],
+                          temperature=False)  # fmt: skip
+    params = {**TRUTH, "soc0": 0.6, "hysteresis_m_v": 0.02, "hysteresis_gamma": 200.0}
+    d = simulate(frame, params) - simulate(frame, {**TRUTH, "soc0": 0.6})
+    assert d[3099] == pytest.approx(-0.02, abs=1e-4)
+    assert d[6199] == pytest.approx(0.02, abs=1e-4)
+
+
+def test_elements_stack():
+    """Combinations act together: two elements differ from either alone; hysteresis and an RC
+    branch enter the voltage additively."""
+    frame = profile_frame()
+    a = simulate(frame, {**TRUTH, **ACTIVE["hysteresis"]})
+    b = simulate(frame, {**TRUTH, **ACTIVE["second_rc"]})
+    ab = simulate(frame, {**TRUTH, **ACTIVE["hysteresis"], **ACTIVE["second_rc"]})
+    base = simulate(frame, TRUTH)
+    np.testing.assert_allclose(ab - base, (a - base) + (b - base), atol=1e-12)
+
+
+def test_non_uniform_steps_match_uniform_path():
+    frame = profile_frame()
+    rec = ecm.Record.from_frame(frame)
+    assert rec.uniform
+    x = ecm.vector({**TRUTH, **ACTIVE["third_rc"], **ACTIVE["hysteresis"],
+                    **ACTIVE["diffusion"]})  # fmt: skip
+    v_uniform = ecm.simulate_rows(rec, x, ecm.Knots(0, 0.2))[:, 0]
+    v_general = ecm.simulate_rows(dataclasses.replace(rec, uniform=False), x, ecm.Knots(0, 0.2))
+    np.testing.assert_allclose(v_general[:, 0], v_uniform, rtol=0, atol=1e-12)
+
+
+def test_table_ocv_matches_the_rational_curve_it_tabulates():
+    """A table sampled from the rational OCV gives the rational model's voltage (to the
+    table's interpolation error)."""
+    soc = np.linspace(0, 1, 201)
+    omb = 1 - TRUTH["beta"]
+    table = ecm.OcvTable.from_points(soc, TRUTH["vnom_v"] * soc / (omb + TRUTH["beta"] * soc))
+    frame = profile_frame()
+    v_rat = simulate(frame, TRUTH)
+    tab_params = {k: v for k, v in TRUTH.items() if k not in ("vnom_v", "beta")}
+    v_tab = simulate(frame, tab_params, ecm.Config(table=table))
+    assert np.max(np.abs(v_tab - v_rat)) < 2e-4
+
+
+def test_config_validates_its_options():
+    with pytest.raises(ValueError, match="third_rc"):
+        ecm.Config(("third_rc",))
+    with pytest.raises(ValueError, match="unknown element"):
+        ecm.Config(("warburg",))
+    with pytest.raises(ValueError, match="butler_volmer"):
+        ecm.Config(("butler_volmer",), load_ohm=1000.0)
+
+
+def _fit(frames, config=ecm.Config(), capacity_ah=None, soc0=None):
+    recs = [ecm.Record.from_frame(f) for f in frames]
+    st0 = fitting.structure(recs, ecm.Config(table=config.table), fix_capacity=capacity_ah is
+                            not None, fix_soc0=soc0 is not None)  # fmt: skip
+    res = fitting.best_of(recs, st0, fitting.base_starts(recs, config, capacity_ah, soc0))
+    X = res.X
+    added = ecm.Config(table=config.table)
+    for e in config.effects:
+        added = added.with_effect(e)
+        st = fitting.structure(recs, added, st0.knots, capacity_ah is not None, soc0 is not None)
+        X = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e)).X
+    return recs, X
+
+
+def test_fit_recovers_base_parameters_noise_free():
+    frame = with_voltage(profile_frame(), TRUTH)
+    _, X = _fit([frame], capacity_ah=TRUTH["capacity_ah"], soc0=TRUTH["soc0"])
+    got = ecm.report(X[0], ecm.Config().names())
+    for key, value in TRUTH.items():
+        assert got[key] == pytest.approx(value, rel=1e-4), key
+
+
+def test_fit_with_an_element_recovers_it():
+    truth = {**TRUTH, **ACTIVE["soc_resistance"]}
+    frame = with_voltage(profile_frame(), truth)
+    _, X = _fit([frame], ecm.Config(("soc_resistance",)), capacity_ah=2.57, soc0=0.95)
+    got = ecm.report(X[0], ecm.Config(("soc_resistance",)).names())
+    assert got["soc_resistance_k"] == pytest.approx(3.0, rel=1e-3)
+    assert got["soc_resistance_sigma"] == pytest.approx(0.3, rel=1e-3)
+
+
+def test_several_records_share_the_cell_and_keep_their_own_start():
+    """Two records of one cell starting at different SOC: one fit recovers the shared
+    parameters and each record's own initial SOC."""
+    a = with_voltage(profile_frame(), {**TRUTH, "soc0": 0.95})
+    b = with_voltage(profile_frame([(200, 0.0), (900, 1.5), (400, 0.0), (600, -1.0), (300, 0.0)]),
+                     {**TRUTH, "soc0": 0.55})  # fmt: skip
+    recs, X = _fit([a, b], capacity_ah=TRUTH["capacity_ah"])
+    assert X[0, ecm.IDX["soc0"]] == pytest.approx(0.95, abs=1e-4)
+    assert X[1, ecm.IDX["soc0"]] == pytest.approx(0.55, abs=1e-4)
+    got = ecm.report(X[0], ("r0", "r1", "ltau1"))
+    for key in ("r0_ohm", "r1_ohm", "tau1_s"):
+        assert got[key] == pytest.approx(TRUTH[key], rel=1e-4), key
+
+
+def test_soc0_rule_inverts_the_ocv_at_the_first_sample():
+    frame = with_voltage(profile_frame([(300, 0.0), (600, 1.0)]), {**TRUTH, "soc0": 0.6})
+    rec = ecm.Record.from_frame(frame)
+    P = ecm.to_physical(ecm.vector(TRUTH))[0]
+    assert ecm.starts_at_rest(rec)
+    assert ecm.soc0_from_voltage(P, rec, ecm.Knots(0, 0.2)) == pytest.approx(0.6, abs=1e-9)
+    # under load the ohmic drop is corrected for
+    loaded = with_voltage(profile_frame([(600, 1.0)]), {**TRUTH, "soc0": 0.6})
+    rec2 = ecm.Record.from_frame(loaded)
+    assert not ecm.starts_at_rest(rec2)
+    assert ecm.soc0_from_voltage(P, rec2, ecm.Knots(0, 0.2)) == pytest.approx(0.6, abs=1e-9)
