@@ -1,5 +1,6 @@
-# Issue 5, "Checked on withheld effects": datasets with one hidden effect (and PyBaMM records and
-# the paper's scenarios), one diagnosis job per record, tables and figures. Optional: without a
+# Issue 5, "Checked on withheld effects": datasets with one hidden effect, with two at once
+# (`gap.pairs`), PyBaMM records and the paper's scenarios; one diagnosis job per record, tables
+# and figures. Optional: without a
 # `gap:` section in the config no rule here runs.
 from functools import partial
 
@@ -45,6 +46,42 @@ if GAP:
         run:
             gap_eval.generate_job(config["base_seed"], GAP, wildcards.profile,
                                   wildcards.replicate, log[0], workers=workflow.cores)
+
+    if GAP_PLAN["pair_names"]:
+
+        rule gap_pair_data:
+            """Every pair of effects (gap.pairs) × its noise levels on one effect-carrying cell."""
+            output:
+                expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
+                       name=GAP_PLAN["pair_names"], ext=("csv", "json")),
+            wildcard_constraints:
+                profile=gap_eval.regex(GAP["profiles"]),
+                replicate=gap_eval.regex(GAP_PLAN["full_replicates"]),
+            log:
+                "logs/gap/data/{profile}/r{replicate}.pairs.log",
+            params:
+                pairs=GAP["pairs"],
+                grid={k: GAP[k] for k in ("noise_mv", "magnitudes")},
+                base_seed=config["base_seed"],
+            run:
+                gap_eval.pair_data_job(config["base_seed"], GAP, wildcards.profile,
+                                       wildcards.replicate, log[0], workers=workflow.cores)
+
+        rule gap_pairs_table:
+            """Two effects at once: per record, both named? anything extra? (pairs.csv)."""
+            input:
+                data=[f"results/gap/data/{r}.json" for r in GAP_PLAN["pair_records"]],
+                diag=[f"results/gap/diagnoses/{r}.json" for r in GAP_PLAN["pair_records"]],
+            output:
+                report("results/gap/pairs.csv", category="Gap diagnosis",
+                       subcategory="Two effects at once"),
+            params:
+                threshold=GAP["threshold"],
+            log:
+                "logs/gap/pairs.log",
+            run:
+                gap_eval.pair_table_job(input.data, input.diag, output[0], GAP["threshold"],
+                                        log[0])
 
     rule gap_paper_data:
         """A paper scenario × case as the main workflow simulates it, to be diagnosed."""
@@ -119,10 +156,11 @@ if GAP:
             gap_eval.table_job(gap_eval.real_record, input.data, input.diag, output[0], log[0])
 
     rule gap_evaluate:
-        """Confusion matrix, accuracy, detection limit, shrink, target check."""
+        """Confusion matrix, accuracy, detection limit, shrink, target check (with the pairs')."""
         input:
             data=[f"results/gap/data/{r}.json" for r in GAP_PLAN["records"]],
             diag=[f"results/gap/diagnoses/{r}.json" for r in GAP_PLAN["records"]],
+            pairs=["results/gap/pairs.csv"] if GAP_PLAN["pair_records"] else [],
         output:
             **{t: report(f"results/gap/{t}.csv", category="Gap diagnosis",
                          subcategory="Withheld effects") for t in gap_eval.TABLES},
@@ -131,7 +169,8 @@ if GAP:
         log:
             "logs/gap/evaluate.log",
         run:
-            gap_eval.evaluate_job(input.data, input.diag, dict(output), GAP["threshold"], log[0])
+            gap_eval.evaluate_job(input.data, input.diag, dict(output), GAP["threshold"], log[0],
+                                  pairs_csv=input.pairs)
 
     rule gap_paper_table:
         """What the paper's scenarios look like to a model without load or fade."""
@@ -167,6 +206,7 @@ if GAP:
             paper="results/gap/paper_scenarios.csv",
             pybamm="results/gap/pybamm.csv",
             real=["results/gap/real.csv"] if GAP_PLAN["real"] else [],
+            pairs=["results/gap/pairs.csv"] if GAP_PLAN["pair_records"] else [],
         output:
             *(report(f"results/gap/figures/{f}.png", category="Gap diagnosis",
                      subcategory="Withheld effects") for f in gap_eval.FIGURES),

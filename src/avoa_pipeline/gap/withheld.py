@@ -223,35 +223,38 @@ def _hysteresis(current, q_ah, gamma, h0):
     return h
 
 
-def simulate(cell: Cell, logged_a: np.ndarray, temp_k: np.ndarray, effect="none", params=None):
-    """Noise-free terminal voltage of ``cell`` (with one effect) for the logged current."""
-    p = params or {}
-    current = logged_a - p["b"] if effect == "current_offset" else logged_a
-    if effect == "coulombic_efficiency":
-        charge = np.where(current < 0, p["eta"] * current, current)
+def simulate(cell: Cell, logged_a: np.ndarray, temp_k: np.ndarray, effects=None):
+    """Noise-free terminal voltage of ``cell`` for the logged current, with ``effects`` (a dict
+    effect -> its :func:`effect_params`; none, one or several, each on its own code path below)."""
+    fx = effects or {}
+    current = logged_a - fx["current_offset"]["b"] if "current_offset" in fx else logged_a
+    if "coulombic_efficiency" in fx:
+        charge = np.where(current < 0, fx["coulombic_efficiency"]["eta"] * current, current)
     else:
         charge = current
     soc = cell.soc0 - np.concatenate([[0.0], np.cumsum(charge[:-1])]) * TS / (3600.0 * cell.q_ah)
     ocv = cell.vnom * soc / (1.0 - cell.beta * (1.0 - soc))
-    if effect == "ocv_shape":
+    if "ocv_shape" in fx:
+        p = fx["ocv_shape"]
         ocv = ocv + p["m"] * sum(
             w * np.tanh((soc - s) / d) for w, s, d in zip(p["w"], p["s"], p["d"], strict=True)
         )
-    if effect == "thermal":
-        factor = np.exp(p["ea"] / R_GAS * (1.0 / temp_k - 1.0 / T_REF_K))
+    if "thermal" in fx:
+        factor = np.exp(fx["thermal"]["ea"] / R_GAS * (1.0 / temp_k - 1.0 / T_REF_K))
     else:
         factor = 1.0
     v = ocv - cell.r0 * factor * current - _rc(current * factor, cell.r1, cell.tau1)
-    if effect == "second_rc":
-        v = v - _rc(current, p["r2"], p["tau2"])
-    elif effect == "hysteresis":
+    if "second_rc" in fx:
+        v = v - _rc(current, fx["second_rc"]["r2"], fx["second_rc"]["tau2"])
+    if "hysteresis" in fx:
+        p = fx["hysteresis"]
         v = v + p["m"] * _hysteresis(current, cell.q_ah, p["gamma"], p["h0"])
-    elif effect == "butler_volmer" and p["eta_1c"] > 0:
+    if "butler_volmer" in fx and fx["butler_volmer"]["eta_1c"] > 0:
         thermal_v = 2.0 * R_GAS * T_REF_K / FARADAY
-        i0 = cell.q_ah / (2.0 * np.sinh(p["eta_1c"] / thermal_v))
+        i0 = cell.q_ah / (2.0 * np.sinh(fx["butler_volmer"]["eta_1c"] / thermal_v))
         v = v - thermal_v * np.arcsinh(current / (2.0 * i0))
-    elif effect == "voltage_offset":
-        v = v + p["c"]
+    if "voltage_offset" in fx:
+        v = v + fx["voltage_offset"]["c"]
     return v
 
 
@@ -287,19 +290,38 @@ def sensor(x, rng, sd, lsb):
 
 
 @functools.lru_cache(maxsize=8)
-def _noise_free(base_seed: int, effect: str, magnitude: float, profile: str, replicate: int):
-    """Everything but the noise (shared by the noise levels of one effect × magnitude)."""
+def _noise_free(base_seed: int, effects: tuple, profile: str, replicate: int):
+    """Everything but the noise (shared by the noise levels of one set of effects), for
+    ``effects`` = ((effect, magnitude), ...): one pair for a single-effect dataset, two for a
+    pair dataset. Each effect's parameters come from its own stream, whatever it is paired with."""
     cell = base_cell(base_seed, profile, replicate)
     logged = c_rate_profile(profile, base_seed, replicate) * cell.q_ah
     temp = temperature_k(cell, logged, base_seed, profile, replicate)
-    params = effect_params(effect, magnitude, base_seed, profile, replicate)
-    v_effect = simulate(cell, logged, temp, effect, params)
+    params = {e: effect_params(e, m, base_seed, profile, replicate) for e, m in effects}
+    v_effect = simulate(cell, logged, temp, {e: p for e, p in params.items() if e != "none"})
     v_control = simulate(cell, logged, temp)
-    if effect == "none" or magnitude == 0:
+    if all(e == "none" or m == 0 for e, m in effects):
         left = v_effect - v_control
     else:
         left = refit_residual(cell, logged, v_effect)
     return cell, logged, temp, params, v_effect, _rms_mv(v_effect - v_control), _rms_mv(left)
+
+
+def _measured(v_effect, logged, temp, base_seed: int, noise_mv: float, profile: str, replicate):
+    """The sensors' readings: the noise stream depends on (seed, profile, replicate, noise level)
+    only, so every dataset of one cell and noise level carries the same noise draw."""
+    rng = seeds.stream(base_seed, "gap-noise", profile, replicate, round(noise_mv * 1000))
+    v_meas = sensor(v_effect, rng, noise_mv * 1e-3, VOLTAGE_LSB_V)
+    i_meas = sensor(logged, rng, CURRENT_NOISE_A, CURRENT_LSB_A)
+    t_meas = sensor(temp - 273.15, rng, TEMPERATURE_NOISE_K, TEMPERATURE_LSB_K)
+    return np.arange(logged.size) * TS, v_meas, i_meas, t_meas
+
+
+SENSOR = {
+    "voltage_lsb_v": VOLTAGE_LSB_V,
+    "current_noise_a": CURRENT_NOISE_A,
+    "current_lsb_a": CURRENT_LSB_A,
+}
 
 
 def make(
@@ -307,13 +329,11 @@ def make(
 ) -> Dataset:
     """One dataset: the base cell of (profile, replicate) with ``effect`` at ``magnitude``."""
     cell, logged, temp, params, v_effect, raw_mv, left_mv = _noise_free(
-        int(base_seed), effect, float(magnitude), profile, int(replicate)
+        int(base_seed), ((effect, float(magnitude)),), profile, int(replicate)
     )
-    rng = seeds.stream(base_seed, "gap-noise", profile, replicate, round(noise_mv * 1000))
-    v_meas = sensor(v_effect, rng, noise_mv * 1e-3, VOLTAGE_LSB_V)
-    i_meas = sensor(logged, rng, CURRENT_NOISE_A, CURRENT_LSB_A)
-    t_meas = sensor(temp - 273.15, rng, TEMPERATURE_NOISE_K, TEMPERATURE_LSB_K)
-    t = np.arange(logged.size) * TS
+    t, v_meas, i_meas, t_meas = _measured(
+        v_effect, logged, temp, base_seed, noise_mv, profile, replicate
+    )
     noise_rmse = _rms_mv(v_meas - v_effect)
     meta = {
         "effect": effect,
@@ -330,14 +350,78 @@ def make(
         "capacity_ah": cell.q_ah,
         "soc0": cell.soc0,
         "cell": cell.as_dict(),
+        "effect_params": copy.deepcopy(params[effect]),
+        "temperature_range_c": [float(t_meas.min()), float(t_meas.max())],
+        "sensor": {"voltage_noise_v": noise_mv * 1e-3, **SENSOR},
+        "seed_keys": [base_seed, profile, replicate],
+        "generator": f"avoa_pipeline {__version__} gap.withheld",
+    }
+    return Dataset(
+        _as_written(t), _as_written(i_meas), _as_written(v_meas), _as_written(t_meas), meta
+    )
+
+
+def pair_effects(magnitudes: dict) -> tuple[str, str]:
+    """The two effects of a pair ``{effect: magnitude, effect: magnitude}``, in the order of
+    :data:`EFFECTS` (so a pair has one name however the config lists it)."""
+    unknown = [e for e in magnitudes if e not in EFFECTS]
+    if unknown:
+        raise ConfigError(
+            f"gap: pair {dict(magnitudes)}: unknown effect {unknown[0]!r}; choose from "
+            f"{', '.join(EFFECTS)}"
+        )
+    if len(magnitudes) != 2:
+        raise ConfigError(f"gap: pair {dict(magnitudes)}: needs exactly two different effects")
+    first, second = sorted(magnitudes, key=EFFECTS.index)
+    return first, second
+
+
+def make_pair(
+    base_seed: int, magnitudes: dict, noise_mv: float, profile: str, replicate: int
+) -> Dataset:
+    """One dataset with two effects at once (``magnitudes`` = {effect: magnitude} of two).
+
+    The cell, profile, temperature and noise are those of the cell's ``none`` control and each
+    effect's parameters those of its single-effect dataset (same streams), so the two
+    single-effect datasets made by :func:`make` at the same magnitudes are this dataset's "each
+    effect alone"; their detectability is recorded under ``alone``.
+    """
+    effects = pair_effects(magnitudes)
+    key = tuple((e, float(magnitudes[e])) for e in effects)
+    cell, logged, temp, params, v_effect, raw_mv, left_mv = _noise_free(
+        int(base_seed), key, profile, int(replicate)
+    )
+    t, v_meas, i_meas, t_meas = _measured(
+        v_effect, logged, temp, base_seed, noise_mv, profile, replicate
+    )
+    noise_rmse = _rms_mv(v_meas - v_effect)
+    alone = {}
+    for effect, mag in key:
+        single = make(base_seed, effect, mag, noise_mv, profile, replicate).meta
+        alone[effect] = {
+            k: single[k]
+            for k in ("magnitude", "raw_residual_mv", "effect_residual_mv", "noise_rmse_mv")
+        }
+        alone[effect]["ratio"] = single["ratio"]
+    meta = {
+        "effects": list(effects),
+        "magnitudes": [m for _, m in key],
+        "magnitude_units": [UNITS[e] for e in effects],
+        "noise_mv": float(noise_mv),
+        "profile": profile,
+        "replicate": int(replicate),
+        "n_samples": int(t.size),
+        "raw_residual_mv": raw_mv,
+        "effect_residual_mv": left_mv,
+        "noise_rmse_mv": noise_rmse,
+        "ratio": left_mv / noise_rmse,
+        "alone": alone,
+        "capacity_ah": cell.q_ah,
+        "soc0": cell.soc0,
+        "cell": cell.as_dict(),
         "effect_params": copy.deepcopy(params),
         "temperature_range_c": [float(t_meas.min()), float(t_meas.max())],
-        "sensor": {
-            "voltage_noise_v": noise_mv * 1e-3,
-            "voltage_lsb_v": VOLTAGE_LSB_V,
-            "current_noise_a": CURRENT_NOISE_A,
-            "current_lsb_a": CURRENT_LSB_A,
-        },
+        "sensor": {"voltage_noise_v": noise_mv * 1e-3, **SENSOR},
         "seed_keys": [base_seed, profile, replicate],
         "generator": f"avoa_pipeline {__version__} gap.withheld",
     }
@@ -382,6 +466,59 @@ def write_batch(base_seed: int, gcfg: dict, profile: str, replicate: int, out_di
         mag = 0.0 if effect == "none" else gcfg["magnitudes"][effect][i]
         ds = make(base_seed, effect, mag, gcfg["noise_mv"][j], profile, int(replicate))
         ds.meta["name"] = name
+        path = Path(out_dir) / f"{name}.csv"
+        write_dataset(ds, path)
+        written.append(path)
+    return written
+
+
+# --- two effects at once -----------------------------------------------------------------------
+
+
+def pair_grid(gcfg: dict) -> list[tuple[str, dict]]:
+    """``(stem, {effect: magnitude, effect: magnitude})`` per entry of ``gap.pairs.magnitudes``;
+    the stem is ``<first>-<second>_m<k>``, k counting the earlier entries of the same two effects
+    (as ``m<i>`` counts an effect's magnitudes)."""
+    out, seen = [], {}
+    for magnitudes in (gcfg.get("pairs") or {}).get("magnitudes", []):
+        effects = pair_effects(magnitudes)
+        k = seen.get(effects, 0)
+        seen[effects] = k + 1
+        out.append((f"{effects[0]}-{effects[1]}_m{k}", {e: magnitudes[e] for e in effects}))
+    return out
+
+
+def pair_names(gcfg: dict, replicate: int) -> list[str]:
+    """The pair datasets of one (profile, replicate): every pair × noise level of ``gap.pairs``
+    (``n<j>`` indexes ``gap.pairs.noise_mv``), on the cells that carry the single-effect grid."""
+    grid = pair_grid(gcfg)
+    if not grid or replicate not in gcfg["replicates"]:
+        return []
+    noise = range(len(gcfg["pairs"]["noise_mv"]))
+    return [f"{stem}_n{j}" for stem, _ in grid for j in noise]
+
+
+def write_pair_batch(
+    base_seed: int, gcfg: dict, profile: str, replicate: int, out_dir
+) -> list[Path]:
+    """Every pair dataset of one (profile, replicate) into ``out_dir`` (CSV + JSON sidecar).
+    ``alone.<effect>.dataset`` names the single-effect dataset of the grid that is the same
+    effect at the same magnitude and noise on this cell, if the grid holds it."""
+    magnitudes_of = dict(pair_grid(gcfg))
+    written = []
+    for name in pair_names(gcfg, int(replicate)):
+        stem, n = name.rsplit("_", 1)
+        noise_mv = gcfg["pairs"]["noise_mv"][int(n[1:])]
+        ds = make_pair(base_seed, magnitudes_of[stem], noise_mv, profile, replicate)
+        ds.meta["name"] = name
+        for effect, alone in ds.meta["alone"].items():
+            mags, noises = list(gcfg["magnitudes"][effect]), list(gcfg["noise_mv"])
+            in_grid = alone["magnitude"] in mags and noise_mv in noises
+            alone["dataset"] = (
+                dataset_name(effect, mags.index(alone["magnitude"]), noises.index(noise_mv))
+                if in_grid
+                else None
+            )
         path = Path(out_dir) / f"{name}.csv"
         write_dataset(ds, path)
         written.append(path)
