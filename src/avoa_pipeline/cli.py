@@ -1,4 +1,4 @@
-"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,diagnose} ...``.
+"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,diagnose,simulate} ...``.
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -18,7 +18,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 from .errors import UserError
-from .names import ALGORITHMS
+from .names import ALGORITHMS, CURRENT_SIGNS
 
 
 class Parser(argparse.ArgumentParser):
@@ -83,13 +83,49 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="CSV of runs; a .md summary goes beside it")
     r.add_argument("--config", default=None)
 
-    d = sub.add_parser("diagnose", help="sim-to-real gap diagnosis of a measured record")
+    d = sub.add_parser("diagnose", help="sim-to-real gap diagnosis of a cell's measured records")
     d.add_argument(
-        "data", help="CSV: time_s, current_a (A, + discharge), voltage_v[, temperature_c]"
+        "data",
+        nargs="+",
+        help="training CSV(s) of one cell: time_s, current_a (A, + discharge), "
+        "voltage_v[, temperature_c]; several are fitted together (shared cell parameters)",
     )
-    d.add_argument("--out", required=True, help="folder for diagnosis.json and diagnosis.png")
+    d.add_argument(
+        "--out", required=True, help="folder for diagnosis.json, diagnosis.png and model.json"
+    )
+    d.add_argument(
+        "--ocv",
+        default=None,
+        help="the cell's OCV: a slow test (≤ C/10, canonical columns) or a table soc,ocv_v",
+    )
+    d.add_argument(
+        "--validate",
+        nargs="+",
+        default=[],
+        metavar="TEST.csv",
+        help="records of the same cell never used for any choice; predicted by every "
+        "model of the ladder",
+    )
     d.add_argument("--capacity-ah", type=_float("capacity-ah"), default=None)
     d.add_argument("--soc0", type=_float("soc0"), default=None, help="initial SOC in [0, 1]")
+    d.add_argument(
+        "--current-sign",
+        choices=CURRENT_SIGNS,
+        default=CURRENT_SIGNS[0],
+        help="the files' convention (default: positive current = discharge)",
+    )
+
+    s = sub.add_parser("simulate", help="predict a record of the cell with a diagnosis's model")
+    s.add_argument("model", help="model.json written by diagnose")
+    s.add_argument("data", help="CSV: time_s, current_a, voltage_v[, temperature_c]")
+    s.add_argument("--out", required=True, help="CSV: time_s, voltage_v, model_v, error_mv")
+    s.add_argument(
+        "--soc0",
+        type=_float("soc0"),
+        default=None,
+        help="initial SOC (default: from the first voltage, the library's rule)",
+    )
+    s.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     return p
 
 
@@ -155,21 +191,75 @@ def cmd_diagnose(args) -> None:
 
     from .gap import diagnose, figure
     from .io import atomic_path
+    from .model import ocv
 
-    frame = diagnose.read_record(args.data)
-    report, arrays = diagnose.run(frame, args.capacity_ah, args.soc0, source=str(args.data))
+    if args.soc0 is not None and len(args.data) > 1:
+        raise UserError("--soc0 gives one record's initial SOC; leave it out with several records")
+    # every input is read and checked before any fit, so bad input costs no time
+    frames = [diagnose.read_record(p, args.current_sign) for p in args.data]
+    table = ocv.read(args.ocv) if args.ocv else None
+    tests = {
+        str(p): diagnose.read_record(p, args.current_sign, min_samples=2) for p in args.validate
+    }
+    report, arrays, model = diagnose.run(
+        frames,
+        args.capacity_ah,
+        args.soc0,
+        source=[str(p) for p in args.data],
+        ocv_table=table,
+        validate=tests,
+        current_sign="discharge-positive",
+    )  # the records are already in the canonical sign
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     out = Path(args.out)
-    # both files or neither: the figure is drawn into its temporary first; a failure there
+    # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either
-    with atomic_path(out / "diagnosis.png") as png, atomic_path(out / "diagnosis.json") as js:
+    with (
+        atomic_path(out / "diagnosis.png") as png,
+        atomic_path(out / "diagnosis.json") as js,
+        atomic_path(out / "model.json") as mj,
+    ):
         figure.render(report, arrays, png)
         js.write_text(text)
+        mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
     v = report["verdict"]
     print(
-        f"{args.data}: verdict {v['effect']}"
+        f"{', '.join(args.data)}: verdict {v['effect']}"
         + (f" (held-out shrink {v['shrink']:.1%})" if v["effect"] != "none" else "")
-        + f"; wrote {out / 'diagnosis.json'}, {out / 'diagnosis.png'}"
+        + f"; selected {report['selected']['name']}; wrote {out / 'diagnosis.json'}, "
+        f"{out / 'diagnosis.png'}, {out / 'model.json'}"
+    )
+
+
+def cmd_simulate(args) -> None:
+    import numpy as np
+    import pandas as pd
+
+    from .gap import diagnose
+    from .io import atomic_path
+    from .model.fitted import FittedModel
+
+    model = FittedModel.load(args.model)
+    frame = diagnose.read_record(args.data, args.current_sign, min_samples=2)
+    if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
+        raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
+    if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
+        raise UserError(f"{args.data}: missing column 'temperature_c' (the model is thermal)")
+    v = model.simulate(frame, soc0=args.soc0)
+    out = pd.DataFrame(
+        {
+            "time_s": frame["time_s"],
+            "voltage_v": frame["voltage_v"],
+            "model_v": v,
+            "error_mv": 1e3 * (v - frame["voltage_v"].to_numpy()),
+        }
+    )
+    with atomic_path(args.out) as tmp:
+        out.to_csv(tmp, index=False)
+    rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
+    print(
+        f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV; "
+        f"wrote {args.out}"
     )
 
 
@@ -181,6 +271,7 @@ def main(argv=None) -> int:
             "generate": cmd_generate,
             "recovery": cmd_recovery,
             "diagnose": cmd_diagnose,
+            "simulate": cmd_simulate,
         }
         commands[args.command](args)
     except UserError as exc:

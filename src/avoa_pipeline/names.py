@@ -2,3 +2,6 @@
 
 ALGORITHMS = ("nelder_mead", "quasi_newton", "ga", "gwo", "run", "avoa", "gto")
 """The paper's seven algorithms, in the column order of its Tables 4-24."""
+
+CURRENT_SIGNS = ("discharge-positive", "charge-positive")
+"""The two cycler conventions for the current's sign; the pipeline's own is the first."""

@@ -3,6 +3,7 @@ its neutral values and acts away from them, elements stack, fits recover known p
 record and several at once)."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pandas as pd
@@ -169,7 +170,8 @@ def test_config_validates_its_options():
         ecm.Config(("butler_volmer",), load_ohm=1000.0)
 
 
-def _fit(frames, config=ecm.Config(), capacity_ah=None, soc0=None):
+def _fit(frames, config=None, capacity_ah=None, soc0=None):
+    config = config or ecm.Config()
     recs = [ecm.Record.from_frame(f) for f in frames]
     st0 = fitting.structure(recs, ecm.Config(table=config.table), fix_capacity=capacity_ah is
                             not None, fix_soc0=soc0 is not None)  # fmt: skip
@@ -206,7 +208,7 @@ def test_several_records_share_the_cell_and_keep_their_own_start():
     a = with_voltage(profile_frame(), {**TRUTH, "soc0": 0.95})
     b = with_voltage(profile_frame([(200, 0.0), (900, 1.5), (400, 0.0), (600, -1.0), (300, 0.0)]),
                      {**TRUTH, "soc0": 0.55})  # fmt: skip
-    recs, X = _fit([a, b], capacity_ah=TRUTH["capacity_ah"])
+    _, X = _fit([a, b], capacity_ah=TRUTH["capacity_ah"])
     assert X[0, ecm.IDX["soc0"]] == pytest.approx(0.95, abs=1e-4)
     assert X[1, ecm.IDX["soc0"]] == pytest.approx(0.55, abs=1e-4)
     got = ecm.report(X[0], ("r0", "r1", "ltau1"))
@@ -225,3 +227,55 @@ def test_soc0_rule_inverts_the_ocv_at_the_first_sample():
     rec2 = ecm.Record.from_frame(loaded)
     assert not ecm.starts_at_rest(rec2)
     assert ecm.soc0_from_voltage(P, rec2, ecm.Knots(0, 0.2)) == pytest.approx(0.6, abs=1e-9)
+
+
+def test_fit_without_capacity_or_soc0_matches_voltage_and_dynamics():
+    """Capacity, SOC0, Vnom and β trade off over a partial SOC range; R0, R1, τ1 do not."""
+    frame = with_voltage(profile_frame(), TRUTH)
+    recs, X = _fit([frame])
+    v = ecm.simulate_rows(recs[0], X[0], ecm.Knots(0, 0.2))[:, 0]
+    assert 1e3 * np.sqrt(np.mean((v - frame["voltage_v"].to_numpy()) ** 2)) < 1e-2
+    got = ecm.report(X[0], ("r0", "r1", "ltau1"))
+    for key in ("r0_ohm", "r1_ohm", "tau1_s"):
+        assert got[key] == pytest.approx(TRUTH[key], rel=1e-3), key
+
+
+@pytest.mark.parametrize("soc", [0.0, 0.05, 0.5, 0.93, 1.0])
+def test_closed_form_soc0_equals_the_numeric_rule(soc):
+    """The rational OCV's closed-form inverse is the same rule as the numeric one."""
+    P = ecm.to_physical(ecm.vector(TRUTH))[0]
+    target = float(ecm.ocv_values(P, np.array([soc]), ecm.Knots(0, 0.2), None)[0])
+    assert ecm.rational_soc0(P[ecm.VNOM], P[ecm.OMB], target)[0] == pytest.approx(soc, abs=1e-12)
+    P2 = P.copy()
+    P2[ecm.D0 + 1] = 1e-12  # a (negligible) correction forces the numeric path
+    frame = pd.DataFrame({"time_s": [0.0, 1.0], "current_a": [0.0, 0.0],
+                          "voltage_v": [target, target]})  # fmt: skip
+    rec = ecm.Record.from_frame(frame)
+    assert ecm.soc0_from_voltage(P2, rec, ecm.Knots(0, 0.2)) == pytest.approx(soc, abs=1e-8)
+
+
+def test_fitted_model_round_trip_and_prediction(tmp_path):
+    """fit_model → model.json → load → predict another record of the cell from its rest
+    voltage; a hand-edited value out of its bounds and another format version are refused."""
+    from avoa_pipeline.errors import DataError
+    from avoa_pipeline.model.fitted import FittedModel, fit_model
+
+    truth = {**TRUTH, "soc0": 0.8, **ACTIVE["second_rc"]}
+    frame = with_voltage(profile_frame(), truth)
+    fit = fit_model(frame, ecm.Config(("second_rc",)), capacity_ah=2.57, soc0=0.8)
+    assert fit.train_rmse_mv < 1e-3
+    path = tmp_path / "model.json"
+    fit.model.save(path)
+    loaded = FittedModel.load(path)
+    other = profile_frame([(200, 0.0), (900, 1.5), (400, 0.0), (600, -1.0), (300, 0.0)])
+    other = with_voltage(other, {**truth, "soc0": 0.6})
+    np.testing.assert_allclose(loaded.simulate(other), fit.model.simulate(other), atol=1e-12)
+    assert np.sqrt(np.mean((loaded.simulate(other) - other["voltage_v"].to_numpy()) ** 2)) < 1e-4
+    d = json.loads(path.read_text())
+    d["parameters"]["r0_ohm"] = 5.0
+    with pytest.raises(DataError, match=r"parameters\.r0_ohm.*outside"):
+        FittedModel.from_json(d, "m.json")
+    d = json.loads(path.read_text())
+    d["format_version"] = 99
+    with pytest.raises(DataError, match="format_version"):
+        FittedModel.from_json(d, "m.json")

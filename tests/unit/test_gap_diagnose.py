@@ -6,11 +6,12 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from test_gap_models import TRUTH, profile_frame, with_voltage
+from test_ecm import TRUTH, profile_frame, with_voltage
 
+from avoa_pipeline import selection
 from avoa_pipeline.cli import main
-from avoa_pipeline.gap import EFFECTS, VERDICTS, diagnose, figure
-from avoa_pipeline.gap import models as M
+from avoa_pipeline.gap import diagnose, diagnoses, figure
+from avoa_pipeline.model import ecm
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +36,13 @@ def test_report_keys_and_json(base_report):
         assert {"region", "share", "rmse_mv"} <= region.keys()
     groups = {reg["group"] for reg in r["localization"]}
     assert {"mode", "direction", "since_step", "soc", "current", "temperature"} <= groups
-    assert sorted(c["effect"] for c in r["candidates"]) == sorted(EFFECTS)
+    assert sorted(c["effect"] for c in r["candidates"]) == sorted(ecm.EFFECTS)
     for c in r["candidates"]:
-        assert {"effect", "heldout_rmse_mv", "shrink", "delta_bic"} <= c.keys()
-    assert r["verdict"]["effect"] in VERDICTS
+        if c["applicable"]:
+            assert {"effect", "heldout_rmse_mv", "shrink", "delta_bic"} <= c.keys()
+    skipped = {c["effect"]: c["reason"] for c in r["candidates"] if not c["applicable"]}
+    assert skipped == {"third_rc": "needs second_rc first"}  # the profile has charge and T
+    assert r["verdict"]["effect"] in diagnoses()
     assert sum(reg["share"] for reg in r["localization"] if reg["group"] == "mode") == (
         pytest.approx(1.0)
     )
@@ -47,8 +51,8 @@ def test_report_keys_and_json(base_report):
 
 def test_thermal_needs_a_varying_temperature():
     frame = with_voltage(profile_frame(temperature=False), TRUTH, noise_v=1e-3)
-    rec = M.Record.from_frame(frame)
-    assert diagnose.applicable(rec, "thermal") == (False, "no temperature_c column")
+    rec = ecm.Record.from_frame(frame)
+    assert selection.applicable([rec], "thermal") == (False, "no temperature_c column")
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +145,8 @@ def test_missing_file_is_one_line(tmp_path, capsys):
 
 def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
     path = _csv(tmp_path, _good())
-    monkeypatch.setattr(diagnose, "run", lambda *a, **k: ({"verdict": {"effect": "none"}}, {}))
+    fake = ({"verdict": {"effect": "none"}}, {}, None)
+    monkeypatch.setattr(diagnose, "run", lambda *a, **k: fake)
 
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")
@@ -161,7 +166,7 @@ def test_diagnose_rejects_a_frame_in_milliamperes():
 
 
 def test_noise_floor_ignores_smooth_misfit():
-    rec = M.Record.from_frame(_good())
+    rec = ecm.Record.from_frame(_good())
     rng = np.random.default_rng(0)
     smooth = 0.005 * np.sin(rec.t / 300.0)
     est = diagnose.noise_floor(rec, smooth + 0.002 * rng.standard_normal(rec.n))
@@ -170,35 +175,36 @@ def test_noise_floor_ignores_smooth_misfit():
 
 def test_frame_input_accepts_no_temperature():
     frame = _good().drop(columns="temperature_c")
-    checked = diagnose.validate(frame, "f")
+    checked = diagnose.check(frame, "f")
     assert list(checked.columns) == ["time_s", "current_a", "voltage_v"]
     assert isinstance(checked, pd.DataFrame)
 
 
 @pytest.mark.parametrize("per_fold", [1, 4])
-def test_folds_partition_the_record_and_batches_stay_in_blocks(per_fold):
-    n = 2003
-    folds = diagnose.folds_of(n, 5, per_fold)
-    assert len(folds) == 5
-    np.testing.assert_array_equal(np.sort(np.concatenate(folds)), np.arange(n))
-    blocks = diagnose.blocks_of(n, 5, per_fold)
-    block_of = np.empty(n, dtype=int)
-    for j, b in enumerate(blocks):
-        block_of[b] = j
-    for batch in diagnose.batches_of(n, 5, per_fold):
+@pytest.mark.parametrize("sizes", [[2003], [2003, 997]])
+def test_folds_partition_every_record_and_batches_stay_in_blocks(per_fold, sizes):
+    lay = selection.Layout.of(sizes, 5, per_fold)
+    n = sum(sizes)
+    assert len(lay.folds) == 5
+    np.testing.assert_array_equal(np.sort(np.concatenate(lay.folds)), np.arange(n))
+    for fold in lay.folds:  # every fold holds out part of every record
+        assert all(part.size > 0 for part in lay.split(fold))
+    record_of = np.repeat(np.arange(len(sizes)), sizes)
+    for batch in lay.batches:
         assert np.all(np.diff(batch) == 1)  # contiguous
-        assert len(set(block_of[batch])) == 1
+        assert len(set(record_of[batch])) == 1
+    assert len(lay.batches) == len(sizes) * 5 * selection.BATCHES_PER_FOLD
 
 
 def test_loss_tests_see_a_systematic_gain_and_ignore_noise():
     rng = np.random.default_rng(0)
     n = 5000
-    batches = diagnose.batches_of(n)
+    batches = selection.Layout.of([n]).batches
     a = rng.standard_normal(n) ** 2
-    same = diagnose.batch_rank_test(a, rng.standard_normal(n) ** 2, batches)[1]
-    better = diagnose.batch_rank_test(a, 0.8 * a, batches)[1]
+    same = selection.batch_rank_test(a, rng.standard_normal(n) ** 2, batches)[1]
+    better = selection.batch_rank_test(a, 0.8 * a, batches)[1]
     assert same > 0.01
     assert better < 1e-6
-    t, _, se = diagnose.loss_test(a, 0.8 * a, batches)
+    t, _, se = selection.loss_test(a, 0.8 * a, batches)
     assert t > 10
     assert se > 0

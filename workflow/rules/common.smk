@@ -110,7 +110,7 @@ PAN_TESTS = sorted({n.split("/")[1] for n in PANASONIC})
 PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
 PAN_OUT = "results/real/panasonic"
 PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
-PAN_GAP = bool(PAN_EXP.get("gap", True)) and real_dc.gap_available()
+PAN_GAP = bool(PAN_EXP.get("gap", True))
 
 
 def pan_sources(w):

@@ -1,69 +1,52 @@
-"""Sim-to-real gap diagnosis: where the paper's model misses a record, which effect it lacks, how
-much adding it helps (issue 5; the method, its thresholds and their reasons: docs/gap-diagnosis.md).
+"""Sim-to-real gap diagnosis: where a model misses the training records, which unmodelled effect
+it lacks, how much adding it helps, and the model a user should take (the method, its thresholds
+and their reasons: docs/gap-diagnosis.md).
 
-1. Base fit: the paper's model (``models.py``) with wide bounds, multi-start least squares.
+1. Base fit: the model library's base (``model/ecm.py``): the paper's rational OCV with free Vnom,
+   β, capacity and initial SOC, or with ``--ocv`` the cell's measured OCV plus an offset; R0 and
+   one RC branch. Several training records of one cell are fitted together (shared cell
+   parameters, each record its own initial state).
 2. Where: the base residual's energy by operating region, against a noise floor estimated from
    the residual's sample-to-sample differences where the current holds still.
-3. Which: every effect of :data:`EFFECTS` added to the base, refitted, and judged on data it was
-   not fitted on: k contiguous blocks in time, each held out in turn (the state is simulated
-   through the whole record; only the held-out block is scored). A candidate *pays* when
-   (a) it removes at least MIN_SHRINK of the held-out squared error, (b) by more than noise
-   explains: the per-batch mean loss differential passes a batch-means t-test (Diebold–Mariano)
-   or a signed-rank test, one-sided, Bonferroni over both tests and the candidates at family
-   level ALPHA, and (c) its full-record fit has ΔBIC < BIC_MAX. Among those that pay, the largest
-   held-out shrink wins, unless a candidate with fewer parameters is within one standard error
-   of it (the one-standard-error rule).
-4. How far: held-out error before and after, overall and in the gap's region; then the ladder adds
-   effects greedily by the same rule until none pays.
+3. Which, how far, and the ladder: every element of ``ecm.EFFECTS`` that the data can show,
+   judged on held-out data by the one selection method (``avoa_pipeline.selection``).
+4. The selected model (the ladder's last rung) is written as ``model.json``; records passed for
+   validation are predicted by every rung of the ladder and never enter any choice.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .. import __version__
+from .. import __version__, selection
 from ..errors import DataError, UserError
 from ..io import read_measurement
-from . import EFFECTS
-from . import models as M
+from ..model import ecm, fitting
+from ..model.ecm import Config, Knots, Record
+from ..model.fitted import FittedModel
+from ..names import CURRENT_SIGNS
 
 MIN_SAMPLES = 2000
-"""Shorter records cannot be split into five held-out blocks long enough to hold a relaxation."""
+"""Shorter records cannot be split into the held-out blocks long enough to hold a relaxation."""
 MAX_CURRENT_A = 100.0
 """|I| (99th percentile) above this is taken for milliamperes: the pipeline models single cells."""
 MAX_C_RATE = 50.0
 """With a given capacity, a 99th-percentile current above 50 C is taken for milliamperes."""
 VOLTAGE_RANGE_V = (0.5, 6.0)
 """Cell voltages outside this are taken for a wrong unit (mV) or a pack."""
-
-N_FOLDS = 5
-BLOCKS_PER_FOLD = 4
-"""Contiguous blocks per fold: the record is cut into N_FOLDS × 4 = 20 blocks and fold j holds
-blocks j, j + 5, j + 10, j + 15, so each held-out block lies between training data. With one
-block per fold (a fifth of the record), a record that visits each SOC once makes every model
-extrapolate in SOC, where capacity, SOC0, Vnom and β are not identifiable: the held-out error was
-dominated by that, whatever the effect (a 40 mV hysteresis fitted to the noise on the full record
-but lost to ocv_shape held out). The price: a candidate can carry a slow misfit from the
-neighbouring blocks into the held-out one (docs/gap-diagnosis.md)."""
-BATCHES_PER_FOLD = 20
-ALPHA = 0.05
-BIC_MAX = -10.0
-MIN_SHRINK = 0.05
-"""A candidate must remove at least this share of the held-out ISE: a significant but smaller
-gain is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 % passed the
-tests). A true effect whose base residual is r (in noise RMS units) can remove up to
-r²/(1 + r²): 5 % bites only below r ≈ 0.23, far under the 1.5 the validation targets."""
 REGION_MIN_SHARE = 0.02
 TIME_WINDOWS = 20
 UNEXPLAINED_RATIO = 1.2  # base RMSE / noise floor above which a `none` verdict says a gap remains
 STEP_FRACTION = 0.1  # a current step: |ΔI| above this fraction of the 99th-percentile |I|
-REST_FRACTION = 0.02  # at rest: |I| below this fraction of the 99th-percentile |I|
+REST_FRACTION = ecm.REST_FRACTION  # at rest: |I| below this fraction of the 99th-percentile |I|
+SIGN_MAX_DT_S = 60.0
+"""Steps for the sign check lie between samples at most this far apart: over longer logging gaps
+the OCV drifts and the step says less about the ohmic response."""
 
 # trimmed standard deviation of a normal (1 % per tail) relative to the untrimmed one
 _Z_TRIM = stats.norm.ppf(0.99)
@@ -74,10 +57,11 @@ _TRIM_SD = float(stats.truncnorm(-_Z_TRIM, _Z_TRIM).std())
 # input
 
 
-def validate(
-    frame: pd.DataFrame, source: str, capacity_ah: float | None = None, soc0: float | None = None
-) -> pd.DataFrame:
-    """Checks beyond the CSV reader's: length, units, options. One-line DataError/UserError."""
+def check(frame: pd.DataFrame, source: str, capacity_ah: float | None = None,
+          soc0: float | None = None, current_sign: str = "discharge-positive",
+          min_samples: int = MIN_SAMPLES) -> pd.DataFrame:  # fmt: skip
+    """Checks beyond the CSV reader's: length, units, options, the current's sign. One-line
+    DataError/UserError."""
     if not isinstance(frame, pd.DataFrame):
         raise DataError(f"{source}: not a table ({type(frame).__name__})")
     for col in ("time_s", "current_a", "voltage_v"):
@@ -93,8 +77,8 @@ def validate(
             raise DataError(f"{source}: column {col!r} row {k + 2}: missing or not a finite number")
         out[col] = values
     df = pd.DataFrame(out, columns=cols)
-    if len(df) < MIN_SAMPLES:
-        raise DataError(f"{source}: {len(df)} samples; the diagnosis needs at least {MIN_SAMPLES}")
+    if len(df) < min_samples:
+        raise DataError(f"{source}: {len(df)} samples; the diagnosis needs at least {min_samples}")
     dt = np.diff(df["time_s"].to_numpy())
     if (dt <= 0).any():
         k = int(np.flatnonzero(dt <= 0)[0]) + 1
@@ -124,20 +108,55 @@ def validate(
             f"{source}: column 'voltage_v': values {v.min():g}..{v.max():g} outside "
             f"{lo:g}..{hi:g} V of one cell (mV given?)"
         )
-    return df
+    return apply_current_sign(df, source, current_sign)
 
 
-def read_record(path: str | Path) -> pd.DataFrame:
-    """The validated record of a CSV (time_s, current_a, voltage_v[, temperature_c])."""
+def read_record(path: str | Path, current_sign: str = "discharge-positive",
+                min_samples: int = MIN_SAMPLES) -> pd.DataFrame:  # fmt: skip
+    """The checked record of a CSV (time_s, current_a, voltage_v[, temperature_c])."""
     df = read_measurement(path, min_samples=2)
-    return validate(df, str(path))
+    return check(df, str(path), current_sign=current_sign, min_samples=min_samples)
+
+
+def step_resistance(frame: pd.DataFrame) -> tuple[float, int]:
+    """Median −ΔV/ΔI over the record's current steps (Ω) and their number; (nan, 0) without one.
+
+    With positive current = discharge, a step up in current pulls the voltage down (the ohmic
+    drop), so the value is a positive resistance; a record written charge-positive gives a
+    negative one."""
+    i = frame["current_a"].to_numpy()
+    di = np.diff(i)
+    dv = np.diff(frame["voltage_v"].to_numpy())
+    dt = np.diff(frame["time_s"].to_numpy())
+    i99 = float(np.quantile(np.abs(i), 0.99))
+    steps = (np.abs(di) >= STEP_FRACTION * i99) & (dt <= SIGN_MAX_DT_S) & (i99 > 0)
+    if not steps.any():
+        return float("nan"), 0
+    return float(np.median(-dv[steps] / di[steps])), int(steps.sum())
+
+
+def apply_current_sign(frame: pd.DataFrame, source: str, current_sign: str) -> pd.DataFrame:
+    """The record with positive current = discharge; DataError if the voltage says otherwise."""
+    if current_sign not in CURRENT_SIGNS:
+        raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
+    if current_sign == "charge-positive":
+        frame = frame.assign(current_a=-frame["current_a"])
+    r, n = step_resistance(frame)
+    if n and not r > 0:
+        other = CURRENT_SIGNS[1 - CURRENT_SIGNS.index(current_sign)]
+        raise DataError(
+            f"{source}: column 'current_a': the voltage rises with positive current (median "
+            f"step -dV/dI {1e3 * r:.1f} mOhm over {n} steps), so the file is not "
+            f"{current_sign}; rerun with --current-sign {other}"
+        )
+    return frame
 
 
 # ----------------------------------------------------------------------------------------------
 # pieces
 
 
-def noise_floor(rec: M.Record, resid: np.ndarray) -> float:
+def noise_floor(rec: Record, resid: np.ndarray) -> float:
     """Voltage noise RMS (V) from the residual's differences where the current holds still.
 
     White noise of RMS σ gives differences of RMS σ√2; the model's smooth misfit adds almost
@@ -155,145 +174,11 @@ def noise_floor(rec: M.Record, resid: np.ndarray) -> float:
     return float(np.std(kept) / _TRIM_SD / np.sqrt(2.0))
 
 
-def blocks_of(n: int, k: int = N_FOLDS, per_fold: int | None = None) -> list[np.ndarray]:
-    """The record cut into k × BLOCKS_PER_FOLD contiguous blocks of equal length."""
-    per_fold = BLOCKS_PER_FOLD if per_fold is None else per_fold
-    return np.array_split(np.arange(n), k * per_fold)
-
-
-def folds_of(n: int, k: int = N_FOLDS, per_fold: int | None = None) -> list[np.ndarray]:
-    """Fold j holds blocks j, j + k, j + 2k, ...: every fold samples the whole record."""
-    blocks = blocks_of(n, k, per_fold)
-    return [np.concatenate(blocks[j::k]) for j in range(k)]
-
-
-def batches_of(n: int, k: int = N_FOLDS, per_fold: int | None = None) -> list[np.ndarray]:
-    """BATCHES_PER_FOLD batches per fold, none across a block boundary."""
-    blocks = blocks_of(n, k, per_fold)
-    per_block = max(1, BATCHES_PER_FOLD * k // len(blocks))
-    return [b for blk in blocks for b in np.array_split(blk, per_block) if b.size]
-
-
-def loss_test(loss_a: np.ndarray, loss_b: np.ndarray, batches) -> tuple[float, float, float]:
-    """Is ``loss_b`` lower than ``loss_a``? Batch-means t (Diebold–Mariano), one-sided p, SE.
-
-    Returns (t, p, se) for the mean per-sample difference a − b; se is that mean's standard error.
-    """
-    d = loss_a - loss_b
-    means = np.array([d[b].mean() for b in batches])
-    sizes = np.array([b.size for b in batches], dtype=float)
-    mean = float(np.sum(means * sizes) / sizes.sum())
-    se = float(np.std(means, ddof=1) / np.sqrt(means.size))
-    if se == 0:
-        return (np.inf if mean > 0 else 0.0), (0.0 if mean > 0 else 1.0), 0.0
-    t = mean / se
-    return float(t), float(stats.t.sf(t, means.size - 1)), se
-
-
-def batch_rank_test(loss_a: np.ndarray, loss_b: np.ndarray, batches) -> tuple[float, float]:
-    """Is ``loss_b`` systematically lower than ``loss_a``? Wilcoxon signed-rank test on the
-    batch means of a − b, one-sided; returns (share of batches where b is lower, p).
-
-    Robust where the t-test is not: one block of the record that no model can predict (an
-    extrapolation to a region only that block visits) swamps a mean and its variance, but moves
-    a rank test by its few batches only.
-    """
-    d = np.array([(loss_a[b] - loss_b[b]).mean() for b in batches])
-    if not np.any(d != 0):
-        return 0.0, 1.0
-    p = stats.wilcoxon(d, alternative="greater", zero_method="zsplit").pvalue
-    return float(np.mean(d > 0)), float(p)
-
-
-def bic(rss: float, n: int, k: int) -> float:
-    return float(n * np.log(rss / n) + k * np.log(n))
-
-
-@dataclass
-class ModelRun:
-    """One model structure: full fit, its voltage, and its blocked-CV held-out voltage."""
-
-    st: M.Structure
-    x: np.ndarray
-    v: np.ndarray
-    rss: float
-    ho: np.ndarray | None = None  # held-out model voltage (each sample from the fit without it)
-    fold_x: list | None = None
-
-    @property
-    def k(self) -> int:
-        return len(self.st.free)
-
-
-class _Context:
-    def __init__(self, rec, capacity_ah, soc0):
-        self.rec = rec
-        self.fix_q = capacity_ah is not None
-        self.fix_s = soc0 is not None
-        self.folds = folds_of(rec.n)
-        self.batches = batches_of(rec.n)
-        self.fits = 0
-
-    def structure(self, effects, knots):
-        return M.structure(self.rec, effects, knots, self.fix_q, self.fix_s)
-
-    def run(self, st, x) -> ModelRun:
-        v = M.simulate_rows(self.rec, x[None, :], st.knots)[:, 0]
-        return ModelRun(st, x, v, float(np.sum((v - self.rec.v) ** 2)))
-
-    def fit(self, st, starts) -> ModelRun:
-        self.fits += len(starts)
-        return self.run(st, M.best_of(self.rec, st, starts).x)
-
-    def cross_validate(self, mr: ModelRun) -> ModelRun:
-        ho = np.empty(self.rec.n)
-        fold_x = []
-        for f in self.folds:
-            mask = np.ones(self.rec.n, dtype=bool)
-            mask[f] = False
-            idx = M.fit_indices(self.rec.n, mask, M.MAX_FIT_POINTS)
-            st = mr.st
-            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC only
-                st = replace(st, knots=M.knots_for(self.rec, mr.x, mask))
-            # warm start from the full fit: the optimum of the training objective is what is
-            # scored; starting nearby only saves iterations
-            res = M.fit_structure(self.rec, st, mr.x, idx, max_nfev=100)
-            self.fits += 1
-            ho[f] = M.simulate_rows(self.rec, res.x[None, :], st.knots)[f, 0]
-            fold_x.append(res.x)
-        mr.ho, mr.fold_x = ho, fold_x
-        return mr
-
-    def ho_loss(self, mr: ModelRun) -> np.ndarray:
-        return (mr.ho - self.rec.v) ** 2
-
-
-def _neutralise(x: np.ndarray, effects) -> np.ndarray:
-    y = x.copy()
-    for e in effects:
-        for n in M.EFFECT_PARAMS[e]:
-            y[M.IDX[n]] = M.NEUTRAL[M.IDX[n]]
-    return y
-
-
-def applicable(rec: M.Record, effect: str) -> tuple[bool, str]:
-    if effect == "thermal" and not rec.temperature_varies:
-        why = (
-            "no temperature_c column"
-            if rec.temp_c is None
-            else (f"temperature_c spans less than {M.THERMAL_MIN_RANGE_C:g} °C")
-        )
-        return False, why
-    if effect == "coulombic_efficiency" and not (rec.i < -REST_FRACTION * rec.imax()).any():
-        return False, "no charge current"
-    return True, ""
-
-
 # ----------------------------------------------------------------------------------------------
 # where
 
 
-def region_masks(rec: M.Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
+def region_masks(rec: Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
     """(group, region, mask) for every operating region of the localization."""
     imax = rec.imax()
     a = np.abs(rec.i)
@@ -330,7 +215,7 @@ def region_masks(rec: M.Record, soc: np.ndarray) -> list[tuple[str, str, np.ndar
     return out
 
 
-def time_since_step(rec: M.Record) -> np.ndarray:
+def time_since_step(rec: Record) -> np.ndarray:
     """Seconds since the last current step (the record's start counts as one)."""
     step = np.abs(np.diff(rec.i)) > STEP_FRACTION * rec.imax()
     last = np.zeros(rec.n, dtype=int)
@@ -390,7 +275,7 @@ def gap_region(regions: list[dict], n: int) -> dict:
 # why: residual signatures
 
 
-def signatures(rec, resid, soc, runs: dict, base: ModelRun, regions_of) -> dict:
+def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of) -> dict:
     """Per effect: what the base residual looks like where that effect would act."""
     imax = rec.imax()
     rest = np.abs(rec.i) <= REST_FRACTION * imax
@@ -473,7 +358,7 @@ def signatures(rec, resid, soc, runs: dict, base: ModelRun, regions_of) -> dict:
         "acts": "SOC falls behind after charging: rest residual against charge put in",
         "rest_trend_mv_per_ah_charged": _slope(charged[rest], resid[rest]),
     }
-    t_mean, _, _ = loss_test(resid, np.zeros_like(resid), regions_of)
+    t_mean, _, _ = selection.loss_test(resid, np.zeros_like(resid), regions_of)
     out["voltage_offset"] = {
         "acts": "everywhere the same shift",
         "mean_residual_mv": mv * float(np.mean(resid)),
@@ -505,120 +390,159 @@ def _last_direction(rec):
 
 
 # ----------------------------------------------------------------------------------------------
-# which: judge candidates against a reference model
-
-
-def judge(ctx: _Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]:
-    """Held-out comparison of each candidate against ``ref`` (both cross-validated)."""
-    n = ctx.rec.n
-    loss_ref = ctx.ho_loss(ref)
-    ise_ref = float(loss_ref.sum())
-    bic_ref = bic(ref.rss, n, ref.k)
-    m = max(1, len(cands))
-    out = []
-    for e, c in cands.items():
-        row = {
-            "effect": e,
-            "n_params": c.k - ref.k,
-            "rmse_mv": 1e3 * float(np.sqrt(c.rss / n)),
-            "delta_bic": bic(c.rss, n, c.k) - bic_ref,
-        }
-        if c.ho is None:  # not cross-validated: its full fit already fails the BIC criterion
-            row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
-        else:
-            loss = ctx.ho_loss(c)
-            t, p_mean, _ = loss_test(loss_ref, loss, ctx.batches)
-            wins, p_rank = batch_rank_test(loss_ref, loss, ctx.batches)
-            shrink = 1.0 - float(loss.sum()) / ise_ref
-            # two tests, each at ALPHA / (2 m): the mean test sees a gain confined to a few
-            # batches (an effect that acts only in pulses), the rank test a gain spread over most
-            # batches that one unpredictable block hides from the mean
-            p = min(1.0, 2.0 * min(p_mean, p_rank))
-            row.update(
-                heldout_rmse_mv=1e3 * float(np.sqrt(loss.mean())),
-                shrink=shrink,
-                t=t,
-                p_mean=p_mean,
-                batches_better=wins,
-                p_rank=p_rank,
-                p=p,
-                pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
-            )
-        out.append(row)
-    return out
-
-
-def choose(ctx: _Context, rows: list[dict], cands: dict[str, ModelRun]) -> str | None:
-    """The winner among candidates that pay: largest shrink, or a simpler one within one SE."""
-    paying = [r for r in rows if r["pays"]]
-    if not paying:
-        return None
-    best = max(paying, key=lambda r: r["shrink"])
-    loss_best = ctx.ho_loss(cands[best["effect"]])
-    simpler = []
-    for r in paying:
-        if r["n_params"] < best["n_params"]:
-            t, _, _ = loss_test(ctx.ho_loss(cands[r["effect"]]), loss_best, ctx.batches)
-            if t <= 1.0:  # worse than the best by at most one standard error
-                simpler.append(r)
-    if simpler:
-        best = min(simpler, key=lambda r: (r["n_params"], -r["shrink"]))
-    return best["effect"]
-
-
-def _try_effects(ctx, ref: ModelRun, effects_now: tuple, remaining, cv: bool):
-    """Fit ref + each remaining effect; with ``cv``, cross-validate those that can pay (a full
-    fit with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error)."""
-    cands = {}
-    for e in remaining:
-        st = ctx.structure((*effects_now, e), ref.st.knots)
-        c = ctx.fit(st, M.effect_starts(ctx.rec, ref.x, e))
-        if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
-            c = ctx.run(st, _with_neutral(ref.x, e))
-        if cv and bic(c.rss, ctx.rec.n, c.k) - bic(ref.rss, ctx.rec.n, ref.k) < BIC_MAX:
-            ctx.cross_validate(c)
-        cands[e] = c
-    return cands
-
-
-def _with_neutral(x, effect):
-    return _neutralise(x, (effect,))
-
-
-# ----------------------------------------------------------------------------------------------
 # the diagnosis
 
 
-def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"):
-    """The diagnosis report (JSON-able dict) and the arrays its figure needs."""
+def concat(recs: list[Record]) -> Record:
+    """One record of several, end to end (time made continuous), for the localization and the
+    signatures, which read the residual against current, time and temperature."""
+    if len(recs) == 1:
+        return recs[0]
+    t, start = [], 0.0
+    for r in recs:
+        t.append(r.t - r.t[0] + start)
+        start = t[-1][-1] + float(np.median(r.dt))
+    temps = None
+    if all(r.temp_c is not None for r in recs):
+        temps = np.concatenate([r.temp_c for r in recs])
+    return Record(
+        t=np.concatenate(t), i=np.concatenate([r.i for r in recs]),
+        v=np.concatenate([r.v for r in recs]), temp_c=temps,
+        dt=np.concatenate([r.dt for r in recs]), uniform=False, tref_k=recs[0].tref_k,
+        dinv_t=np.concatenate([r.dinv_t for r in recs]),
+        two_rt_f=np.concatenate([r.two_rt_f for r in recs]),
+        source="+".join(r.source for r in recs),
+    )  # fmt: skip
+
+
+def reference_temperature(frames: list[pd.DataFrame]) -> float | None:
+    """One reference temperature for all training records (the thermal and Butler–Volmer
+    parameters are shared): the mean of every measured sample."""
+    temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
+    return float(np.mean(np.concatenate(temps))) + 273.15 if temps else None
+
+
+def parameters(ctx: selection.Context, run: selection.ModelRun) -> dict:
+    """Report-named parameters of a run: the cell's, then each record's initial state (flat for
+    one record, as ``per_record`` for several)."""
+    fm = fitted_model(ctx, run)
+    out = fm.parameters()
+    states = [ecm.report(run.X[r], run.st.config.names()) for r in range(len(ctx.recs))]
+    per = [{k: v for k, v in s.items() if k in ("soc0", "hysteresis_h0")} for s in states]
+    if len(per) == 1:
+        out.update(per[0])
+    else:
+        out["per_record"] = [
+            {"source": rec.source, **p} for rec, p in zip(ctx.recs, per, strict=True)
+        ]
+    if {"thermal", "butler_volmer"} & set(run.effects):
+        out["tref_k"] = ctx.recs[0].tref_k
+    return out
+
+
+def fitted_model(ctx: selection.Context, run: selection.ModelRun, provenance=None) -> FittedModel:
+    b = fitting.bounds_for(ctx.recs)
+    names = [n for n in run.st.config.names() if not ecm.PARAMS[n].per_record]
+    bounds = {n: b[n] for n in names}
+    if ctx.fix_q:
+        bounds["lq"] = (run.X[0, ecm.IDX["lq"]],) * 2
+    return FittedModel(run.st.config, run.X[0].copy(), run.st.knots, ctx.recs[0].tref_k, bounds,
+                       provenance or {})  # fmt: skip
+
+
+def _errors(model_v: np.ndarray, v: np.ndarray, mask: np.ndarray | None = None) -> dict:
+    e = model_v - v
+    out = {
+        "rmse_mv": 1e3 * float(np.sqrt(np.mean(e**2))),
+        "max_err_mv": 1e3 * float(np.max(np.abs(e))),
+    }
+    if mask is not None:
+        out["rmse_in_training_soc_mv"] = (1e3 * float(np.sqrt(np.mean(e[mask] ** 2)))
+                                          if mask.any() else None)  # fmt: skip
+        out["share_in_training_soc"] = float(np.mean(mask))
+    return out
+
+
+def training_soc_range(ctx: selection.Context, run: selection.ModelRun) -> tuple[float, float]:
+    """The SOC range the training records cover under a model (its own SOC trajectory)."""
+    lo, hi = np.inf, -np.inf
+    for r, rec in enumerate(ctx.recs):
+        _, tr = ecm.simulate_rows(rec, run.X[r], run.st.knots, run.st.config.table, traces=True)
+        lo, hi = min(lo, float(tr[0].min())), max(hi, float(tr[0].max()))
+    return lo, hi
+
+
+def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.DataFrame]):
+    """One row per validation record × model of the ladder: errors over the record and inside
+    the SOC range the training data covered. Nothing here feeds back into any choice."""
+    rows = []
+    for name, run in rungs.items():
+        fm = fitted_model(ctx, run)
+        lo, hi = training_soc_range(ctx, run)
+        for source, frame in frames.items():
+            v, tr = fm.simulate(frame, traces=True)
+            inside = (tr[0] >= lo) & (tr[0] <= hi)
+            rows.append({"record": source, "model": name, "effects": list(run.effects),
+                         "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
+                         "soc0": float(tr[0][0]), "training_soc_range": [lo, hi],
+                         **_errors(v, frame["voltage_v"].to_numpy(), inside)})  # fmt: skip
+    return rows
+
+
+def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=None,
+        current_sign="discharge-positive"):  # fmt: skip
+    """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
+
+    ``frames``: one training record or a list of them (one cell); ``source``: its name or a list
+    of names. ``ocv_table``: the cell's measured OCV (``model.ocv``), or None for the rational
+    curve. ``validate``: {name: frame} of records never used for any choice.
+    """
     t_start = time.perf_counter()
-    frame = validate(frame, source, capacity_ah, soc0)
-    rec = M.Record.from_frame(frame)
-    ctx = _Context(rec, capacity_ah, soc0)
+    frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
+    sources = [source] if isinstance(source, str) else list(source)
+    if len(sources) != len(frames):
+        sources = [f"{sources[0]}[{j}]" for j in range(len(frames))]
+    if soc0 is not None and len(frames) > 1:
+        raise UserError("--soc0 gives one record's initial SOC; with several training records "
+                        "leave it out (each record's is fitted)")  # fmt: skip
+    frames = [
+        check(f, s, capacity_ah, soc0, current_sign) for f, s in zip(frames, sources, strict=True)
+    ]
+    vframes = {s: check(f, s, None, None, current_sign, min_samples=2)
+               for s, f in (validate or {}).items()}  # fmt: skip
+    for s, f in vframes.items():
+        if set(f.columns) != set(frames[0].columns):
+            raise DataError(f"{s}: columns {', '.join(f.columns)} differ from the training "
+                            f"record's {', '.join(frames[0].columns)}")  # fmt: skip
+    tref = reference_temperature(frames)
+    recs = [Record.from_frame(f, tref_k=tref, source=s) for f, s in zip(frames, sources,
+                                                                        strict=True)]  # fmt: skip
+    ctx = selection.Context(recs, ocv_table, capacity_ah, soc0)
+    table = ocv_table
 
     # 1. base fit
-    st_b = ctx.structure((), M.Knots(0.0, 0.2))
-    base = ctx.fit(st_b, M.base_starts(rec, capacity_ah, soc0))
-    st_b.knots = M.knots_for(rec, base.x)
+    st_b = ctx.structure((), Knots(0.0, 0.2))
+    base = ctx.fit(st_b, fitting.base_starts(recs, Config(table=table), capacity_ah, soc0))
+    st_b.knots = fitting.knots_for(recs, base.X)
 
-    # 3a. candidates' full fits (before the CV, so that the base can be re-polished)
-    effects = [e for e in EFFECTS if applicable(rec, e)[0]]
-    cands = _try_effects(ctx, base, (), effects, cv=False)
-    # a candidate whose effect parameters, set back to neutral, fit better than the base found a
-    # better base optimum: refit the base from there (the base must be at its best)
+    # 3a. candidates' fits (before the CV, so that the base can be re-polished)
+    effects = [e for e in ecm.EFFECTS if selection.applicable(recs, e, (), table)[0]]
+    cands = selection.try_effects(ctx, base, effects, cv=False)
+    # a candidate whose element, set back to neutral, fits better than the base found a better
+    # base optimum: refit the base from there (the base must be at its best)
     for e, c in cands.items():
-        xb = _neutralise(c.x, (e,))
-        rb = ctx.run(st_b, xb)
+        rb = ctx.run(st_b, fitting.neutralise(c.X, (e,)))
         if rb.rss < base.rss * (1 - 1e-9):
-            idx = M.fit_indices(rec.n, None, M.MAX_FIT_POINTS)
-            base = ctx.run(st_b, M.fit_structure(rec, st_b, xb, idx).x)
+            idx = fitting.indices(recs, None, fitting.MAX_FIT_POINTS)
+            base = ctx.run(st_b, fitting.fit_structure(recs, st_b, rb.X, idx).X)
     ctx.cross_validate(base)
     for c in cands.values():
         ctx.cross_validate(c)
 
-    resid = rec.v - base.v
-    traj = M.Fitted.build(rec, st_b, base.x).trajectory(rec)
-    soc = traj["soc"]
+    rec = concat(recs)
+    resid = ctx.v - base.v
+    soc = np.concatenate([ecm.simulate_rows(r, base.X[j], st_b.knots, table, traces=True)[1][0]
+                          for j, r in enumerate(recs)])  # fmt: skip
     noise_v = noise_floor(rec, resid)
 
     # 2. where
@@ -626,18 +550,17 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
     gap = gap_region(regions, rec.n)
 
     # 3b. which
-    rows = judge(ctx, base, cands)
+    rows = selection.judge(ctx, base, cands)
     for r in rows:
-        r["params"] = M.Fitted.build(rec, cands[r["effect"]].st, cands[r["effect"]].x).params
-    winner = choose(ctx, rows, cands)
+        r["params"] = parameters(ctx, cands[r["effect"]])
+        r["applicable"] = True
+    winner = selection.choose(ctx, rows, cands)
     skipped = [
-        {"effect": e, "applicable": False, "reason": applicable(rec, e)[1]}
-        for e in EFFECTS
+        {"effect": e, "applicable": False, "reason": selection.applicable(recs, e, (), table)[1]}
+        for e in ecm.EFFECTS
         if e not in cands
     ]
-    for r in rows:
-        r["applicable"] = True
-    sig = signatures(rec, resid, soc, cands, base, ctx.batches)
+    sig = signatures(rec, resid, soc, cands, base, ctx.layout.batches)
 
     # 4. how far, and the ladder
     masks = {name: m for _, name, m in region_masks(rec, soc)}
@@ -648,7 +571,7 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         return 1e3 * float(np.sqrt(loss.mean() if m is None else loss[m].mean()))
 
     verdict = {"effect": "none", "shrink": 0.0}
-    ladder = []
+    ladder, rungs = [], {"base": base}
     final = base
     if winner is not None:
         w = cands[winner]
@@ -666,24 +589,17 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
             "delta_bic": row["delta_bic"],
             "t": row["t"],
         }
-        ladder.append(_ladder_row(ctx, winner, w, base, base, loss_b))
-        final = w
-        added = (winner,)
-        remaining = [e for e in effects if e != winner]
-        while remaining:
-            step = _try_effects(ctx, final, added, remaining, cv=True)
-            step_rows = judge(ctx, final, step)
-            nxt = choose(ctx, step_rows, step)
-            if nxt is None:
-                break
-            ladder.append(_ladder_row(ctx, nxt, step[nxt], final, base, loss_b))
-            final = step[nxt]
-            added = (*added, nxt)
-            remaining = [e for e in remaining if e != nxt]
+        ladder, runs = selection.climb(ctx, base, winner, w, ecm.EFFECTS)
+        for lr, r in zip(ladder, runs, strict=True):
+            lr["parameters"] = parameters(ctx, r)
+            rungs["+".join(r.effects)] = r
+        final = runs[-1]
     else:
-        best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"])
-        verdict["best_candidate"] = best["effect"]
-        verdict["best_candidate_shrink"] = best["shrink"]
+        best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"],
+                   default=None)  # fmt: skip
+        if best is not None:
+            verdict["best_candidate"] = best["effect"]
+            verdict["best_candidate_shrink"] = best["shrink"]
         ratio = float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else np.inf
         verdict["note"] = (
             "the base model fits to about the noise floor"
@@ -691,14 +607,42 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
             else "a misfit beyond the noise floor that no candidate explains on held-out data"
         )
     remaining = float(np.sqrt(ctx.ho_loss(final).mean())) / noise_v if noise_v > 0 else None
+    selected_name = "+".join(final.effects) or "base"
+    model = fitted_model(ctx, final, provenance={
+        "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
+        "training": [{"source": r.source, "n_samples": r.n} for r in recs],
+        "ocv": None if table is None else {"source": table.source, "how": table.how},
+        "package_version": __version__,
+    })  # fmt: skip
 
     report = {
-        "source": source,
+        "source": sources[0] if len(sources) == 1 else sources,
         "n_samples": rec.n,
-        "duration_s": float(rec.t[-1] - rec.t[0]),
+        "duration_s": float(sum(r.t[-1] - r.t[0] for r in recs)),
+        "records": [
+            {
+                "source": r.source,
+                "n_samples": r.n,
+                "starts_at_rest": ecm.starts_at_rest(r),
+                "step_resistance_ohm": step_resistance(f)[0],
+            }
+            for r, f in zip(recs, frames, strict=True)
+        ],
+        "ocv": {"kind": "rational (eq. 5), Vnom and beta free"}
+        if table is None
+        else {
+            "kind": "measured table + fitted offset",
+            "source": table.source,
+            "how": table.how,
+            "capacity_ah": table.capacity_ah,
+        },
         "base": {
-            "model": "paper 1-RC, rational OCV, free capacity and initial SOC",
-            "parameters": M.Fitted.build(rec, st_b, base.x).params,
+            "model": (
+                "1-RC, "
+                + ("rational OCV" if table is None else "measured OCV + offset")
+                + ", free capacity and initial SOC"
+            ),
+            "parameters": parameters(ctx, base),
             "rmse_mv": 1e3 * float(np.sqrt(base.rss / rec.n)),
             "heldout_rmse_mv": heldout_mv(loss_b),
             "noise_floor_mv": 1e3 * noise_v,
@@ -713,21 +657,29 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         "candidates": rows + skipped,
         "verdict": verdict,
         "ladder": ladder,
+        "selected": {
+            "name": selected_name,
+            "effects": list(final.effects),
+            "heldout_rmse_mv": heldout_mv(ctx.ho_loss(final)),
+            "parameters": parameters(ctx, final),
+        },
         "final_heldout_rmse_to_noise": remaining,
         "signatures": sig,
         "method": {
-            "folds": N_FOLDS,
-            "blocks_per_fold": BLOCKS_PER_FOLD,
-            "batches_per_fold": BATCHES_PER_FOLD,
-            "min_shrink": MIN_SHRINK,
-            "alpha_family": ALPHA,
-            "bic_max": BIC_MAX,
-            "fit_points_max": M.MAX_FIT_POINTS,
+            "folds": selection.N_FOLDS,
+            "blocks_per_fold": selection.BLOCKS_PER_FOLD,
+            "batches_per_fold": selection.BATCHES_PER_FOLD,
+            "min_shrink": selection.MIN_SHRINK,
+            "alpha_family": selection.ALPHA,
+            "bic_max": selection.BIC_MAX,
+            "fit_points_max": fitting.MAX_FIT_POINTS,
             "fits": ctx.fits,
         },
         "wall_s": time.perf_counter() - t_start,
         "version": __version__,
     }
+    if vframes:
+        report["validation"] = validation(ctx, rungs, vframes)
     arrays = {
         "t": rec.t,
         "i": rec.i,
@@ -740,30 +692,13 @@ def run(frame: pd.DataFrame, capacity_ah=None, soc0=None, source: str = "<data>"
         "ho_verdict": cands[winner].ho if winner else None,
         "soc": soc,
     }
-    return _jsonable(report), arrays
+    return _jsonable(report), arrays, model
 
 
-def _ladder_row(ctx, effect, run_: ModelRun, prev: ModelRun, base: ModelRun, loss_b):
-    loss = ctx.ho_loss(run_)
-    loss_p = ctx.ho_loss(prev)
-    n = ctx.rec.n
-    return {
-        "effect": effect,
-        "heldout_rmse_mv": 1e3 * float(np.sqrt(loss.mean())),
-        "shrink": 1.0 - float(loss.sum() / loss_p.sum()),
-        "shrink_vs_base": 1.0 - float(loss.sum() / loss_b.sum()),
-        "delta_bic": bic(run_.rss, n, run_.k) - bic(prev.rss, n, prev.k),
-        "effects": list(run_.st.effects),
-        "parameters": M.Fitted.build(ctx.rec, run_.st, run_.x).params,
-    }
-
-
-def diagnose(
-    frame: pd.DataFrame, capacity_ah: float | None = None, soc0: float | None = None,
-    source: str = "<data>",
-) -> dict:  # fmt: skip
-    """The diagnosis of one record (the dict written to diagnosis.json); DataError on bad input."""
-    return run(frame, capacity_ah, soc0, source)[0]
+def diagnose(frame, capacity_ah: float | None = None, soc0: float | None = None,
+             source="<data>", **kw) -> dict:  # fmt: skip
+    """The diagnosis (the dict written to diagnosis.json); DataError on bad input."""
+    return run(frame, capacity_ah, soc0, source, **kw)[0]
 
 
 def _jsonable(obj):

@@ -31,7 +31,7 @@ import pandas as pd
 
 from .. import workflow
 from ..io import atomic_path, write_json, write_log
-from . import EFFECTS, VERDICTS
+from . import EFFECTS, VERDICTS, diagnoses
 
 THRESHOLD = 1.5
 TARGET = 0.9
@@ -191,9 +191,9 @@ def records(files) -> pd.DataFrame:
 
 def with_judgement(df: pd.DataFrame, threshold: float = THRESHOLD) -> pd.DataFrame:
     df = df.copy()
-    unknown = set(df["verdict"]) - set(VERDICTS)
+    unknown = set(df["verdict"]) - set(diagnoses())
     if unknown:
-        raise ValueError(f"verdicts not among {VERDICTS}: {sorted(unknown)}")
+        raise ValueError(f"verdicts not among {diagnoses()}: {sorted(unknown)}")
     df["right"] = df["verdict"] == df["effect"]
     df["detectable"] = (df["effect"] != "none") & (df["ratio"] >= threshold)
     return df
@@ -203,10 +203,11 @@ def with_judgement(df: pd.DataFrame, threshold: float = THRESHOLD) -> pd.DataFra
 
 
 def confusion(df: pd.DataFrame, only=None) -> pd.DataFrame:
-    """Counts of true effect (rows) × verdict (columns), every name present in order."""
+    """Counts of true effect (rows: what the generator withholds) × verdict (columns: what the
+    diagnosis can name), every name present in order."""
     sub = df if only is None else df[only]
     table = pd.crosstab(sub["effect"], sub["verdict"])
-    table = table.reindex(index=list(VERDICTS), columns=list(VERDICTS), fill_value=0)
+    table = table.reindex(index=list(VERDICTS), columns=list(diagnoses()), fill_value=0)
     table.index.name, table.columns.name = "effect", "verdict"
     return table.astype(int)
 
@@ -647,8 +648,9 @@ def fig_confusion(records_df: pd.DataFrame, path) -> None:
                     color="white" if share.iat[i, j] > 0.6 else "black",
                     fontsize=8,
                 )
-        ax.set_xticks(range(len(VERDICTS)), VERDICTS, rotation=60, ha="right", fontsize=8)
-        ax.set_yticks(range(len(VERDICTS)), VERDICTS, fontsize=8)
+        ax.set_xticks(range(len(table.columns)), table.columns, rotation=60, ha="right",
+                      fontsize=8)  # fmt: skip
+        ax.set_yticks(range(len(table.index)), table.index, fontsize=8)
         ax.set_xlabel("verdict")
         ax.set_ylabel("withheld effect")
         ax.set_title(f"{title} (n = {int(table.to_numpy().sum())})", fontsize=10)

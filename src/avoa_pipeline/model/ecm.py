@@ -140,7 +140,7 @@ def element_params(element: str, ocv_kind: str = "rational") -> tuple[str, ...]:
     """Internal names an element adds (``base``: the base model's, which depend on the OCV)."""
     if element == "base":
         base = ("lq", "soc0", "r0", "r1", "ltau1")
-        return (("vnom", "lc") + base) if ocv_kind == "rational" else (*base, "voff")
+        return ("vnom", "lc", *base) if ocv_kind == "rational" else (*base, "voff")
     if element not in EFFECTS:
         raise ValueError(f"unknown element {element!r}; choose from {', '.join(EFFECTS)}")
     return tuple(n for n, p in PARAMS.items() if p.element == element)
@@ -234,9 +234,10 @@ class OcvTable:
     values: np.ndarray
     capacity_ah: float | None = None  # the slow test's capacity, if it came from one
     source: str = ""
+    how: str = ""  # how it was made (which branches, why)
 
     @classmethod
-    def from_points(cls, soc, ocv_v, capacity_ah=None, source="") -> OcvTable:
+    def from_points(cls, soc, ocv_v, capacity_ah=None, source="", how="") -> OcvTable:
         soc = np.asarray(soc, dtype=float)
         v = np.asarray(ocv_v, dtype=float)
         order = np.argsort(soc)
@@ -246,7 +247,7 @@ class OcvTable:
         # strictly increasing: the initial-SOC rule inverts the table
         vals = np.maximum.accumulate(vals) + np.arange(grid.size) * 1e-9
         step = (soc[-1] - soc[0]) / (TABLE_POINTS - 1)
-        return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source)
+        return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source, how)
 
     def grid(self) -> np.ndarray:
         return self.lo + self.step * np.arange(self.values.size)
@@ -602,8 +603,25 @@ def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots,
         return float(ocv_values(p, np.array([s]), knots, table)[0]) - (v0 + p[R0] * g * f0 * i0)
 
     lo, hi = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
+    if table is None and p[KLOW] == 0 and not np.any(p[D0:] != 0):  # closed form
+        t = v0 + p[R0] * f0 * i0 - p[VOFF]
+        return float(rational_soc0(p[VNOM], p[OMB], np.array([t]))[0])
     if gap(lo) >= 0:
         return lo
     if gap(hi) <= 0:
         return hi
     return float(brentq(gap, lo, hi, xtol=1e-10))
+
+
+def rational_soc0(vnom, omb, target) -> np.ndarray:
+    """The SOC in [0, 1] at which the rational OCV (eq. 5) equals ``target``, in closed form,
+    elementwise (vectorised over candidates): s = target·(1 − β) / (Vnom − β·target); clipped
+    to [0, 1]. Where no SOC reaches the target (a non-positive denominator, possible only for
+    β > 1, a curve with a pole inside [0, 1]) the cell is taken as full."""
+    vnom, omb, target = np.broadcast_arrays(
+        *(np.atleast_1d(np.asarray(a, dtype=float)) for a in (vnom, omb, target))
+    )
+    den = vnom - (1.0 - omb) * target
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = target * omb / den
+    return np.clip(np.where(np.isfinite(s) & (den > 0), s, 1.0), 0.0, 1.0)

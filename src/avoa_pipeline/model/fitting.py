@@ -370,8 +370,11 @@ def base_starts(recs, config: Config, capacity_ah=None, soc0=None) -> list[np.nd
             X = np.repeat(x[None, :], len(recs), axis=0)
             for r, rec in enumerate(recs):
                 P = ecm.to_physical(X[r])[0]
-                X[r, IDX["soc0"]] = (soc0 if soc0 is not None else
-                                     ecm.soc0_from_voltage(P, rec, Knots(0, 0.2), config.table))
+                X[r, IDX["soc0"]] = (
+                    soc0
+                    if soc0 is not None
+                    else ecm.soc0_from_voltage(P, rec, Knots(0, 0.2), config.table)
+                )
             starts.append(X)
             continue
         fractions = (0.9, 0.4) if soc0 is None else (None,)

@@ -62,7 +62,7 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
             jobs.circuit_fit_one(cfg, temp, train, tests, ocv, hppc, fits[-1])
             jobs.cross_cycle_one(cfg, temp, fits[-1], {exp["train"][temp]: train, **tests}, ocv,
                                  hppc, out_dir / "cross_cycle" / f"{temp}.csv")  # fmt: skip
-        if exp.get("gap", True) and dc.gap_available():
+        if exp.get("gap", True):
             fits.append(out_dir / "fits" / temp / "gap.json")
             gaps.append(out_dir / "fits" / temp / "gap_predictions.parquet")
             jobs.gap_fit_one(temp, train, tests, fits[-1], gaps[-1])

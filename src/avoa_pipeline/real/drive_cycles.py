@@ -19,7 +19,7 @@ Models (docs/real-data.md says why each):
   scored by blocked cross-validation on the training cycle; ``c20_cv_selected`` is the one with
   the lowest score (chosen without the unseen cycles).
 - ``gap_<effects>``: the model the gap diagnosis (``avoa_pipeline.gap``) recommends for the
-  training cycle, fitted and simulated by ``gap.models`` (rows only when that package is there).
+  training cycle and the models of its ladder (``diagnosis_fits``).
 
 **Initial SOC.** Unknown for a measured record. Every model takes it from the record's first
 sample: the cell rests before each drive cycle, so its first voltage is the OCV less the ohmic
@@ -345,51 +345,45 @@ def c20_fits(cfg: dict, temp: str, train: pd.DataFrame, tests: dict[str, pd.Data
     return out
 
 
-def gap_available() -> bool:
-    try:
-        from ..gap import diagnose, models
-    except ImportError:
-        return False
-    return hasattr(models, "fit") and hasattr(diagnose, "diagnose")
-
-
-def gap_fits(temp: str, train: pd.DataFrame, tests: dict[str, pd.DataFrame], source: str):
-    """The gap diagnosis of the training cycle, then its recommended model (the ladder's last
-    rung's effects) and the base model, fitted and simulated by ``gap.models``."""
-    from ..gap import diagnose, models
+def diagnosis_fits(temp: str, train: dict[str, pd.DataFrame], tests: dict[str, pd.DataFrame],
+                   ocv_table=None, prefix: str = "diagnosis") -> dict:  # fmt: skip
+    """The gap diagnosis of the training records (one cell; with its measured OCV if given), the
+    unseen cycles passed as validation records (never used for any choice). One model per rung
+    of the ladder (``<prefix>_base``, ``<prefix>_<effects>``) and the selected one again as
+    ``<prefix>_selected``; the selected model's predicted voltages and its model.json."""
+    from ..gap import diagnose
 
     t0 = time.perf_counter()
-    diag = diagnose.diagnose(train, source=source)
-    ladder = diag.get("ladder") or []
-    effects = tuple(ladder[-1]["effects"]) if ladder else ()
+    report, _, model = diagnose.run(list(train.values()), source=list(train),
+                                    ocv_table=ocv_table, validate=tests)  # fmt: skip
+    selected = report["selected"]["name"]
     out = {
         "temperature": temp,
-        "verdict": diag.get("verdict"),
+        "prefix": prefix,
+        "train": list(train),
+        "ocv": report["ocv"],
+        "verdict": report["verdict"],
         "ladder": [
-            {"effect": r["effect"], "heldout_rmse_mv": r["heldout_rmse_mv"]} for r in ladder
+            {"effect": r["effect"], "heldout_rmse_mv": r["heldout_rmse_mv"]}
+            for r in report["ladder"]
         ],
-        "recommended_effects": list(effects),
+        "selected": selected,
+        "selected_heldout_rmse_mv": report["selected"]["heldout_rmse_mv"],
         "diagnose_wall_s": time.perf_counter() - t0,
         "models": {},
         "predictions": {},
+        "model": model.to_json(),
     }
-    for eff in {(), effects}:
-        name = "gap_" + ("+".join(eff) if eff else "base")
-        t1 = time.perf_counter()
-        fitted = models.fit(train, effects=eff)
-        rec = {
-            "effects": list(eff),
-            "params": {k: float(v) for k, v in fitted.params.items()},
-            "train_rmse_mv": float(fitted.rmse_mv),
-            "wall_s": time.perf_counter() - t1,
-            "recommended": eff == effects,
-            "cycles": {},
-        }
-        for cycle, frame in tests.items():
-            v = np.asarray(fitted.simulate(frame), dtype=float)
-            rec["cycles"][cycle] = errors_mv(v, frame)
-            out["predictions"].setdefault(name, {})[cycle] = v
-        out["models"][name] = rec
+    for row in report["validation"]:
+        names = [f"{prefix}_{row['model']}"] + ([f"{prefix}_selected"]
+                                                if row["model"] == selected else [])  # fmt: skip
+        for name in names:
+            m = out["models"].setdefault(name, {"effects": row["effects"], "cycles": {},
+                                                "train_rmse_mv": None})  # fmt: skip
+            keys = ("rmse_mv", "max_err_mv", "rmse_in_training_soc_mv", "share_in_training_soc")
+            m["cycles"][row["record"]] = {k: row[k] for k in keys}
+    for cycle, frame in tests.items():
+        out["predictions"].setdefault(f"{prefix}_selected", {})[cycle] = model.simulate(frame)
     return out
 
 

@@ -100,7 +100,8 @@ def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None
     from . import drive_cycles
 
     train = _frames({"train": train_csv})["train"]
-    rec = drive_cycles.gap_fits(temp, train, _frames(tests), source=str(train_csv))
+    rec = drive_cycles.diagnosis_fits(temp, {str(train_csv): train}, _frames(tests),
+                                      prefix="gap")  # fmt: skip
     preds = rec.pop("predictions")
     rows = [
         pd.DataFrame({"temperature": temp, "cycle": cycle, "model": model, "model_v": v})
@@ -115,7 +116,7 @@ def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None
         f"{m} " + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
         for m, r in rec["models"].items()
     )
-    write_log(log, f"{temp}: recommended {rec['recommended_effects']}; {per_model} mV; "
+    write_log(log, f"{temp}: selected {rec['selected']}; {per_model} mV; "
                    f"diagnosis {rec['diagnose_wall_s']:.0f} s")  # fmt: skip
 
 
@@ -162,7 +163,7 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
                 table = circuits.model_table(m, read_ocv(ocv_csv))
                 v = circuits.simulate(m["params"], frame, table, m["effects"])
                 traces.append(pd.DataFrame({**base, "model": "c20_cv_selected", "model_v": v}))
-            elif "recommended_effects" not in rec:
+            elif "prefix" not in rec:
                 for name, m in rec["models"].items():
                     v = dc.c20_simulate(m["params"], frame, ocv)
                     traces.append(pd.DataFrame({**base, "model": name, "model_v": v}))

@@ -1,0 +1,196 @@
+"""A fitted model of one cell: its configuration, parameters, OCV table and bounds; saved as
+``model.json``, loaded with checks, and run on any record of the cell.
+
+The initial SOC of a record comes from the library's one rule (``ecm.soc0_from_voltage``: the
+OCV at the first sample, corrected for the ohmic drop; hysteresis state 0), or is given.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from ..errors import DataError
+from . import ecm
+from . import ocv as ocv_mod
+from .ecm import IDX, Config, Knots, Record
+
+FORMAT = "avoa-pipeline-model"
+FORMAT_VERSION = 1
+
+
+@dataclass
+class FittedModel:
+    config: Config
+    x: np.ndarray  # internal vector of the cell (per-record entries: those of the first record)
+    knots: Knots
+    tref_k: float
+    bounds: dict[str, tuple[float, float]]  # internal names → the fit's bounds
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(n for n in self.config.names() if not ecm.PARAMS[n].per_record)
+
+    def parameters(self) -> dict[str, float]:
+        """Report-named physical values of the cell's parameters (initial states left out)."""
+        out = ecm.report(self.x, self.names)
+        if "ocv_shape" in self.config.effects:
+            d = ecm.to_physical(self.x)[0, ecm.D0 :]
+            for j, s in enumerate(self.knots.grid()):
+                out[f"ocv_knot{j}_soc"] = float(s)
+                out[f"ocv_d{j}_v"] = float(d[j])
+        return out
+
+    def record(self, frame: pd.DataFrame) -> Record:
+        return Record.from_frame(frame, tref_k=self.tref_k)
+
+    def initial_soc(self, rec: Record) -> float:
+        x = self.x.copy()
+        x[IDX["h0"]] = 0.0
+        return ecm.soc0_from_voltage(ecm.to_physical(x)[0], rec, self.knots, self.config.table)
+
+    def simulate(self, frame: pd.DataFrame, soc0: float | None = None, traces: bool = False):
+        """Model voltage for ``frame`` (a record of the same cell); with ``traces`` also the
+        (5, n) state traces (SOC, h, RC voltage, thermal factor, current)."""
+        rec = self.record(frame)
+        x = self.x.copy()
+        x[IDX["h0"]] = 0.0
+        x[IDX["soc0"]] = self.initial_soc(rec) if soc0 is None else float(soc0)
+        res = ecm.simulate_rows(rec, x, self.knots, self.config.table, self.config.load_ohm,
+                                traces=traces)  # fmt: skip
+        return (res[0][:, 0], res[1]) if traces else res[:, 0]
+
+    # ------------------------------------------------------------------------------------------
+
+    def to_json(self) -> dict:
+        return {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "package_version": __version__,
+            "ocv": self.config.ocv_kind,
+            "effects": list(self.config.effects),
+            "load_ohm": self.config.load_ohm,
+            "parameters": self.parameters(),
+            "bounds": {ecm.PARAMS[n].report: self._physical_bounds(n) for n in self.names},
+            "knots": {"lo": self.knots.lo, "step": self.knots.step},
+            "tref_k": self.tref_k,
+            "ocv_table": None if self.config.table is None else ocv_mod.to_json(self.config.table),
+            "capacity_ah": float(10.0 ** self.x[IDX["lq"]]),
+            "provenance": self.provenance,
+        }
+
+    def _physical_bounds(self, name: str) -> list[float]:
+        lo, hi = self.bounds[name]
+        t = ecm.PARAMS[name].transform
+        if t == "log10":
+            return [10.0**lo, 10.0**hi]
+        if t == "log10_1m":
+            return sorted([1.0 - 10.0**lo, 1.0 - 10.0**hi])
+        return [lo, hi]
+
+    def save(self, path) -> None:
+        from ..io import atomic_path
+
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n")
+
+    @classmethod
+    def from_json(cls, d: dict, source: str = "model.json") -> FittedModel:
+        """A saved model, checked: its format and version, known elements, every parameter of
+        the configuration present, finite and inside the bounds it was fitted in."""
+        if not isinstance(d, dict) or d.get("format") != FORMAT:
+            raise DataError(f"{source}: field 'format': not an {FORMAT} file")
+        if d.get("format_version") != FORMAT_VERSION:
+            raise DataError(f"{source}: field 'format_version': {d.get('format_version')!r}; this "
+                            f"version ({__version__}) reads version {FORMAT_VERSION}")  # fmt: skip
+        try:
+            table = ocv_mod.from_json(d["ocv_table"]) if d.get("ocv") == "table" else None
+            config = Config(tuple(d["effects"]), table, d.get("load_ohm"))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"{source}: field 'effects'/'ocv': {exc}") from None
+        params, bounds_rep = d.get("parameters") or {}, d.get("bounds") or {}
+        x = ecm.NEUTRAL.copy()
+        bounds = {}
+        for n in config.names():
+            p = ecm.PARAMS[n]
+            if p.per_record:
+                continue
+            rep = p.report
+            if rep not in params or rep not in bounds_rep:
+                raise DataError(f"{source}: field 'parameters.{rep}': missing")
+            value = params[rep]
+            lo, hi = bounds_rep[rep]
+            if not (isinstance(value, int | float) and np.isfinite(value)):
+                raise DataError(f"{source}: field 'parameters.{rep}': not a finite number")
+            tol = 1e-9 * max(1.0, abs(hi - lo))
+            if not lo - tol <= value <= hi + tol:
+                raise DataError(f"{source}: field 'parameters.{rep}': {value:g} outside the "
+                                f"bounds it was fitted in [{lo:g}, {hi:g}]")  # fmt: skip
+            x[IDX[n]] = ecm.internal_value(rep, value)[1]
+            bounds[n] = tuple(sorted((ecm.internal_value(rep, lo)[1],
+                                      ecm.internal_value(rep, hi)[1])))  # fmt: skip
+        knots = Knots(float(d["knots"]["lo"]), float(d["knots"]["step"]))
+        return cls(config, x, knots, float(d["tref_k"]), bounds, d.get("provenance") or {})
+
+    @classmethod
+    def load(cls, path) -> FittedModel:
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise DataError(f"{path}: no such file") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise DataError(f"{path}: not JSON ({exc})") from None
+        return cls.from_json(d, str(path))
+
+
+@dataclass
+class Fit:
+    """A configuration fitted to records: the model, each record's rows, the training RMSE."""
+
+    model: FittedModel
+    X: np.ndarray  # per-record internal rows (each record's initial state in its own row)
+    train_rmse_mv: float
+    nfev: int
+
+
+def fit_model(frames, config: Config, capacity_ah: float | None = None,
+              soc0: float | None = None, provenance: dict | None = None) -> Fit:  # fmt: skip
+    """Fit ``config`` to one or several records of one cell: the base by multi-start least
+    squares, then the configuration's elements one at a time, each started from the previous
+    fit (as the diagnosis's ladder adds them). Shared cell parameters, each record its own
+    initial state; one reference temperature (the mean over all records)."""
+    from . import fitting
+
+    frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
+    temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
+    tref = float(np.mean(np.concatenate(temps))) + 273.15 if temps else None
+    recs = [Record.from_frame(f, tref_k=tref) for f in frames]
+    base_cfg = Config((), config.table, config.load_ohm)
+    fix_q, fix_s = capacity_ah is not None, soc0 is not None
+    st = fitting.structure(recs, base_cfg, fix_capacity=fix_q, fix_soc0=fix_s)
+    res = fitting.best_of(recs, st, fitting.base_starts(recs, base_cfg, capacity_ah, soc0))
+    knots = fitting.knots_for(recs, res.X)
+    nfev, X, now = res.nfev, res.X, base_cfg
+    for e in config.effects:
+        now = now.with_effect(e)
+        st = fitting.structure(recs, now, knots, fix_q, fix_s)
+        res = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
+        nfev, X = nfev + res.nfev, res.X
+    st = fitting.structure(recs, config, knots, fix_q, fix_s)
+    b = fitting.bounds_for(recs)
+    bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
+    if fix_q:
+        bounds["lq"] = (X[0, IDX["lq"]],) * 2
+    sq, n = 0.0, 0
+    for r, rec in enumerate(recs):
+        v = ecm.simulate_rows(rec, X[r], knots, config.table, config.load_ohm)[:, 0]
+        sq, n = sq + float(np.sum((v - rec.v) ** 2)), n + rec.n
+    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {})
+    return Fit(model, X, 1e3 * float(np.sqrt(sq / n)), nfev)
