@@ -118,3 +118,20 @@ def uniform_step(path, time_s: np.ndarray, rtol: float = 1e-6) -> float:
     if np.max(np.abs(dt - ts)) > rtol * max(ts, 1.0):
         raise DataError(f"{path}: column 'time_s': not uniformly sampled (resample first)")
     return ts
+
+
+def step_resistance(time_s, current_a, voltage_v, min_step_a: float,
+                    max_dt_s: float = np.inf) -> tuple[float, int]:  # fmt: skip
+    """The current's sign, read from the voltage: median −ΔV/ΔI (Ω) over the current steps of at
+    least ``min_step_a`` between samples at most ``max_dt_s`` apart, and their number; (nan, 0)
+    without one. With positive current = discharge a step up in current pulls the voltage down
+    (ohmic drop, and over a longer step the falling OCV too), so a record in the pipeline's sign
+    gives a positive resistance and one written charge-positive a negative one. The one check
+    behind every importer and the diagnosis."""
+    di = np.diff(np.asarray(current_a, dtype=float))
+    dv = np.diff(np.asarray(voltage_v, dtype=float))
+    dt = np.diff(np.asarray(time_s, dtype=float))
+    steps = (np.abs(di) >= min_step_a) & (dt <= max_dt_s) & (min_step_a > 0)
+    if not steps.any():
+        return float("nan"), 0
+    return float(np.median(-dv[steps] / di[steps])), int(steps.sum())

@@ -208,3 +208,94 @@ def test_loss_tests_see_a_systematic_gain_and_ignore_noise():
     t, _, se = selection.loss_test(a, 0.8 * a, batches)
     assert t > 10
     assert se > 0
+
+
+def test_charge_positive_record_is_refused_with_the_fix(tmp_path, capsys):
+    """A record whose voltage rises with positive current is the other cycler convention: one
+    line naming the flag that fixes it; with the flag the same file is accepted."""
+    flipped = _good().assign(current_a=lambda f: -f["current_a"])
+    path = _csv(tmp_path, flipped)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "current_a" in err
+    assert "--current-sign charge-positive" in err
+    assert not out.exists()
+    checked = diagnose.check(flipped, "f", current_sign="charge-positive")
+    np.testing.assert_array_equal(checked["current_a"], _good()["current_a"])
+
+
+def _slow_test(rate_c=0.05, capacity=2.57, charge_ah=None):
+    """A discharge at ``rate_c`` from full to empty, a rest, a charge back (of ``charge_ah``)."""
+    i = rate_c * capacity
+    n_d = int(3600 / rate_c)
+    n_c = int(3600 * (charge_ah or capacity) / i)
+    cur = np.concatenate([np.zeros(60), np.full(n_d, i), np.zeros(600), np.full(n_c, -i)])
+    t = np.arange(cur.size, dtype=float)
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": np.zeros_like(t)})
+    truth = {**TRUTH, "soc0": 1.0}
+    return with_voltage(frame, truth)
+
+
+def test_ocv_from_a_slow_test_recovers_the_cells_curve(tmp_path):
+    """Both branches of a C/20 test, averaged: the OCV within the ohmic and RC drop that the
+    averaging cancels to first order; the capacity from the discharge branch."""
+    from avoa_pipeline.model import ocv
+
+    path = _csv(tmp_path, _slow_test(), "c20.csv")
+    table = ocv.read(path)
+    assert "mean of the discharge" in table.how
+    assert table.capacity_ah == pytest.approx(2.57, rel=1e-3)
+    P = ecm.to_physical(ecm.vector(TRUTH))[0]
+    soc = np.linspace(0.1, 0.9, 9)
+    true = ecm.ocv_values(P, soc, ecm.Knots(0, 0.2), None)
+    assert np.max(np.abs(table(soc) - true)) < 2e-3
+    # a charge cut short: its branch spans another SOC range, so the discharge goes alone
+    short = ocv.read(_csv(tmp_path, _slow_test(charge_ah=2.0), "c20s.csv"))
+    assert short.how.startswith("discharge branch alone")
+
+
+def test_bad_ocv_and_validation_inputs_are_one_line_errors(tmp_path, capsys):
+    good = _csv(tmp_path, _good())
+    fast = _csv(tmp_path, _slow_test(rate_c=1.0), "fast.csv")
+    other = _csv(tmp_path, _good().drop(columns="temperature_c"), "other.csv")
+    neither = tmp_path / "neither.csv"
+    neither.write_text("a,b\n1,2\n3,4\n")
+    cases = [
+        (["--ocv", str(fast)], "no slow branch"),
+        (["--ocv", str(neither)], "need columns 'soc', 'ocv_v'"),
+        (["--validate", str(other)], "differ from the training"),
+    ]
+    for extra, word in cases:
+        out = tmp_path / "out"
+        assert main(["diagnose", str(good), "--out", str(out), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        assert word in err, err
+        assert not out.exists()
+
+
+def test_simulate_predicts_from_model_json_and_refuses_a_tampered_one(second_rc_run, tmp_path,
+                                                                      capsys):  # fmt: skip
+    report, out = second_rc_run
+    model = json.loads((out / "model.json").read_text())
+    assert model["effects"] == report["selected"]["effects"] == ["second_rc"]
+    data = _csv(tmp_path, with_voltage(profile_frame(), {**TRUTH, "r2_ohm": 0.01,
+                                                          "tau2_s": 1000.0}, seed=5))  # fmt: skip
+    pred = tmp_path / "pred.csv"
+    assert main(["simulate", str(out / "model.json"), str(data), "--out", str(pred)]) == 0
+    got = pd.read_csv(pred)
+    assert list(got.columns) == ["time_s", "voltage_v", "model_v", "error_mv"]
+    assert len(got) == len(pd.read_csv(data))
+    assert np.sqrt(np.mean(got["error_mv"] ** 2)) < 2.0  # the same cell: about the noise
+    capsys.readouterr()
+    model["parameters"]["r2_ohm"] = -1.0
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(model))
+    pred2 = tmp_path / "pred2.csv"
+    assert main(["simulate", str(bad), str(data), "--out", str(pred2)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "r2_ohm" in err
+    assert not pred2.exists()

@@ -25,7 +25,7 @@ from scipy import stats
 
 from .. import __version__, selection
 from ..errors import DataError, UserError
-from ..io import read_measurement
+from ..io import read_measurement, step_resistance
 from ..model import ecm, fitting
 from ..model.ecm import Config, Knots, Record
 from ..model.fitted import FittedModel
@@ -118,21 +118,12 @@ def read_record(path: str | Path, current_sign: str = "discharge-positive",
     return check(df, str(path), current_sign=current_sign, min_samples=min_samples)
 
 
-def step_resistance(frame: pd.DataFrame) -> tuple[float, int]:
-    """Median −ΔV/ΔI over the record's current steps (Ω) and their number; (nan, 0) without one.
-
-    With positive current = discharge, a step up in current pulls the voltage down (the ohmic
-    drop), so the value is a positive resistance; a record written charge-positive gives a
-    negative one."""
-    i = frame["current_a"].to_numpy()
-    di = np.diff(i)
-    dv = np.diff(frame["voltage_v"].to_numpy())
-    dt = np.diff(frame["time_s"].to_numpy())
-    i99 = float(np.quantile(np.abs(i), 0.99))
-    steps = (np.abs(di) >= STEP_FRACTION * i99) & (dt <= SIGN_MAX_DT_S) & (i99 > 0)
-    if not steps.any():
-        return float("nan"), 0
-    return float(np.median(-dv[steps] / di[steps])), int(steps.sum())
+def step_resistance_of(frame: pd.DataFrame) -> tuple[float, int]:
+    """``io.step_resistance`` of a record, over steps of at least STEP_FRACTION of its
+    99th-percentile |I| between samples at most SIGN_MAX_DT_S apart."""
+    i99 = float(np.quantile(np.abs(frame["current_a"].to_numpy()), 0.99))
+    return step_resistance(frame["time_s"], frame["current_a"], frame["voltage_v"],
+                           STEP_FRACTION * i99, SIGN_MAX_DT_S)  # fmt: skip
 
 
 def apply_current_sign(frame: pd.DataFrame, source: str, current_sign: str) -> pd.DataFrame:
@@ -141,7 +132,7 @@ def apply_current_sign(frame: pd.DataFrame, source: str, current_sign: str) -> p
         raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
     if current_sign == "charge-positive":
         frame = frame.assign(current_a=-frame["current_a"])
-    r, n = step_resistance(frame)
+    r, n = step_resistance_of(frame)
     if n and not r > 0:
         other = CURRENT_SIGNS[1 - CURRENT_SIGNS.index(current_sign)]
         raise DataError(
@@ -624,7 +615,7 @@ def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, va
                 "source": r.source,
                 "n_samples": r.n,
                 "starts_at_rest": ecm.starts_at_rest(r),
-                "step_resistance_ohm": step_resistance(f)[0],
+                "step_resistance_ohm": step_resistance_of(f)[0],
             }
             for r, f in zip(recs, frames, strict=True)
         ],

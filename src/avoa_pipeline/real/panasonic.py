@@ -48,6 +48,7 @@ import scipy.io
 from scipy.interpolate import PPoly, make_interp_spline
 
 from ..errors import ConfigError, DataError
+from ..io import step_resistance
 from . import canonical
 
 FIELDS = ("TimeStamp", "Time", "Current", "Voltage", "Ah", "Battery_Temp_degC")
@@ -143,26 +144,16 @@ def wall_clock(df: pd.DataFrame, path) -> np.ndarray:
 # --- sign -----------------------------------------------------------------------------------
 
 
-def step_resistance(time_s, current, voltage, min_step_a: float = 0.1, max_dt_s: float = 600.0):
-    """Median ΔV/ΔI over current steps between consecutive samples (Ω, in the current's sign).
-
-    Positive when the current is positive = charge (voltage rises with it). ``nan`` when the
-    record holds no step of at least ``min_step_a``. Steps across a logging interval of up to
-    ``max_dt_s`` count (the SOC-step files log every 60-300 s): from rest into a discharge both
-    the ohmic drop and the falling OCV lower the voltage, into a charge both raise it.
-    """
-    di = np.diff(np.asarray(current, dtype=float))
-    dv = np.diff(np.asarray(voltage, dtype=float))
-    dt = np.diff(np.asarray(time_s, dtype=float))
-    steps = (np.abs(di) >= min_step_a) & (dt <= max_dt_s)
-    if not steps.any():
-        return float("nan"), 0
-    return float(np.median(dv[steps] / di[steps])), int(steps.sum())
+SIGN_MAX_DT_S = 600.0
+"""Sign-check steps may span a logging interval of up to 10 min: the SOC-step files log every
+60-300 s, and from rest into a discharge both the ohmic drop and the falling OCV lower the
+voltage, into a charge both raise it."""
 
 
 def check_sign(df: pd.DataFrame, path, min_step_a: float = 0.1) -> dict:
     """Check that the source's current is negative = discharge; DataError if the voltage says no."""
-    r, n = step_resistance(df["Time"], df["Current"], df["Voltage"], min_step_a)
+    # the source writes discharge as negative: its negation is in the pipeline's sign
+    r, n = step_resistance(df["Time"], -df["Current"], df["Voltage"], min_step_a, SIGN_MAX_DT_S)
     if n == 0:
         raise DataError(
             f"{path}: field 'meas.Current': no step of {min_step_a} A or more to check its sign "
@@ -473,7 +464,6 @@ __all__ = [
     "read_mat",
     "records",
     "resample",
-    "step_resistance",
     "trim_leading_rest",
     "wall_clock",
 ]

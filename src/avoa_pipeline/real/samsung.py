@@ -20,7 +20,7 @@ import pandas as pd
 
 from ..config import REPO_ROOT
 from ..errors import ConfigError, DataError
-from ..io import read_csv
+from ..io import read_csv, step_resistance
 from . import canonical
 
 SOURCE_COLUMNS = ("current", "voltage", "temperature", "soc")
@@ -59,17 +59,16 @@ def check_current_sign(
     current must pull the terminal voltage down, so −ΔV/ΔI is a positive resistance. ``column``
     and ``declared`` (the source's documented convention) only shape the message.
     """
-    d_i = np.diff(current_a)
-    d_v = np.diff(voltage_v)
-    big = np.abs(d_i) >= SIGN_STEP_FRACTION * np.max(np.abs(current_a))
-    if not big.any() or np.max(np.abs(current_a)) == 0:
+    i_max = float(np.max(np.abs(current_a))) if len(current_a) else 0.0
+    r, n = step_resistance(np.arange(len(current_a)), current_a, voltage_v,
+                           SIGN_STEP_FRACTION * i_max)  # fmt: skip
+    if n == 0:
         raise DataError(f"{source}: column {column!r}: no current step to check its sign against")
-    r = float(np.median(-d_v[big] / d_i[big]))
     if not r > 0:
         raise DataError(
             f"{source}: column {column!r}: sign contradicts the voltage response (the voltage "
             f"rises when the discharge current rises; median step -dV/dI = {r * 1e3:.1f} mOhm over "
-            f"{int(big.sum())} steps); expected {declared}"
+            f"{n} steps); expected {declared}"
         )
     return r
 
