@@ -119,9 +119,16 @@ def test_pulse_fit_recovers_known_rc_parameters():
     rng = np.random.default_rng(1)
     ts = 1.0
     current = np.r_[0.0, np.full(10, 3.0), np.zeros(180)]
-    q = np.r_[0.0, np.cumsum(current[:-1])] * ts / 3600
     truth = (3.9, 0.030, 0.015, 22.0)
-    v = arrhenius.rc_voltage(truth, current, q, 0.3, ts) + rng.normal(0, 2e-4, current.size)
+    q = np.r_[0.0, np.cumsum(current[:-1])] * ts / 3600  # charge out before each sample
+    # eq. 3 written out: the RC input enters one sample late
+    a = np.exp(-ts / truth[3])
+    vtr = np.zeros(current.size)
+    for k in range(1, current.size):
+        vtr[k] = a * vtr[k - 1] + truth[2] * (1 - a) * current[k - 1]
+    exact = truth[0] - 0.3 * q - truth[1] * current - vtr
+    np.testing.assert_allclose(arrhenius.rc_voltage(truth, current, 0.3, ts), exact, atol=1e-12)
+    v = exact + rng.normal(0, 2e-4, current.size)
     fit = arrhenius.fit_pulse(current, v, ts, 0.3, r0_guess=0.035)
     assert fit["r0_fit_ohm"] == pytest.approx(truth[1], rel=0.02)
     assert fit["rtr_ohm"] == pytest.approx(truth[2], rel=0.05)

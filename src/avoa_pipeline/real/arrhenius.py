@@ -6,14 +6,14 @@ Per 1C discharge pulse (10 s at 3 A, then 180 s rest; 20 pulses per file, 100 % 
 - **R0 (step)**: the instantaneous voltage step, (V before − V at the first pulse sample) / ΔI. With
   1 s sampling the first sample already holds up to 1 s of the fast polarisation, so this is the
   1-s resistance. The step at the pulse's end (``r0_release_ohm``) is recorded beside it.
-- **Rtr, τtr**: :func:`scipy.optimize.least_squares` fit of the paper's 1-RC model to the pulse and
-  its rest (window: the last rest sample before the pulse to the last sample before the next
-  current step), with the discretisation of the paper's eq. 3 as in :mod:`..model.kernel`:
-  Vtr[k+1] = a·Vtr[k] + Rtr·(1 − a)·I[k], a = exp(−Ts/τ), V = E − s·q − R0·I − Vtr. Free: E (the
-  OCV at the window's start), R0 (``r0_fit_ohm``), Rtr, τ. The OCV's change with the charge the
-  pulse removes (8 mAh, 2-9 mV) is not left to the fit: its slope s [V/Ah] comes from the rested
-  voltages before consecutive pulses (1 h rests) against the charge between them. Vtr is the
-  linear filter :func:`scipy.signal.lfilter` with zero initial state (the cell rested 1 h).
+- **Rtr, τtr**: the model library's fit (``model.fitted.fit_model``) of R0 and one RC branch to
+  the pulse and its rest (window: the last rest sample before the pulse to the last sample before
+  the next current step), with the discretisation of the paper's eq. 3:
+  Vtr[k+1] = a·Vtr[k] + Rtr·(1 − a)·I[k], a = exp(−Ts/τ), V = E − s·q − R0·I − Vtr
+  (:func:`pulse_config`). Free: E (the OCV at the window's start), R0 (``r0_fit_ohm``), Rtr, τ. The
+  OCV's change with the charge the pulse removes (8 mAh, 2-9 mV) is not left to the fit: its slope
+  s [V/Ah] comes from the rested voltages before consecutive pulses (1 h rests) against the charge
+  between them. Vtr starts at zero (the cell rested 1 h).
 - SOC of a pulse: 1 − (charge discharged before it)/(nominal 3.0 Ah); the programmed 5 % steps are
   0.15 Ah = 5 % of the nominal capacity.
 
@@ -37,11 +37,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from scipy import constants, stats
-from scipy.optimize import least_squares
-from scipy.signal import lfilter
 
 from ..errors import DataError
 from ..io import atomic_path
+from ..model import ecm
+from ..model.ecm import Config, OcvTable
+from ..model.fitted import fit_model
 from . import canonical
 
 GAS_CONSTANT = constants.R  # J/(mol K)
@@ -76,40 +77,71 @@ def find_pulses(current_a: np.ndarray, min_current_a: float, min_samples: int, m
     return [(int(a), int(b)) for a, b in zip(starts[keep], ends[keep], strict=True)]
 
 
-def rc_voltage(params, current_a: np.ndarray, q_ah: np.ndarray, ocv_slope: float, ts: float):
-    """Terminal voltage of the 1-RC model (eq. 3 discretisation) over a window."""
+def pulse_config(e_v: float, ocv_slope: float) -> Config:
+    """The model library's configuration of a pulse window: R0 and one RC on an OCV that falls
+    linearly with the charge the pulse removes, OCV = E − s·q. Written as a table over SOC with a
+    nominal 1 Ah capacity and the window starting at SOC 1, so SOC = 1 − q (q in Ah); the table's
+    fitted offset is the correction to E."""
+    grid = np.linspace(0.0, 1.0, 1001)
+    table = OcvTable(0.0, grid[1], np.ascontiguousarray(e_v + ocv_slope * (grid - 1.0)))
+    return Config((), table)
+
+
+def rc_voltage(params, current_a: np.ndarray, ocv_slope: float, ts: float) -> np.ndarray:
+    """Terminal voltage of the pulse model (E, R0, Rtr, τ) over a window (the library's
+    simulator; the input enters the RC branch one sample late, as in eq. 3)."""
     e, r0, rtr, tau = params
-    a = np.exp(-ts / tau)
-    # Vtr[k] = a Vtr[k-1] + Rtr (1-a) I[k-1]: the input enters one sample late, as in eq. 3
-    vtr = lfilter([0.0, rtr * (1.0 - a)], [1.0, -a], current_a)
-    return e - ocv_slope * q_ah - r0 * current_a - vtr
+    frame = pd.DataFrame({"time_s": np.arange(current_a.size) * ts, "current_a": current_a,
+                          "voltage_v": np.zeros(current_a.size)})  # fmt: skip
+    x = ecm.vector({"capacity_ah": 1.0, "soc0": 1.0, "r0_ohm": r0, "r1_ohm": rtr,
+                    "tau1_s": tau})  # fmt: skip
+    cfg = pulse_config(e, ocv_slope)
+    return ecm.simulate_rows(ecm.Record.from_frame(frame), x, ecm.Knots(0, 0.2), cfg.table)[:, 0]
 
 
 def fit_pulse(current_a, voltage_v, ts: float, ocv_slope: float, r0_guess: float) -> dict:
-    """Least-squares 1-RC fit of one pulse window; parameters, standard errors, RMSE."""
-    q = np.r_[0.0, np.cumsum(current_a[:-1])] * ts / 3600.0  # charge out before each sample
+    """R0, Rtr, τ (and E) of one pulse window by the library's least squares (``fit_model``:
+    capacity and initial SOC held, the offset of E free); standard errors of Rtr and τ from the
+    Gauss–Newton covariance at the optimum. ``r0_guess`` is kept for the record: the library
+    starts R0 from the window's own voltage steps."""
+    frame = pd.DataFrame({"time_s": np.arange(len(current_a)) * ts, "current_a": current_a,
+                          "voltage_v": voltage_v})  # fmt: skip
+    fit = fit_model(frame, pulse_config(float(voltage_v[0]), ocv_slope), capacity_ah=1.0,
+                    soc0=1.0)  # fmt: skip
+    m = fit.model
+    p = m.parameters()
+    # covariance of (offset, R0, Rtr, τ) from a forward-difference Jacobian in physical units
+    names = ("voltage_offset_v", "r0_ohm", "r1_ohm", "tau1_s")
+    base = [p[n] for n in names]
+    e0 = float(voltage_v[0]) + base[0]
 
-    def resid(p):
-        return rc_voltage(p, current_a, q, ocv_slope, ts) - voltage_v
+    def model_v(q):
+        return rc_voltage((float(voltage_v[0]) + q[0], q[1], q[2], q[3]), np.asarray(current_a,
+                          dtype=float), ocv_slope, ts)  # fmt: skip
 
-    x0 = [voltage_v[0], max(r0_guess, 1e-4), max(r0_guess / 2, 1e-4), 20.0]
-    lo, hi = [0.0, 0.0, 0.0, 0.5 * ts], [10.0, 1.0, 1.0, 1e4]
-    res = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf")
-    dof = max(len(voltage_v) - len(x0), 1)
-    s2 = float(res.fun @ res.fun) / dof
+    v0 = model_v(base)
+    resid = v0 - voltage_v
+    jac = np.empty((resid.size, 4))
+    for j, q in enumerate(base):
+        h = 1e-6 * max(abs(q), 1e-3)
+        step = list(base)
+        step[j] = q + h
+        jac[:, j] = (model_v(step) - v0) / h
+    dof = max(len(voltage_v) - 4, 1)
+    s2 = float(resid @ resid) / dof
     try:
-        cov = np.linalg.inv(res.jac.T @ res.jac) * s2
-        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        se = np.sqrt(np.clip(np.diag(np.linalg.inv(jac.T @ jac) * s2), 0, None))
     except np.linalg.LinAlgError:
-        se = np.full(len(x0), np.nan)
+        se = np.full(4, np.nan)
     return {
-        "e_v": res.x[0],
-        "r0_fit_ohm": res.x[1],
-        "rtr_ohm": res.x[2],
-        "tau_s": res.x[3],
+        "e_v": e0,
+        "r0_fit_ohm": p["r0_ohm"],
+        "rtr_ohm": p["r1_ohm"],
+        "tau_s": p["tau1_s"],
         "rtr_se_ohm": se[2],
         "tau_se_s": se[3],
-        "fit_rmse_mv": float(np.sqrt(np.mean(res.fun**2)) * 1e3),
+        "fit_rmse_mv": float(np.sqrt(np.mean(resid**2)) * 1e3),
+        "r0_guess_ohm": r0_guess,
     }
 
 
