@@ -46,6 +46,19 @@ def write_json(obj, path: str | Path) -> None:
         tmp.write_text(json.dumps(obj, indent=1, sort_keys=False, allow_nan=False) + "\n")
 
 
+def read_json(path: str | Path, what: str = ""):
+    """A JSON file's content; a missing or unreadable file is a one-line DataError naming it
+    (``what`` says whose file it is, e.g. "sidecar of x.csv")."""
+    path = Path(path)
+    label = f" ({what})" if what else ""
+    try:
+        return json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such file{label}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: not readable JSON{label} ({exc})") from None
+
+
 def write_log(path: str | Path | None, text: str) -> None:
     """A job's one-line log (nothing if ``path`` is empty); its folder is made if missing."""
     if path:

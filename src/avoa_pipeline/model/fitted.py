@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -140,14 +139,9 @@ class FittedModel:
 
     @classmethod
     def load(cls, path) -> FittedModel:
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text())
-        except FileNotFoundError:
-            raise DataError(f"{path}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise DataError(f"{path}: not JSON ({exc})") from None
-        return cls.from_json(d, str(path))
+        from ..io import read_json
+
+        return cls.from_json(read_json(path), str(path))
 
 
 @dataclass

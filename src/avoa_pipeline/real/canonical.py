@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError
-from ..io import atomic_path, read_csv, sha256
+from ..io import atomic_path, read_csv, read_json, sha256
 
 COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
 
@@ -145,11 +145,6 @@ def read(path_csv: str | Path) -> tuple[pd.DataFrame, dict]:
     frame = read_csv(path_csv)
     frame = validate(frame, str(path_csv), first_row=2)
     json_path = sidecar_path(path_csv)
-    try:
-        sidecar = json.loads(json_path.read_text())
-    except FileNotFoundError:
-        raise DataError(f"{json_path}: no such file (sidecar of {path_csv.name})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DataError(f"{json_path}: not readable JSON ({exc})") from None
+    sidecar = read_json(json_path, f"sidecar of {path_csv.name}")
     _check_sidecar(sidecar, str(json_path))
     return frame, sidecar
