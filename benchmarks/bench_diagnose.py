@@ -24,7 +24,8 @@ import time
 import numpy as np
 import pandas as pd
 
-from avoa_pipeline.gap import diagnose, models
+from avoa_pipeline.gap import diagnose
+from avoa_pipeline.model import ecm
 
 TRUTH = {
     "vnom_v": 3.73, "beta": 0.932, "capacity_ah": 2.57, "soc0": 0.95,
@@ -77,7 +78,7 @@ def record(n: int, effect: str, seed: int = 0) -> pd.DataFrame:
     t = np.arange(n) / hz
     frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 0.0})
     frame["temperature_c"] = 25.0 + 0.002 * np.cumsum(np.abs(cur)) / hz / (1 + t / 3600)
-    v = models.simulate_params(frame, {**params, **EFFECT[effect]})
+    v = ecm.simulate_params(frame, {**params, **EFFECT[effect]})
     frame["voltage_v"] = np.round((v + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
     frame["current_a"] = np.round((cur + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
     return frame
@@ -117,7 +118,7 @@ def sweep(replicates: int) -> None:
                 frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 0.0})
                 frame["temperature_c"] = 25.0 + 4 * np.sin(t / 5000 + rep)
                 truth = {**TRUTH, "soc0": rng.uniform(0.6, 1.0), **extra}
-                v = models.simulate_params(frame, truth)
+                v = ecm.simulate_params(frame, truth)
                 frame["voltage_v"] = np.round((v + noise * rng.standard_normal(n)) / 1e-3) * 1e-3
                 frame["current_a"] = np.round((cur + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
                 c0 = time.process_time()

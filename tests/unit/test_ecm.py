@@ -58,10 +58,7 @@ def profile_frame(segments=None, temperature=True) -> pd.DataFrame:
 
 
 def simulate(frame, params, config=None, knots=None):
-    rec = ecm.Record.from_frame(frame)
-    cfg = config or ecm.Config()
-    return ecm.simulate_rows(rec, ecm.vector(params), knots or ecm.Knots(0.0, 0.2), cfg.table,
-                             cfg.load_ohm)[:, 0]  # fmt: skip
+    return ecm.simulate_params(frame, params, config, knots)
 
 
 def with_voltage(frame, params, noise_v=0.0, seed=0, config=None):

@@ -553,6 +553,16 @@ def simulate_rows(rec: Record, X: np.ndarray, knots: Knots, table: OcvTable | No
     return simulate_physical(rec, to_physical(X), knots, table, load_ohm, traces, idx)
 
 
+def simulate_params(frame: pd.DataFrame, params: dict, config: Config | None = None,
+                    knots: Knots | None = None) -> np.ndarray:  # fmt: skip
+    """Terminal voltage of ``frame``'s current under report-named ``params`` (tests, benchmarks,
+    demos); ``knots``: where an ocv_shape correction lives (default SOC 0-1)."""
+    cfg = config or Config()
+    rec = Record.from_frame(frame, tref_k=params.get("tref_k"))
+    return simulate_rows(rec, vector(params), knots or Knots(0.0, 0.2), cfg.table,
+                         cfg.load_ohm)[:, 0]  # fmt: skip
+
+
 # ----------------------------------------------------------------------------------------------
 # the paper's configuration
 
