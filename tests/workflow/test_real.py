@@ -1,10 +1,12 @@
 """`snakemake real` on a small real-data config, in a fresh directory: the Panasonic import and
-experiment 1 end to end (25 degC only, LA92 -> US06, two optimizers, one seed, small budget;
-Samsung and NASA sections removed, the gap model off). Skipped without the data.
+experiment 1 end to end (25 degC only, LA92 -> US06, two optimizers, one seed, small budget, the
+C/20 circuits, the diagnosis of LA92 + HPPC with the C/20 OCV, the cross-cycle diagnostic;
+Samsung and NASA sections removed, the gap comparison off). Skipped without the data.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -15,6 +17,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from avoa_pipeline.model.fitted import FittedModel
 from avoa_pipeline.real import canonical
 
 REPO = Path(__file__).resolve().parents[2]
@@ -35,7 +38,6 @@ def _small_config(root: Path) -> dict:
         budget={"pop_size": 8, "iterations": 15},
         figure_cycle={"25degC": "us06"},
         gap=False,
-        circuits={"folds": 2, "min_gain": 0.0, "candidates": ["q_c20", "hppc"]},
     )
     used = {t25["hppc"], t25["hppc_steps"], *t25["drive_cycles"].values(), pan["ocv_c20"]}
     real["sources"] = {k: v for k, v in real["sources"].items() if k in used}
@@ -72,26 +74,45 @@ def test_real_target_builds_experiment_one(workdir):
     rmse = pd.read_csv(workdir / "results/real/drive_cycle_rmse.csv")
     assert list(rmse.columns) == ["temperature_c", "cycle", "model", "rmse_mv", "max_err_mv"]
     assert set(rmse["cycle"]) == {"us06"}  # la92 was the training cycle
-    assert set(rmse["model"]) == {
-        "paper_rc_nelder_mead", "paper_rc_avoa", "paper_norc_nelder_mead", "paper_norc_avoa",
-        "c20_rc", "c20_2rc_lowsoc", "c20_2rc_lowsoc+q_c20", "c20_2rc_lowsoc+hppc",
-        "c20_cv_selected",
-    } | ({"c20_2rc_lowsoc+q_c20+hppc"} & set(rmse["model"]))  # fmt: skip
+    models = set(rmse["model"])
+    fixed = {"paper_rc_nelder_mead", "paper_rc_avoa", "paper_norc_nelder_mead", "paper_norc_avoa",
+             "c20_rc", "c20_2rc_lowsoc", "diagnosis_base", "diagnosis_selected"}  # fmt: skip
+    assert fixed <= models
+    assert all(m.startswith("diagnosis_") for m in models - fixed)  # the ladder's rungs
     assert (rmse["temperature_c"] == 25.0).all()
     assert (rmse["rmse_mv"] > 0).all()
     assert (rmse["max_err_mv"] >= rmse["rmse_mv"]).all()
-    cv = pd.read_csv(workdir / "results/real/panasonic/circuit_cv.csv")
-    assert cv["selected"].sum() == 1
-    sel = cv.loc[cv["selected"], "model"].iloc[0]
-    assert cv.loc[cv["selected"], "cv_rmse_mv"].iloc[0] == cv["cv_rmse_mv"].min()
-    assert "c20_2rc_lowsoc" in set(cv["model"])
-    chosen = rmse.set_index("model")["rmse_mv"]
-    if sel != "c20_2rc_lowsoc":
-        assert chosen["c20_cv_selected"] == chosen[sel]
     for stem in ("results/real/figures/panasonic_drive_cycles.png",
                  "results/real/figures/panasonic_drive_cycles.pdf",
                  "results/real/tables/panasonic_drive_cycle_rmse.md"):  # fmt: skip
         assert (workdir / stem).stat().st_size > 0, stem
+
+
+def test_diagnosis_selects_on_training_data_and_saves_its_model(workdir):
+    out = workdir / "results/real/panasonic/diagnosis/25degC"
+    report = json.loads((out / "diagnosis.json").read_text())
+    model = FittedModel.load(out / "model.json")
+    assert [Path(s).name for s in report["source"]] == ["panasonic_25degC_la92.csv",
+                                                        "panasonic_25degC_hppc.csv"]  # fmt: skip
+    assert "panasonic_25degC_ocv_c20.csv" in report["ocv"]["source"]
+    assert model.config.ocv_kind == "table"
+    assert list(model.config.effects) == report["selected"]["effects"]
+    # the table's diagnosis_selected row is the selected rung's validation row
+    sel = report["selected"]["name"]
+    row = next(r for r in report["validation"] if r["model"] == sel)
+    assert Path(row["record"]).name == "panasonic_25degC_us06.csv"
+    rmse = pd.read_csv(workdir / "results/real/drive_cycle_rmse.csv").set_index("model")["rmse_mv"]
+    assert rmse["diagnosis_selected"] == pytest.approx(row["rmse_mv"], rel=1e-12)
+    assert rmse[f"diagnosis_{sel}"] == rmse["diagnosis_selected"]
+
+
+def test_cross_cycle_fits_each_cycle_and_runs_all(workdir):
+    cc = pd.read_csv(workdir / "results/real/panasonic/cross_cycle/25degC.csv")
+    assert set(cc["model"]) == {"c20_2rc_lowsoc", "diagnosis_selected"}
+    assert len(cc) == 2 * 2 * 2  # models × cycles fitted on × cycles predicted
+    assert set(cc.loc[cc["in_sample"], "fit_on"]) == {"la92", "us06"}
+    assert (cc["fit_on"] == cc["predict"]).equals(cc["in_sample"])
+    assert (cc["rmse_mv"] > 0).all()
 
 
 def test_canonical_records_and_sidecars(workdir):

@@ -87,7 +87,6 @@ def scenario_runs(w):
     return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]
 
 # --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
-from avoa_pipeline.real import circuits as real_circuits
 from avoa_pipeline.real import drive_cycles as real_dc
 from avoa_pipeline.real import jobs as real_jobs
 from avoa_pipeline.real import panasonic as real_panasonic
@@ -130,19 +129,23 @@ def pan_tests(temp):
     return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
 
 
-PAN_CIRCUITS = PAN_EXP.get("circuits") or {}
+PAN_OCV_RECORD = pan_canon("25degC/ocv_c20") if PANASONIC else []  # the one slow test (25 degC)
 
 
-def pan_circuit_hppc(w):
-    """The HPPC record, if a circuit candidate needs it."""
-    needs = real_circuits.needs_hppc(PAN_CIRCUITS.get("candidates", []))
-    return pan_canon(f"{w.ptemp}/hppc") if needs else []
+def pan_hppc(w):
+    return pan_canon(f"{w.ptemp}/hppc")
 
 
 def pan_fit_records():
     out = [f"{PAN_OUT}/fits/{t}/{m}/{a}.json" for t in PAN_EXP_TEMPS
            for m in real_dc.PAPER_MODELS for a in PAN_EXP["algorithms"]]
-    out += [f"{PAN_OUT}/fits/{t}/c20.json" for t in PAN_EXP_TEMPS]
+    return out + [f"{PAN_OUT}/fits/{t}/c20.json" for t in PAN_EXP_TEMPS]
+
+
+def pan_diagnoses():
+    """Diagnosis folders the table reads: prefix -> temperature -> folder (diagnosis.json,
+    model.json); `gap` (the training cycle alone, no --ocv) only with experiment.gap."""
+    out = {"diagnosis": {t: f"{PAN_OUT}/diagnosis/{t}" for t in PAN_EXP_TEMPS}}
     if PAN_GAP:
-        out += [f"{PAN_OUT}/fits/{t}/gap.json" for t in PAN_EXP_TEMPS]
+        out["gap"] = {t: f"{PAN_OUT}/gap/{t}" for t in PAN_EXP_TEMPS}
     return out

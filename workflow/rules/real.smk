@@ -8,8 +8,7 @@
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
 REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
-if PAN_CIRCUITS:
-    REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
+REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
 
 
 rule panasonic_import:
@@ -40,9 +39,9 @@ if PAN_EXP_TEMPS:
 
 
 rule panasonic_ocv:
-    """The C/20 discharge curve as an SOC → OCV table."""
+    """The C/20 test as an SOC → OCV table (the library's slow-test rule, model/ocv.py)."""
     input:
-        pan_canon("25degC/ocv_c20") if PANASONIC else [],
+        PAN_OCV_RECORD,
     output:
         csv=f"{PAN_OUT}/ocv_c20.csv",
         meta=f"{PAN_OUT}/ocv_c20.json",
@@ -77,11 +76,13 @@ rule panasonic_fit_paper:
 
 
 rule panasonic_fit_c20:
-    """The C/20-OCV circuits (least squares), fitted to the training cycle, run on the others."""
+    """The C/20 circuits (library configurations on the C/20 table), fitted to the training
+    cycle, run on the others."""
     input:
         train=pan_train,
         tests=lambda w: list(pan_tests(w.ptemp).values()),
         ocv=f"{PAN_OUT}/ocv_c20.csv",
+        meta=f"{PAN_OUT}/ocv_c20.json",
     output:
         f"{PAN_OUT}/fits/{{ptemp}}/c20.json",
     log:
@@ -92,42 +93,66 @@ rule panasonic_fit_c20:
         train=lambda w: PAN_EXP["train"][w.ptemp],
     threads: 1
     run:
-        wf.run_in_pool(workflow.cores, real_jobs.c20_fit_one, dict(config), wildcards.ptemp,
-                       input.train, pan_tests(wildcards.ptemp), input.ocv, output[0], log[0])
+        wf.run_in_pool(workflow.cores, real_jobs.c20_fit_one, wildcards.ptemp, input.train,
+                       pan_tests(wildcards.ptemp), input.ocv, output[0], log[0])
 
 
-rule panasonic_fit_circuits:
-    """The C/20 circuit with each candidate effect, scored by blocked CV on the training cycle
-    alone, the lowest chosen; all run on the unseen cycles (real/circuits.py)."""
+rule panasonic_diagnose:
+    """Experiment 1 through the diagnosis (docs/real-data.md, the rule written before any test
+    number): the training cycle and the same temperature's HPPC test fitted together, the C/20
+    test as --ocv, the unseen cycles as validation records only. The same as
+    `python -m avoa_pipeline diagnose TRAIN HPPC --ocv C20 --validate TESTS --out DIR` without
+    its figure."""
+    input:
+        train=pan_train,
+        hppc=pan_hppc,
+        ocv=PAN_OCV_RECORD,
+        tests=lambda w: list(pan_tests(w.ptemp).values()),
+    output:
+        json=f"{PAN_OUT}/diagnosis/{{ptemp}}/diagnosis.json",
+        model=f"{PAN_OUT}/diagnosis/{{ptemp}}/model.json",
+    log:
+        "logs/real/panasonic/diagnosis/{ptemp}.log",
+    benchmark:
+        "logs/real/panasonic/diagnosis/{ptemp}.benchmark.tsv"
+    wildcard_constraints:
+        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    threads: 1
+    run:
+        wf.run_in_pool(workflow.cores, real_jobs.diagnose_one, [input.train, input.hppc],
+                       pan_tests(wildcards.ptemp), f"{PAN_OUT}/diagnosis/{wildcards.ptemp}",
+                       input.ocv, log[0])
+
+
+rule panasonic_fit_gap:
+    """Comparison rows gap_*: the diagnosis of the training cycle alone, without --ocv (what a
+    user without a slow test gets); the unseen cycles as validation records only."""
     input:
         train=pan_train,
         tests=lambda w: list(pan_tests(w.ptemp).values()),
-        ocv=f"{PAN_OUT}/ocv_c20.csv",
-        hppc=pan_circuit_hppc,
     output:
-        f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
+        json=f"{PAN_OUT}/gap/{{ptemp}}/diagnosis.json",
+        model=f"{PAN_OUT}/gap/{{ptemp}}/model.json",
     log:
-        "logs/real/panasonic/fits/{ptemp}/circuits.log",
+        "logs/real/panasonic/gap/{ptemp}.log",
     wildcard_constraints:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
-    params:
-        train=lambda w: PAN_EXP["train"][w.ptemp],
-        circuits=PAN_CIRCUITS,
     threads: 1
     run:
-        wf.run_in_pool(workflow.cores, real_jobs.circuit_fit_one, dict(config), wildcards.ptemp,
-                       input.train, pan_tests(wildcards.ptemp), input.ocv, input.hppc or None,
-                       output[0], log[0])
+        wf.run_in_pool(workflow.cores, real_jobs.diagnose_one, [input.train],
+                       pan_tests(wildcards.ptemp), f"{PAN_OUT}/gap/{wildcards.ptemp}", None,
+                       log[0])
 
 
 rule panasonic_cross_cycle:
-    """Diagnostic: the base and the CV-selected circuit fitted to every drive cycle of the
-    temperature in turn and run on all; the in-sample errors bound what transfer can reach."""
+    """Diagnostic: the base circuit c20_2rc_lowsoc and the configuration the diagnosis selected,
+    each fitted to every drive cycle of the temperature in turn and run on all; the in-sample
+    errors bound what transfer can reach."""
     input:
-        circuits=f"{PAN_OUT}/fits/{{ptemp}}/circuits.json",
+        model=f"{PAN_OUT}/diagnosis/{{ptemp}}/model.json",
         cycles=lambda w: [pan_train(w)] + list(pan_tests(w.ptemp).values()),
         ocv=f"{PAN_OUT}/ocv_c20.csv",
-        hppc=pan_circuit_hppc,
+        meta=f"{PAN_OUT}/ocv_c20.json",
     output:
         f"{PAN_OUT}/cross_cycle/{{ptemp}}.csv",
     log:
@@ -137,51 +162,30 @@ rule panasonic_cross_cycle:
     threads: 1
     run:
         wf.run_in_pool(workflow.cores, real_jobs.cross_cycle_one, dict(config), wildcards.ptemp,
-                       input.circuits, {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
-                                        **pan_tests(wildcards.ptemp)},
-                       input.ocv, input.hppc or None, output[0], log[0])
-
-
-rule panasonic_fit_gap:
-    """The gap diagnosis of the training cycle and the model it recommends (avoa_pipeline.gap)."""
-    input:
-        train=pan_train,
-        tests=lambda w: list(pan_tests(w.ptemp).values()),
-    output:
-        json=f"{PAN_OUT}/fits/{{ptemp}}/gap.json",
-        pred=f"{PAN_OUT}/fits/{{ptemp}}/gap_predictions.parquet",
-    log:
-        "logs/real/panasonic/fits/{ptemp}/gap.log",
-    wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
-    params:
-        train=lambda w: PAN_EXP["train"][w.ptemp],
-    threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.gap_fit_one, wildcards.ptemp, input.train,
-                       pan_tests(wildcards.ptemp), output.json, output.pred, log[0])
+                       input.model, {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
+                                     **pan_tests(wildcards.ptemp)},
+                       input.ocv, output[0], log[0])
 
 
 rule panasonic_drive_cycle_table:
     """Experiment 1's table: RMSE and maximum error per temperature × unseen cycle × model."""
     input:
-        fits=pan_fit_records() + [f"{PAN_OUT}/fits/{t}/circuits.json" for t in PAN_EXP_TEMPS if PAN_CIRCUITS],
-        gap=[f"{PAN_OUT}/fits/{t}/gap_predictions.parquet" for t in PAN_EXP_TEMPS] if PAN_GAP else [],
+        fits=pan_fit_records(),
+        diagnoses=[f"{d}/{f}" for per_temp in pan_diagnoses().values()
+                   for d in per_temp.values() for f in ("diagnosis.json", "model.json")],
         tests=[pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS for c in real_dc.unseen_cycles(config, t)],
-        ocv=f"{PAN_OUT}/ocv_c20.csv",
     output:
         csv="results/real/drive_cycle_rmse.csv",
         runs=f"{PAN_OUT}/drive_cycle_runs.csv",
         pred=f"{PAN_OUT}/figure_predictions.parquet",
-        cv=f"{PAN_OUT}/circuit_cv.csv",
     log:
         "logs/real/panasonic/drive_cycle_table.log",
     run:
         real_jobs.drive_cycle_table(
-            config, input.fits, input.gap,
+            config, input.fits, pan_diagnoses(),
             {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
              for c in real_dc.unseen_cycles(config, t)},
-            input.ocv, output.csv, output.runs, output.pred, log[0], out_cv=output.cv)
+            output.csv, output.runs, output.pred, log[0])
 
 
 rule panasonic_drive_cycles_notebook:

@@ -9,8 +9,9 @@
     python -m avoa_pipeline.real fade --record b0005.csv --out-states S --out-fits F
 
 ``drive-cycles`` imports what it needs into ``DIR`` and runs experiment 1 as the workflow does
-(one process, no pool): paper models, C/20 circuits, the circuit choice, the gap model, the
-cross-cycle diagnostic and the table. Expected errors print one line on stderr and exit 2;
+(one process, no pool): paper models, C/20 circuits, the diagnosis (training cycle + HPPC, the
+C/20 test as OCV, the unseen cycles as validation), the gap comparison, the cross-cycle
+diagnostic and the table. Expected errors print one line on stderr and exit 2;
 nothing is half-written.
 """
 
@@ -20,15 +21,19 @@ import argparse
 import sys
 from pathlib import Path
 
-from .. import config as config_mod
+# first: importing the CLI module sets one BLAS thread before numpy loads (cli.py says why; the
+# diagnosis took 6 min instead of 1 with the default threads on this 2-core machine)
 from ..cli import Parser
+
+# isort: split
+from .. import config as config_mod
 from ..errors import UserError
 from . import cells_cli
 
 
 def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
-    from . import circuits, jobs, panasonic
     from . import drive_cycles as dc
+    from . import jobs, panasonic
 
     exp = dc.experiment(cfg)
     temps = temps or list(exp["train"])
@@ -40,9 +45,11 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
             panasonic.import_named(cfg, name, path)
         return path
 
+    ocv_record = record("25degC/ocv_c20")
     ocv = out_dir / "ocv_c20.csv"
-    jobs.panasonic_ocv(record("25degC/ocv_c20"), ocv)
-    fits, gaps, all_tests = [], [], {}
+    jobs.panasonic_ocv(ocv_record, ocv)
+    fits, all_tests = [], {}
+    diagnoses = {"diagnosis": {}, **({"gap": {}} if exp.get("gap", True) else {})}
     for temp in temps:
         if temp not in exp["train"]:
             raise UserError(f"--temperature {temp}: not in real.panasonic.experiment.train")
@@ -54,22 +61,19 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
                 fits.append(out_dir / "fits" / temp / model / f"{alg}.json")
                 jobs.paper_fit_one(cfg, temp, model, alg, train, tests, fits[-1])
         fits.append(out_dir / "fits" / temp / "c20.json")
-        jobs.c20_fit_one(cfg, temp, train, tests, ocv, fits[-1])
-        if exp.get("circuits"):
-            needs = circuits.needs_hppc(exp["circuits"]["candidates"])
-            hppc = record(f"{temp}/hppc") if needs else None
-            fits.append(out_dir / "fits" / temp / "circuits.json")
-            jobs.circuit_fit_one(cfg, temp, train, tests, ocv, hppc, fits[-1])
-            jobs.cross_cycle_one(cfg, temp, fits[-1], {exp["train"][temp]: train, **tests}, ocv,
-                                 hppc, out_dir / "cross_cycle" / f"{temp}.csv")  # fmt: skip
-        if exp.get("gap", True):
-            fits.append(out_dir / "fits" / temp / "gap.json")
-            gaps.append(out_dir / "fits" / temp / "gap_predictions.parquet")
-            jobs.gap_fit_one(temp, train, tests, fits[-1], gaps[-1])
+        jobs.c20_fit_one(temp, train, tests, ocv, fits[-1])
+        diagnoses["diagnosis"][temp] = out_dir / "diagnosis" / temp
+        jobs.diagnose_one([train, record(f"{temp}/hppc")], tests, diagnoses["diagnosis"][temp],
+                          ocv_record)  # fmt: skip
+        if "gap" in diagnoses:
+            diagnoses["gap"][temp] = out_dir / "gap" / temp
+            jobs.diagnose_one([train], tests, diagnoses["gap"][temp])
+        jobs.cross_cycle_one(cfg, temp, diagnoses["diagnosis"][temp] / "model.json",
+                             {exp["train"][temp]: train, **tests}, ocv,
+                             out_dir / "cross_cycle" / f"{temp}.csv")  # fmt: skip
     out = out_dir / "drive_cycle_rmse.csv"
-    jobs.drive_cycle_table(cfg, fits, gaps, all_tests, ocv, out, out_dir / "drive_cycle_runs.csv",
-                           out_dir / "figure_predictions.parquet",
-                           out_cv=out_dir / "circuit_cv.csv")  # fmt: skip
+    jobs.drive_cycle_table(cfg, fits, diagnoses, all_tests, out, out_dir / "drive_cycle_runs.csv",
+                           out_dir / "figure_predictions.parquet")  # fmt: skip
     return out
 
 

@@ -37,7 +37,8 @@ def summary_table(rmse: pd.DataFrame) -> pd.DataFrame:
 
 def shown_models(rmse: pd.DataFrame, temperature_c: float) -> list[str]:
     """The models drawn at one temperature: the best paper model with and without the RC
-    branch, the C/20 circuits, and the gap models."""
+    branch and every other model (those with predicted voltages: the C/20 circuits and each
+    diagnosis's selected model)."""
     at = rmse[rmse["temperature_c"] == temperature_c]
     med = at.groupby("model")["rmse_mv"].median()
     out = []
@@ -115,9 +116,9 @@ def demo(cfg: dict, out_dir=None) -> dict:
     fits = [out / "paper_rc.json", out / "c20.json"]
     jobs.paper_fit_one(cfg, "25degC", "paper_rc", "nelder_mead", paths["25degC/la92"], tests,
                        fits[0])  # fmt: skip
-    jobs.c20_fit_one(cfg, "25degC", paths["25degC/la92"], tests, ocv, fits[1])
+    jobs.c20_fit_one("25degC", paths["25degC/la92"], tests, ocv, fits[1])
     res = {"rmse_csv": out / "drive_cycle_rmse.csv", "runs_csv": out / "drive_cycle_runs.csv",
            "predictions": out / "figure_predictions.parquet", "train": exp["train"]}  # fmt: skip
-    jobs.drive_cycle_table(cfg, fits, [], {"25degC/us06": paths["25degC/us06"]}, ocv,
-                           res["rmse_csv"], res["runs_csv"], res["predictions"])  # fmt: skip
+    jobs.drive_cycle_table(cfg, fits, {}, {"25degC/us06": paths["25degC/us06"]}, res["rmse_csv"],
+                           res["runs_csv"], res["predictions"])  # fmt: skip
     return res

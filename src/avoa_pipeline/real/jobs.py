@@ -45,18 +45,44 @@ def _frames(paths: dict) -> dict:
 
 
 def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
-    """The C/20 discharge curve as an SOC → OCV table (CSV + JSON with its capacity)."""
+    """The C/20 test as an SOC → OCV table by the library's slow-test rule
+    (``model.ocv.from_slow_test``): ``soc,ocv_v`` CSV (what ``--ocv`` reads) and a JSON beside
+    it with the table's capacity, how it was made and its source."""
+    import pandas as pd
+
     from ..io import atomic_path, write_json
-    from . import canonical, drive_cycles
+    from ..model import ocv as ocv_mod
+    from . import canonical
 
     frame, side = canonical.read(canonical_csv)
-    ocv = drive_cycles.c20_ocv(frame, source=str(canonical_csv))
+    table = ocv_mod.from_slow_test(frame, str(canonical_csv))
     with atomic_path(out_csv) as tmp:
-        ocv.to_csv(tmp, index=False)
-    meta = {**ocv.attrs, "source": str(canonical_csv), "source_file": side["source_file"]}
+        pd.DataFrame({"soc": table.grid(), "ocv_v": table.values}).to_csv(tmp, index=False)
+    meta = {"capacity_ah": table.capacity_ah, "how": table.how, "source": table.source,
+            "source_file": side["source_file"]}  # fmt: skip
     write_json(meta, Path(out_csv).with_suffix(".json"))
-    write_log(log, f"wrote {out_csv}: C/20 discharge {meta['capacity_ah']:.4f} Ah at "
-                   f"{meta['current_a']:.4f} A")  # fmt: skip
+    write_log(log, f"wrote {out_csv}: {table.how}")
+
+
+def read_ocv(ocv_csv):
+    """The C/20 table written by :func:`panasonic_ocv`, read back as an ``ecm.OcvTable``
+    (``model.ocv.read``) with its capacity, how and source from the JSON beside it."""
+    import dataclasses
+    import json
+
+    from ..errors import DataError
+    from ..model import ocv as ocv_mod
+
+    table = ocv_mod.read(ocv_csv)
+    meta_path = Path(ocv_csv).with_suffix(".json")
+    try:
+        meta = json.loads(meta_path.read_text())
+        return dataclasses.replace(table, capacity_ah=float(meta["capacity_ah"]),
+                                   how=str(meta["how"]), source=str(meta["source"]))  # fmt: skip
+    except FileNotFoundError:
+        raise DataError(f"{meta_path}: no such file (written with {ocv_csv})") from None
+    except KeyError as exc:
+        raise DataError(f"{meta_path}: field {exc.args[0]!r}: missing") from None
 
 
 def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
@@ -77,14 +103,14 @@ def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=N
                    + f" mV; {sum(r['wall_s'] for r in rec['runs']):.1f} s")  # fmt: skip
 
 
-def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
-    import pandas as pd
-
+def c20_fit_one(temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
+    """The C/20 circuits (library configurations on the C/20 table) fitted to the training cycle
+    and run on the unseen ones."""
     from ..io import write_json
     from . import drive_cycles
 
     train = _frames({"train": train_csv})["train"]
-    rec = drive_cycles.c20_fits(cfg, temp, train, _frames(tests), pd.read_csv(ocv_csv))
+    rec = drive_cycles.c20_fits(temp, train, _frames(tests), read_ocv(ocv_csv))
     rec["train_record"] = str(train_csv)
     write_json(rec, out_json)
     write_log(log, "; ".join(
@@ -93,51 +119,73 @@ def c20_fit_one(cfg, temp, train_csv, tests, ocv_csv, out_json, log=None) -> Non
         for m, r in rec["models"].items()))  # fmt: skip
 
 
-def gap_fit_one(temp, train_csv, tests, out_json, out_parquet, log=None) -> None:
-    import pandas as pd
+def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
+    """The diagnosis (``gap.diagnose``) of the training records (fitted together), with ``ocv``
+    (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
+    ``out_dir``/diagnosis.json and model.json, as ``python -m avoa_pipeline diagnose`` writes
+    them (its figure left out; docs/real-data.md says why)."""
+    from ..gap import diagnose
+    from ..io import write_json
+    from ..model import ocv as ocv_mod
 
-    from ..io import atomic_path, write_json
+    frames = [diagnose.read_record(p) for p in train_csvs]
+    table = ocv_mod.read(ocv) if ocv else None
+    validate = {str(p): diagnose.read_record(p, min_samples=2) for p in tests.values()}
+    report, _, model = diagnose.run(frames, source=[str(p) for p in train_csvs],
+                                    ocv_table=table, validate=validate)  # fmt: skip
+    out = Path(out_dir)
+    write_json(report, out / "diagnosis.json")
+    model.save(out / "model.json")
+    write_log(log, f"{', '.join(map(str, train_csvs))}: selected {report['selected']['name']}; "
+                   f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
+                   f"{report['wall_s']:.0f} s")  # fmt: skip
+
+
+def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
+    """The table's record (``drive_cycles.diagnosis_record``) of the diagnosis in ``out_dir``,
+    its validation records named by their unseen cycle (``tests``: cycle → CSV)."""
+    import json
+
     from . import drive_cycles
 
-    train = _frames({"train": train_csv})["train"]
-    rec = drive_cycles.diagnosis_fits(temp, {str(train_csv): train}, _frames(tests),
-                                      prefix="gap")  # fmt: skip
-    preds = rec.pop("predictions")
-    rows = [
-        pd.DataFrame({"temperature": temp, "cycle": cycle, "model": model, "model_v": v})
-        for model, per_cycle in preds.items()
-        for cycle, v in per_cycle.items()
-    ]
-    rec["train_record"] = str(train_csv)
-    with atomic_path(out_parquet) as tmp:
-        pd.concat(rows, ignore_index=True).to_parquet(tmp, index=False)
-    write_json(rec, out_json)
-    per_model = "; ".join(
-        f"{m} " + ", ".join(f"{c} {e['rmse_mv']:.1f}" for c, e in r["cycles"].items())
-        for m, r in rec["models"].items()
-    )
-    write_log(log, f"{temp}: selected {rec['selected']}; {per_model} mV; "
-                   f"diagnosis {rec['diagnose_wall_s']:.0f} s")  # fmt: skip
+    path = Path(out_dir) / "diagnosis.json"
+    report = json.loads(path.read_text())
+    where = {Path(p).resolve(): c for c, p in tests.items()}
+    cycle_of = {r["record"]: where.get(Path(r["record"]).resolve())
+                for r in report.get("validation") or []}  # fmt: skip
+    return drive_cycles.diagnosis_record(temp, report, prefix, cycle_of, source=str(path))
 
 
-def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_csv, out_runs,
-                      out_predictions, log=None, out_cv=None) -> None:  # fmt: skip
-    """``drive_cycle_rmse.csv``, the per-seed rows, and the figure cycles' predicted voltages."""
+def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out_runs,
+                      out_predictions, log=None) -> None:  # fmt: skip
+    """``drive_cycle_rmse.csv``, the per-seed rows, and the figure cycles' predicted voltages.
+
+    ``fit_jsons``: the paper-model and C/20 records; ``diagnoses``: prefix → temperature → the
+    folder of a diagnosis (diagnosis.json, model.json); ``tests``: ``<temp>/<cycle>`` → CSV."""
     import json
 
     import pandas as pd
 
     from ..io import atomic_path
+    from ..model.fitted import FittedModel
     from . import drive_cycles as dc
 
     cfg = dict(cfg)
     records = [json.loads(Path(p).read_text()) for p in fit_jsons]
+    drawn = {}  # (temperature, model name) → the fitted library model drawn in the figure
+    for rec, path in zip(records, fit_jsons, strict=True):
+        for name, m in rec.get("models", {}).items():
+            drawn[rec["temperature"], name] = (m["model"], f"{path}: models.{name}.model")
+    for prefix, per_temp in diagnoses.items():
+        for temp, out_dir in per_temp.items():
+            here = {k.split("/", 1)[1]: p for k, p in tests.items() if k.split("/")[0] == temp}
+            records.append(diagnosis_record(temp, prefix, out_dir, here))
+            drawn[temp, f"{prefix}_selected"] = Path(out_dir) / "model.json"
     temps = cfg["real"]["panasonic"]["temperatures"]
     ambient = {t: float(s["ambient_c"]) for t, s in temps.items()}
     summary, runs = dc.table(records, ambient)
     exp = dc.experiment(cfg)
     qdis = float(exp["qdis_ah"])
-    ocv = pd.read_csv(ocv_csv)
     # the measured and predicted voltage of each temperature's figure cycle, one row per sample
     traces = []
     for temp, cycle in (exp.get("figure_cycle") or {}).items():
@@ -149,94 +197,43 @@ def drive_cycle_table(cfg, fit_jsons, gap_parquets, tests: dict, ocv_csv, out_cs
                 "current_a": frame["current_a"].to_numpy(),
                 "measured_v": frame["voltage_v"].to_numpy()}  # fmt: skip
         for rec in records:
-            if rec["temperature"] != temp:
-                continue
-            if "runs" in rec:
+            if rec["temperature"] == temp and "runs" in rec:
                 run = dc.median_run(rec["runs"])
                 v = dc.paper_simulate(run["params"], frame, dc.PAPER_MODELS[rec["model"]], qdis)
                 traces.append(pd.DataFrame({**base, "model": f"{rec['model']}_{rec['algorithm']}",
                                             "model_v": v}))  # fmt: skip
-            elif "selected" in rec:  # only the CV-selected circuit is drawn
-                from . import circuits
-
-                m = rec["models"][rec["selected"]]
-                table = circuits.model_table(m, read_ocv(ocv_csv))
-                v = circuits.simulate(m["params"], frame, table, m["effects"])
-                traces.append(pd.DataFrame({**base, "model": "c20_cv_selected", "model_v": v}))
-            elif "prefix" not in rec:
-                for name, m in rec["models"].items():
-                    v = dc.c20_simulate(m["params"], frame, ocv)
-                    traces.append(pd.DataFrame({**base, "model": name, "model_v": v}))
-        for path in gap_parquets:
-            g = pd.read_parquet(path)
-            g = g[(g["temperature"] == temp) & (g["cycle"] == cycle)]
-            for name, part in g.groupby("model", sort=False):
-                traces.append(pd.DataFrame({**base, "model": name,
-                                            "model_v": part["model_v"].to_numpy()}))  # fmt: skip
-    cv_rows = [
-        {"temperature_c": ambient[rec["temperature"]], "model": name,
-         "effects": "+".join(m["effects"]), "folds": rec["folds"],
-         "cv_rmse_mv": m["cv_rmse_mv"], "train_rmse_mv": m["train_rmse_mv"],
-         "fold_rmse_mv": " ".join(f"{x:.2f}" for x in m["fold_rmse_mv"]),
-         "selected": name == rec["selected"]}
-        for rec in records if "selected" in rec for name, m in rec["models"].items()
-    ]  # fmt: skip
-    outs = [(summary, out_csv), (runs, out_runs)]
-    if out_cv:
-        outs.append((pd.DataFrame(cv_rows), out_cv))
-    for df, path in outs:
+        for (t, name), model in drawn.items():
+            if t == temp:
+                fm = (FittedModel.load(model) if isinstance(model, Path)
+                      else FittedModel.from_json(*model))  # fmt: skip
+                traces.append(pd.DataFrame({**base, "model": name, "model_v": fm.simulate(frame)}))
+    for df, path in ((summary, out_csv), (runs, out_runs)):
         with atomic_path(path) as tmp:
             df.to_csv(tmp, index=False)
     cols = ["temperature", "cycle", "time_s", "current_a", "measured_v", "model", "model_v"]
     pred = pd.concat(traces, ignore_index=True)[cols] if traces else pd.DataFrame(columns=cols)
     with atomic_path(out_predictions) as tmp:
         pred.to_parquet(tmp, index=False)
-    write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} fit records")
+    write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} records")
 
 
-def read_ocv(ocv_csv):
-    """The C/20 table with its capacity and current (from the JSON beside it) as attrs."""
-    import json
-
-    import pandas as pd
-
-    ocv = pd.read_csv(ocv_csv)
-    meta = Path(ocv_csv).with_suffix(".json")
-    if meta.exists():
-        ocv.attrs.update(json.loads(meta.read_text()))
-    return ocv
-
-
-def circuit_fit_one(cfg, temp, train_csv, tests, ocv_csv, hppc_csv, out_json, log=None) -> None:
-    from ..io import write_json
-    from . import circuits, drive_cycles
-
-    settings = drive_cycles.experiment(cfg)["circuits"]
-    frames = _frames({"train": train_csv, **({"hppc": hppc_csv} if hppc_csv else {})})
-    rec = circuits.choose(temp, frames["train"], _frames(tests), read_ocv(ocv_csv), settings,
-                          hppc=frames.get("hppc"))  # fmt: skip
-    rec["train_record"] = str(train_csv)
-    write_json(rec, out_json)
-    write_log(log, f"{temp}: selected {rec['selected']}; " + "; ".join(
-        f"{m} CV {r['cv_rmse_mv']:.1f} mV" for m, r in rec["models"].items()))  # fmt: skip
-
-
-def cross_cycle_one(cfg, temp, circuits_json, cycles, ocv_csv, hppc_csv, out_csv, log=None):
-    """The base circuit and the CV-selected one of ``circuits_json``, each fitted to every drive
-    cycle of the temperature and run on all (``circuits.cross_cycle``)."""
-    import json
-
+def cross_cycle_one(cfg, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
+    """The cross-cycle diagnostic (``cross_cycle.fit_each_run_all``) of the base circuit
+    ``c20_2rc_lowsoc`` and of the configuration the diagnosis selected (its elements and OCV
+    table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
     import pandas as pd
 
     from ..io import atomic_path
-    from . import circuits
+    from ..model.ecm import Config
+    from ..model.fitted import FittedModel
+    from . import cross_cycle
+    from .drive_cycles import C20_MODELS
 
-    rec = json.loads(Path(circuits_json).read_text())
-    models = {"c20_2rc_lowsoc": ()}
-    models[rec["selected"]] = tuple(rec["models"][rec["selected"]]["effects"])
-    hppc = _frames({"hppc": hppc_csv})["hppc"] if hppc_csv else None
-    rows = circuits.cross_cycle(temp, _frames(cycles), read_ocv(ocv_csv), models, hppc=hppc)
-    df = pd.DataFrame(rows)
+    models = {
+        "c20_2rc_lowsoc": Config(C20_MODELS["c20_2rc_lowsoc"], read_ocv(ocv_csv)),
+        "diagnosis_selected": FittedModel.load(model_json).config,
+    }
+    df = pd.DataFrame(cross_cycle.fit_each_run_all(temp, _frames(cycles), models))
     ambient = cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]
     df.insert(0, "temperature_c", float(ambient))
     with atomic_path(out_csv) as tmp:

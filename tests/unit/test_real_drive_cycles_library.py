@@ -1,0 +1,169 @@
+"""Experiment 1 on the model library: the C/20 table (the library's slow-test rule, written and
+read back), the C/20 circuits as library configurations, the diagnosis's records in the table,
+and the cross-cycle diagnostic (real/drive_cycles.py, real/jobs.py, real/cross_cycle.py)."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from avoa_pipeline.errors import DataError
+from avoa_pipeline.model import ecm
+from avoa_pipeline.model.fitted import FittedModel
+from avoa_pipeline.real import canonical, cross_cycle, jobs
+from avoa_pipeline.real import drive_cycles as dc
+
+TRUTH = {"capacity_ah": 2.8, "r0_ohm": 0.03, "r1_ohm": 0.012, "tau1_s": 25.0,
+         "voltage_offset_v": 0.005}  # fmt: skip
+
+
+def _table():
+    soc = np.linspace(0, 1, 201)
+    return ecm.OcvTable.from_points(soc, 3.0 + 1.2 * soc - 0.3 * (1 - soc) ** 4, capacity_ah=2.9,
+                                    source="test table", how="made up")  # fmt: skip
+
+
+def _frame(n=3000, seed=0, soc0=0.95, params=None, table=None):
+    """A drive-cycle-like record starting at rest, its voltage that of the circuit ``params``."""
+    rng = np.random.default_rng(seed)
+    cur = np.clip(np.repeat(rng.normal(1.0, 2.0, n // 10), 10), -3, 8)
+    cur[:30] = 0.0
+    frame = pd.DataFrame({"time_s": np.arange(n, dtype=float), "current_a": cur,
+                          "voltage_v": 0.0, "temperature_c": 25.0})  # fmt: skip
+    x = ecm.vector({**(params or TRUTH), "soc0": soc0})
+    rec = ecm.Record.from_frame(frame)
+    frame["voltage_v"] = ecm.simulate_rows(rec, x[None, :], ecm.Knots(0.0, 0.2),
+                                           table or _table())[:, 0]  # fmt: skip
+    return frame
+
+
+def test_c20_circuits_are_library_configurations():
+    for effects in dc.C20_MODELS.values():
+        ecm.Config(effects, _table())  # valid elements, table OCV
+    assert dc.C20_MODELS["c20_rc"] == ()
+    names = ecm.Config(dc.C20_MODELS["c20_2rc_lowsoc"], _table()).names()
+    assert {"r2", "ltau2", "klow", "lsig", "voff"} <= set(names)
+
+
+def test_c20_fits_recover_a_known_circuit_and_keep_the_model():
+    table = _table()
+    train, test = _frame(seed=1, table=table), _frame(seed=2, soc0=0.9, table=table)
+    rec = dc.c20_fits("25degC", train, {"other": test}, table)
+    m = rec["models"]["c20_rc"]
+    assert m["train_rmse_mv"] < 0.05
+    # the unseen record starts at rest: the initial-SOC rule finds its start, the error is tiny
+    assert m["cycles"]["other"]["rmse_mv"] < 0.2
+    p = m["model"]["parameters"]
+    for name, value in TRUTH.items():
+        assert p[name] == pytest.approx(value, rel=2e-3, abs=2e-4), name
+    # what the table draws: the stored model predicts what the fit reported
+    v = FittedModel.from_json(m["model"]).simulate(test)
+    assert dc.errors_mv(v, test) == pytest.approx(m["cycles"]["other"])
+    assert rec["models"]["c20_2rc_lowsoc"]["effects"] == ["second_rc", "soc_resistance"]
+
+
+def test_paper_soc0_is_the_librarys_closed_form():
+    P = np.array([[4.2, 2.9, 3.6, 0.03, 0.01, 20.0], [4.0, 3.1, 3.5, 0.05, 0.01, 20.0]])
+    s = dc.paper_soc0(P, 3.9, 1.5, 1.45)
+    beta = dc._beta(P, 1.45)
+    target = 3.9 + P[:, 3] * 1.5
+    # eq. 5 at s0 gives the target voltage
+    np.testing.assert_allclose(P[:, 0] * s / (1 - beta * (1 - s)), target, rtol=1e-12)
+
+
+def _slow_test(tmp_path):
+    """A C/20-like record logged every 10 s: rest, 20 h of discharge at 0.145 A, rest, a charge
+    that moves 10 % less."""
+    soc = np.linspace(0, 1, 201)
+    curve = 3.0 + 1.2 * soc - 0.3 * (1 - soc) ** 4
+    step, n = 10.0, 7200
+    q = n * step * 0.145 / 3600
+    s_dis = 1 - np.arange(n) * step * 0.145 / 3600 / q
+    n_ch = int(0.9 * n)
+    s_ch = np.arange(n_ch) * step * 0.145 / 3600 / q
+    cur = np.r_[np.zeros(100), np.full(n, 0.145), np.zeros(100), np.full(n_ch, -0.145)]
+    volt = np.r_[np.full(100, curve[-1]), np.interp(s_dis, soc, curve) - 0.01,
+                 np.full(100, curve[0]), np.interp(s_ch, soc, curve) + 0.05]  # fmt: skip
+    frame = pd.DataFrame({"time_s": step * np.arange(cur.size), "current_a": cur,
+                          "voltage_v": volt, "temperature_c": 25.0})  # fmt: skip
+    side = {"cell": "test", "nominal_capacity_ah": 2.9, "ambient_temperature_c": 25.0,
+            "test_type": "ocv_c20", "source_file": "made_up.mat", "source_sha256": "0" * 64,
+            "citation": "none", "licence": "none"}  # fmt: skip
+    path = tmp_path / "slow.csv"
+    canonical.write(frame, side, path)
+    return path, soc, curve, q
+
+
+def test_ocv_table_is_the_slow_test_rule_written_and_read_back(tmp_path):
+    path, soc, curve, q = _slow_test(tmp_path)
+    out = tmp_path / "ocv" / "ocv_c20.csv"
+    jobs.panasonic_ocv(path, out)
+    assert list(pd.read_csv(out).columns) == ["soc", "ocv_v"]
+    table = jobs.read_ocv(out)
+    assert isinstance(table, ecm.OcvTable)
+    assert table.capacity_ah == pytest.approx(q, rel=1e-9)
+    assert "discharge branch alone" in table.how  # the charge moved 10 % less: not averaged
+    assert table.source == str(path)
+    grid = np.linspace(0.02, 0.98, 50)
+    np.testing.assert_allclose(table(grid), np.interp(grid, soc, curve) - 0.01, atol=2e-4)
+    Path(out).with_suffix(".json").unlink()
+    with pytest.raises(DataError, match=r"ocv_c20\.json: no such file"):
+        jobs.read_ocv(out)
+
+
+def _report(records=("a.csv", "b.csv")):
+    rows = []
+    for model, effects in (("base", []), ("second_rc", ["second_rc"]),
+                           ("second_rc+thermal", ["second_rc", "thermal"])):  # fmt: skip
+        for k, r in enumerate(records):
+            rows.append({"record": r, "model": model, "effects": effects,
+                         "rmse_mv": 10.0 + k + len(effects), "max_err_mv": 50.0,
+                         "rmse_in_training_soc_mv": 9.0, "share_in_training_soc": 0.8})  # fmt: skip
+    return {"source": ["train.csv", "hppc.csv"], "ocv": {"kind": "table"}, "verdict": {},
+            "ladder": [{"effect": "second_rc", "heldout_rmse_mv": 5.0},
+                       {"effect": "thermal", "heldout_rmse_mv": 4.0}],
+            "selected": {"name": "second_rc", "heldout_rmse_mv": 5.0}, "wall_s": 1.0,
+            "validation": rows}  # fmt: skip
+
+
+def test_diagnosis_record_has_every_rung_and_the_selected_one():
+    rec = dc.diagnosis_record("25degC", _report(), "diagnosis", {"a.csv": "us06", "b.csv": "hwfet"})
+    assert set(rec["models"]) == {"diagnosis_base", "diagnosis_second_rc",
+                                  "diagnosis_second_rc+thermal", "diagnosis_selected"}  # fmt: skip
+    assert rec["models"]["diagnosis_selected"] == rec["models"]["diagnosis_second_rc"]
+    assert rec["models"]["diagnosis_base"]["cycles"]["hwfet"]["rmse_mv"] == 11.0
+    summary, detail = dc.table([rec], {"25degC": 25.0})
+    assert len(summary) == 8
+    assert set(detail["rmse_in_training_soc_mv"]) == {9.0}
+    with pytest.raises(DataError, match=r"^d\.json: field 'validation\.record': 'b\.csv'"):
+        dc.diagnosis_record("25degC", _report(), "x", {"a.csv": "us06"}, source="d.json")
+    with pytest.raises(DataError, match="field 'validation': missing"):
+        dc.diagnosis_record("25degC", {**_report(), "validation": []}, "x")
+
+
+def test_jobs_names_validation_records_by_their_cycle(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "d").mkdir()
+    # the diagnosis names its records as given on its command line; the table by the rule's paths
+    report = _report((str(tmp_path / "c" / "us06.csv"), "c/../c/hwfet.csv"))
+    (tmp_path / "d" / "diagnosis.json").write_text(json.dumps(report))
+    rec = jobs.diagnosis_record("0degC", "gap", "d", {"us06": "c/us06.csv",
+                                                      "hwfet": "c/hwfet.csv"})  # fmt: skip
+    assert set(rec["models"]["gap_selected"]["cycles"]) == {"us06", "hwfet"}
+
+
+def test_cross_cycle_separates_the_models_own_error_from_the_transfer():
+    table = _table()
+    a = _frame(1500, seed=6, table=table)
+    b = _frame(1500, seed=7, table=table, params={**TRUTH, "r0_ohm": 0.05})  # another cell state
+    models = {"base": ecm.Config((), table)}
+    rows = pd.DataFrame(cross_cycle.fit_each_run_all("25degC", {"a": a, "b": b}, models))
+    assert len(rows) == 4
+    assert rows["in_sample"].sum() == 2
+    err = rows.set_index(["fit_on", "predict"])["rmse_mv"]
+    assert err["a", "a"] < 0.2
+    assert err["b", "b"] < 0.2
+    assert err["a", "b"] > 5.0
+    assert err["b", "a"] > 5.0
