@@ -2,7 +2,7 @@
 # figures, claims. Wiring only; every rule calls into src/avoa_pipeline.
 from snakemake.utils import min_version, validate
 
-min_version("9.0")
+min_version("9.27.1")  # as environment.txt pins it; avoa_pipeline.snakemake_compat was written for it
 
 
 configfile: "config/config.yaml"

@@ -158,6 +158,7 @@ class Context:
         ])  # fmt: skip
 
     def run(self, st, X) -> ModelRun:
+        X = fitting.complete(st, self.recs, X)
         v = self.simulate(st, X)
         return ModelRun(st, np.array(X), v, float(np.sum((v - self.v) ** 2)))
 

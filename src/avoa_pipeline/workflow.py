@@ -1,23 +1,13 @@
-"""The functions Snakemake rules call: one per rule, arguments straight from the rule.
-
-Fit jobs are ``run:`` blocks executed in Snakemake's own process (``force-use-threads`` in the
-workflow profile), so a job starts no interpreter: at 3,360 fits an interpreter start plus
-imports (about 1 s) would cost more than most fits. The fit itself does not run in that thread:
-Python-heavy optimizers in two threads of one process fight over the GIL (measured: fits 5-10x
-slower). Each job hands its fit to a pool of worker processes, started once per Snakemake run
-with the package already imported, and waits for it. The pool has as many workers as Snakemake
-has cores; each worker's kernel is single-threaded. Every function writes its outputs atomically
-and a one-line log.
+"""The functions the paper grid's Snakemake rules call (through ``avoa_pipeline.jobs``), with
+plain arguments. Each job is a process of its own; a fit job runs a block of seeds
+(:func:`fit_batch`), since a process start (about 1 s) would cost more than most single fits.
+Every function writes its outputs atomically and a one-line log.
 """
 
 from __future__ import annotations
 
 import copy
 import json
-import multiprocessing
-import os
-import threading
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numba
@@ -52,94 +42,6 @@ def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
     ds = synthetic.generate(_checked(cfg), int(scenario), int(case))
     synthetic.write(ds, out_csv)
     write_log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
-
-
-_REEVAL_LOCK = threading.Lock()
-
-
-def coalesce_snakemake_reevaluation() -> bool:
-    """Keep at most one of Snakemake's re-evaluation timers pending (call from the Snakefile).
-
-    Snakemake 9's job rate limiter (default 100 jobs/s) makes every scheduling round start a
-    1-s ``threading.Timer`` whose firing triggers another round, which starts another timer: every
-    finished job adds a timer that then re-arms itself once a second for the rest of the run. On
-    the full grid this grew to ~360 live timer threads and 571 s of Snakemake CPU in a 20-minute
-    run (``benchmarks/bench_workflow.py``). One pending timer gives the limiter the same
-    re-evaluation; it is a daemon so it cannot delay exit. Returns whether the patch applied
-    (False if this Snakemake has no such method: then nothing is changed).
-    """
-    from snakemake.scheduling import job_scheduler
-
-    cls = job_scheduler.JobScheduler
-    original = getattr(cls, "_schedule_reevalutation", None)
-    if original is None or getattr(original, "_coalesced", False):
-        return original is not None
-
-    def schedule_reevaluation(self, delay) -> None:
-        with _REEVAL_LOCK:
-            if getattr(self, "_avoa_reeval_pending", False):
-                return
-            self._avoa_reeval_pending = True
-
-        def fire():
-            with _REEVAL_LOCK:
-                self._avoa_reeval_pending = False
-            self._open_jobs.release()
-
-        timer = threading.Timer(delay, fire)
-        timer.daemon = True
-        timer.start()
-
-    schedule_reevaluation._coalesced = True
-    cls._schedule_reevalutation = schedule_reevaluation
-    return True
-
-
-_POOL: ProcessPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-
-
-def _pool(workers: int) -> ProcessPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None:
-            # one BLAS thread per worker: scipy's L-BFGS-B calls BLAS on tiny vectors, and
-            # spinning BLAS threads on a busy 2-core machine made it 7x slower (measured)
-            for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-                os.environ[var] = "1"
-            # forkserver: never fork the multi-threaded Snakemake process itself
-            ctx = multiprocessing.get_context("forkserver")
-            _POOL = ProcessPoolExecutor(max_workers=max(1, int(workers)), mp_context=ctx)
-        return _POOL
-
-
-def run_in_pool(workers: int, fn, *args):
-    """``fn(*args)`` in the worker-process pool (made on first use with ``workers`` processes),
-    waited for; what a Snakemake ``run:`` job with numerics calls, so the scheduler's process
-    never computes and no job starts an interpreter."""
-    return _pool(workers).submit(fn, *args).result()
-
-
-def fit_job(cfg, data_csv, scenario, case, algorithm, seed, out_json, log=None, workers=1):
-    """A Snakemake fit job: run :func:`fit_one` in the worker pool and wait for it."""
-    args = (dict(cfg), data_csv, scenario, case, algorithm, seed, out_json, log)
-    run_in_pool(workers, fit_one, *args)
-
-
-def fit_one(
-    cfg, data_csv: str, scenario, case, algorithm: str, seed, out_json: str, log: str | None = None
-) -> None:
-    numba.set_num_threads(1)
-    cfg = _checked(cfg)
-    budget = fit.budget_from(cfg)
-    prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
-    rec = fit.run(cfg, prob, algorithm, int(seed), budget)
-    write_json(rec, out_json)
-    write_log(
-        log,
-        f"{algorithm} s{scenario} c{case} seed {seed}: ISE {rec['best_ise']:.6g}, "
-        f"nfe {rec['nfe']}, {rec['wall_s']:.3f} s",
-    )
 
 
 def fit_key(cfg, data_csv, scenario, case, algorithm: str, seed) -> str:

@@ -21,19 +21,11 @@ from test_tiny import _record, fresh_copy, snakemake
 
 pytestmark = pytest.mark.slurm
 
-# snakemake-executor-plugin-slurm 2.8: job states from squeue, so no slurmdbd is needed (the
-# plugin's default, sacct, answers "accounting storage is disabled" there); a first status check
-# after 5 s instead of 40 s, since the tiny config's jobs take seconds
-SLURM_ARGS = (
-    "--executor",
-    "slurm",
-    "--jobs",
-    "20",
-    "--slurm-status-command",
-    "squeue",
-    "--slurm-init-seconds-before-status-checks",
-    "5",
-)
+# What a cluster user types (profiles/slurm: executor, resources, grouping, squeue status), plus
+# a first status check after 5 s instead of 40 s: the tiny config's jobs take seconds
+SLURM_ARGS = ("--workflow-profile", "profiles/slurm", "--slurm-init-seconds-before-status-checks",
+              "5")  # fmt: skip
+TARGET = "results/aggregate/runs.parquet"  # every fit record and their aggregates
 
 
 def _slurm_ready() -> str | None:
@@ -65,10 +57,10 @@ def runs(tmp_path_factory):
         mp.setenv("USER", os.environ.get("USER") or pwd.getpwuid(os.getuid()).pw_name)
         # the reference needs only the fits (tests/workflow runs the rest locally)
         local = fresh_copy(base / "local")
-        proc = snakemake(local, "-j2", "results/aggregate/runs.parquet")
+        proc = snakemake(local, "-j2", TARGET)
         assert proc.returncode == 0, proc.stderr[-4000:]
         cluster = fresh_copy(base / "slurm")
-        proc = snakemake(cluster, *SLURM_ARGS)
+        proc = snakemake(cluster, *SLURM_ARGS, TARGET)
         assert proc.returncode == 0, proc.stderr[-6000:] + _failed_job_logs(cluster)
     return {"local": local, "slurm": cluster}
 

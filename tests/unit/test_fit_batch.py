@@ -5,6 +5,7 @@ import copy
 import json
 
 from avoa_pipeline import synthetic, workflow
+from avoa_pipeline.cli import main
 
 
 def _small(cfg):
@@ -14,7 +15,7 @@ def _small(cfg):
 
 
 def _strip(rec):
-    return {k: v for k, v in rec.items() if k not in ("wall_s", "history", "job_key")}
+    return {k: v for k, v in rec.items() if k not in ("wall_s", "history", "job_key", "versions")}
 
 
 def test_batch_equals_single_fits_and_computes_only_new_seeds(cfg, tmp_path):
@@ -24,8 +25,10 @@ def test_batch_equals_single_fits_and_computes_only_new_seeds(cfg, tmp_path):
     outs = [tmp_path / f"seed{s}.json" for s in (1, 2, 3)]
     got = workflow.fit_batch(c, str(data), 1, 2, "gwo", [1, 2], outs[:2])
     assert got == {"computed": 2, "kept": 0}
-    single = tmp_path / "single.json"
-    workflow.fit_one(c, str(data), 1, 2, "gwo", 2, str(single))
+    single = tmp_path / "single.json"  # the command line's one fit: the same record
+    args = ["fit", "--scenario", "1", "--case", "2", "--algorithm", "gwo", "--seed", "2",
+            "--data", str(data), "--pop-size", "6", "--iterations", "5", "--out", str(single)]
+    assert main(args) == 0
     assert _strip(json.loads(outs[1].read_text())) == _strip(json.loads(single.read_text()))
 
     before = [p.read_bytes() for p in outs[:2]]

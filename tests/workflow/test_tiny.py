@@ -1,8 +1,8 @@
 """The whole workflow on config/tiny.yaml, end to end, in fresh temporary directories.
 
 Checks: every table and figure file exists and is non-empty; records and tables are identical
-between -j1 and -j2 (timings aside); restyling a figure reruns no fit; adding a seed reruns only
-the new fits.
+between -j1 and -j2 (timings aside); restyling a figure reruns no fit; adding a seed computes only
+the new fits; a kill -9 of Snakemake leaves no job computing and a plain rerun completes.
 """
 
 from __future__ import annotations
@@ -121,11 +121,85 @@ def test_restyling_a_figure_reruns_no_fit(runs):
     assert "fit" not in plan
 
 
-def test_adding_a_seed_reruns_only_the_new_fits(runs):
-    wd = runs["2"]
+def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
+    """The new seed joins block 1 (seeds 1-30): its 12 jobs run, keep the 24 records they find
+    (current job_key, untouched on disk) and compute one fit each."""
+    wd = fresh_copy(tmp_path / "more")
+    shutil.copytree(runs["2"] / "results", wd / "results")
+    shutil.copytree(runs["2"] / ".snakemake", wd / ".snakemake")
     (wd / "more_seeds.yaml").write_text("seeds: [1, 2, 3]\n")
-    plan = _planned(snakemake(wd, "-n", configs=("config/tiny.yaml", "more_seeds.yaml")))
-    assert plan.get("fit") == 2 * 2 * 3  # 2 scenarios × 2 cases × 3 algorithms × the new seed
+    configs = ("config/tiny.yaml", "more_seeds.yaml")
+    plan = _planned(snakemake(wd, "-n", "paper", configs=configs))
+    assert plan.get("fit_1") == 2 * 2 * 3  # 2 scenarios × 2 cases × 3 algorithms
+    before = {p: p.read_bytes() for p in (wd / "results/fits").rglob("*.json")}
+    assert len(before) == 24
+    proc = snakemake(wd, "-j2", "paper", configs=configs)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert all(p.read_bytes() == b for p, b in before.items())
+    logs = list((wd / "logs/fits").rglob("block1.log"))
+    assert len(logs) == 12
+    assert all("1 computed, 2 kept" in p.read_text() for p in logs)
+    assert len(list((wd / "results/fits").rglob("seed3.json"))) == 12
+
+
+def _cmdline(proc) -> str:
+    """A process's command line, or "" once it has ended (a job may finish while we look)."""
+    import psutil
+
+    try:
+        return " ".join(proc.cmdline())
+    except psutil.Error:
+        return ""
+
+
+def _wait_for(pred, timeout=600.0):
+    import time
+
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        found = pred()
+        if found:
+            return found
+        time.sleep(0.2)
+    raise AssertionError("timed out")
+
+
+def test_kill_9_leaves_nothing_running_and_a_plain_rerun_completes(runs, tmp_path):
+    """kill -9 of Snakemake while fits run, and again while a notebook runs: within a few
+    seconds no job of it computes any more; then a plain `snakemake -j2` (no --unlock, no
+    --rerun-incomplete on the command line) completes with the clean run's records and tables."""
+    import signal
+
+    import psutil
+
+    wd = fresh_copy(tmp_path / "killed")
+    env = {**os.environ, "XDG_CACHE_HOME": str(wd / ".cache")}
+    for marker in ("job.py", "papermill"):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "snakemake", "-j2", "--configfile", "config/tiny.yaml"],
+            cwd=wd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )  # fmt: skip
+        smk = psutil.Process(proc.pid)
+
+        def running(smk=smk, marker=marker):
+            kids = smk.children(recursive=True)
+            return kids if any(marker in _cmdline(k) for k in kids) else None
+
+        kids = _wait_for(running)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        _, alive = psutil.wait_procs(kids, timeout=5)
+        assert not alive, [_cmdline(p) for p in alive]
+    rerun = snakemake(wd, "-j2")
+    assert rerun.returncode == 0, rerun.stderr[-3000:]
+    a, b = runs["2"], wd
+    recs = sorted((a / "results/fits").rglob("*.json"))
+    for p in recs:
+        assert _record(p) == _record(b / p.relative_to(a)), p
+    for p in sorted((a / "results/tables").glob("*.csv")):
+        if p.stem not in TIMING_TABLES and p.stem != "claims":
+            assert p.read_text() == (b / p.relative_to(a)).read_text(), p
 
 
 def test_html_report_holds_every_table_and_figure(runs):

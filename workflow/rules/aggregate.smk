@@ -7,8 +7,9 @@ rule aggregate_case:
         histories="results/aggregate/s{scenario}/c{case}/histories.parquet",
     log:
         "logs/aggregate/s{scenario}/c{case}.log",
-    run:
-        wf.aggregate_runs(input, output.runs, output.histories, log[0])
+    threads: 1
+    script:
+        "../scripts/job.py"
 
 
 rule aggregate_all:
@@ -21,5 +22,6 @@ rule aggregate_all:
         histories="results/aggregate/histories.parquet",
     log:
         "logs/aggregate/all.log",
-    run:
-        wf.concat_aggregates(input.runs, input.histories, output.runs, output.histories, log[0])
+    threads: 1
+    script:
+        "../scripts/job.py"

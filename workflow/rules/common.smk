@@ -2,11 +2,14 @@ import sys
 from pathlib import Path
 
 import avoa_pipeline.workflow as wf
+from avoa_pipeline import snakemake_compat
 from avoa_pipeline.model.battery import CASES
 
-# Snakemake's rate-limiter timers otherwise multiply over a run of thousands of short jobs
-# (wf.coalesce_snakemake_reevaluation says how much that cost).
-wf.coalesce_snakemake_reevaluation()
+# A killed run's lock files, when no live Snakemake works here, are removed so that a plain rerun
+# resumes; the workflow runs correctly without this (then `snakemake --unlock` once).
+for _lock in snakemake_compat.clear_stale_locks_of(workflow):
+    print(f"removed stale Snakemake lock .snakemake/locks/{_lock} (no live run here)",
+          file=sys.stderr)
 
 SCENARIOS = [int(s) for s in config["scenarios"]]
 CASE_LIST = [int(c) for c in config["cases"]]
@@ -70,8 +73,9 @@ def all_figures():
 def papermill(notebook, executed, log, **params):
     """Shell command executing ``notebook`` with papermill (kernel of this venv)."""
     args = " ".join(f"-p {k} {v!r}" if isinstance(v, str) else f"-p {k} {v}" for k, v in params.items())
-    return (f"{PY} -m papermill --no-progress-bar -k avoa-pipeline {notebook} {executed} "
-            f"{args} > {log} 2>&1")
+    # under the job guard: papermill and its kernel stop if Snakemake dies (kill safety)
+    return (f"{PY} -m avoa_pipeline.jobguard {PY} -m papermill --no-progress-bar -k avoa-pipeline "
+            f"{notebook} {executed} {args} > {log} 2>&1")
 
 
 def case_inputs(w):

@@ -9,8 +9,9 @@ rule dataset:
         data=config["data"],
         truth=config["true_params"],
         profile=config["profile"],
-    run:
-        wf.dataset(config, wildcards.scenario, wildcards.case, output.csv, log[0])
+    threads: 1
+    script:
+        "../scripts/job.py"
 
 
 rule effective_config:
@@ -21,5 +22,6 @@ rule effective_config:
         cfg=config,
     log:
         "logs/config.log",
-    run:
-        wf.effective_config(config, output[0])
+    threads: 1
+    script:
+        "../scripts/job.py"

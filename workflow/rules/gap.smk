@@ -2,8 +2,6 @@
 # (`gap.pairs`), PyBaMM records and the paper's scenarios; one diagnosis job per record, tables
 # and figures. Optional: without a
 # `gap:` section in the config no rule here runs.
-from functools import partial
-
 import avoa_pipeline.gap.evaluate as gap_eval
 
 GAP = config.get("gap")
@@ -26,9 +24,9 @@ if GAP:
         params:
             grid={k: GAP[k] for k in ("noise_mv", "magnitudes")},
             base_seed=config["base_seed"],
-        run:
-            gap_eval.generate_job(config["base_seed"], GAP, wildcards.profile,
-                                  wildcards.replicate, log[0], workers=workflow.cores)
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_controls:
         """The `none` controls of a base cell that carries no effect datasets."""
@@ -43,9 +41,9 @@ if GAP:
         params:
             noise=GAP["noise_mv"],
             base_seed=config["base_seed"],
-        run:
-            gap_eval.generate_job(config["base_seed"], GAP, wildcards.profile,
-                                  wildcards.replicate, log[0], workers=workflow.cores)
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     if GAP_PLAN["pair_names"]:
 
@@ -63,9 +61,9 @@ if GAP:
                 pairs=GAP["pairs"],
                 grid={k: GAP[k] for k in ("noise_mv", "magnitudes")},
                 base_seed=config["base_seed"],
-            run:
-                gap_eval.pair_data_job(config["base_seed"], GAP, wildcards.profile,
-                                       wildcards.replicate, log[0], workers=workflow.cores)
+            threads: 1
+            script:
+                "../scripts/job.py"
 
         rule gap_pairs_table:
             """Two effects at once: per record, both named? anything extra? (pairs.csv)."""
@@ -79,9 +77,9 @@ if GAP:
                 threshold=GAP["threshold"],
             log:
                 "logs/gap/pairs.log",
-            run:
-                gap_eval.pair_table_job(input.data, input.diag, output[0], GAP["threshold"],
-                                        log[0])
+            threads: 1
+            script:
+                "../scripts/job.py"
 
     rule gap_paper_data:
         """A paper scenario × case as the main workflow simulates it, to be diagnosed."""
@@ -97,8 +95,9 @@ if GAP:
             data=config["data"],
             truth=config["true_params"],
             profile=config["profile"],
-        run:
-            gap_eval.paper_job(config, wildcards.scenario, wildcards.case, output.csv, log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_pybamm_data:
         """A PyBaMM record (DFN or SPMe, lumped thermal, ...): made once, then a cached file."""
@@ -111,9 +110,9 @@ if GAP:
             "logs/gap/data/pybamm/{name}.log",
         params:
             base_seed=config["base_seed"],
-        run:
-            gap_eval.pybamm_job(config["base_seed"], wildcards.name, output.csv, log[0],
-                                workers=workflow.cores)
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_diagnose:
         """One diagnosis (the CSV only, as a user runs it) of one record."""
@@ -125,9 +124,11 @@ if GAP:
             record=r"(?!real/)[\w/.-]+",
         log:
             "logs/gap/diagnoses/{record}.log",
+        group:
+            "diagnoses"  # cluster executors only (profiles/slurm)
         threads: 1
-        run:
-            gap_eval.diagnose_job(input[0], output[0], log[0], workers=workflow.cores)
+        script:
+            "../scripts/job.py"
 
     rule gap_diagnose_real:
         """One diagnosis of a canonical real record (CSV only; its sidecar is not read)."""
@@ -139,9 +140,11 @@ if GAP:
             name=gap_eval.regex(GAP_PLAN["real"]),
         log:
             "logs/gap/diagnoses/real/{name}.log",
+        group:
+            "diagnoses"  # cluster executors only (profiles/slurm)
         threads: 1
-        run:
-            gap_eval.diagnose_job(input[0], output[0], log[0], workers=workflow.cores)
+        script:
+            "../scripts/job.py"
 
     rule gap_real_table:
         """Verdicts on real records: what the paper's model misses on measured cells."""
@@ -152,8 +155,9 @@ if GAP:
             report("results/gap/real.csv", category="Gap diagnosis", subcategory="Real records"),
         log:
             "logs/gap/real.log",
-        run:
-            gap_eval.table_job(gap_eval.real_record, input.data, input.diag, output[0], log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_evaluate:
         """Confusion matrix, accuracy, detection limit, shrink, target check (with the pairs')."""
@@ -168,9 +172,9 @@ if GAP:
             threshold=GAP["threshold"],
         log:
             "logs/gap/evaluate.log",
-        run:
-            gap_eval.evaluate_job(input.data, input.diag, dict(output), GAP["threshold"], log[0],
-                                  pairs_csv=input.pairs)
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_paper_table:
         """What the paper's scenarios look like to a model without load or fade."""
@@ -180,11 +184,13 @@ if GAP:
         output:
             report("results/gap/paper_scenarios.csv", category="Gap diagnosis",
                    subcategory="Paper scenarios"),
+        params:
+            threshold=GAP["threshold"],
         log:
             "logs/gap/paper_scenarios.log",
-        run:
-            gap_eval.table_job(partial(gap_eval.paper_record, threshold=GAP["threshold"]),
-                               input.data, input.diag, output[0], log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_pybamm_table:
         """Verdicts on the PyBaMM records against the effects each holds."""
@@ -195,8 +201,9 @@ if GAP:
             report("results/gap/pybamm.csv", category="Gap diagnosis", subcategory="PyBaMM"),
         log:
             "logs/gap/pybamm.log",
-        run:
-            gap_eval.table_job(gap_eval.pybamm_record, input.data, input.diag, output[0], log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule gap_notebook:
         """Figures: confusion matrix, accuracy, shrink, detection limit."""

@@ -1,28 +1,46 @@
-rule fit:
-    """One identification run: scenario × case × algorithm × seed → one JSON record.
+# Fits in batches (docs/benchmarks.md, "Execution"): one job per scenario × case × algorithm ×
+# block of seeds writes one record per seed, and every record is still a target of its own.
+# Block b holds the configured seeds in [b·n + 1, (b + 1)·n], n = fit_seeds_per_job. A job is a
+# process of its own (start-up about 1 s), so one job per fit would cost more than most fits.
+# The records are `update()` outputs: Snakemake leaves them in place, and the job keeps every
+# record whose job_key is current (workflow.fit_batch), so seeds added to a block compute only
+# the new seeds, while a changed budget, dataset or code recomputes them all.
+FIT_SEEDS_PER_JOB = int(config.get("fit_seeds_per_job", 30))
 
-    No ``benchmark:``: the record holds the optimizer's own wall time per iteration, and a
-    benchmark thread per job (3,360 of them) costs the scheduler more than it tells.
-    """
-    input:
-        data="results/data/s{scenario}/c{case}.csv",
-    output:
-        "results/fits/s{scenario}/c{case}/{algorithm}/seed{seed}.json",
-    log:
-        "logs/fits/s{scenario}/c{case}/{algorithm}/seed{seed}.log",
-    params:  # what a fit depends on beyond its data: changing any of it reruns the fits
-        budget=config["budget"],
-        bounds=config["bounds_used"],
-        constants=config["constants"],
-        base_seed=config["base_seed"],
-    # The fit runs in the worker-process pool (one worker per core, `wf.fit_job`), not in this
-    # job's thread, so the job claims no core; `fit_slots` (profile: 6) caps the fits in flight.
-    # With one core per fit only two were in flight, and each finished fit left its worker idle
-    # while Snakemake started the next (measured: 1.2 fits/s, workers ~40 % busy).
-    threads: 0
-    resources:
-        fit_slots=1,
-    run:
-        wf.fit_job(config, input.data, wildcards.scenario, wildcards.case,
-                   wildcards.algorithm, wildcards.seed, output[0], log[0],
-                   workers=workflow.cores)
+
+def seed_blocks(seeds, size):
+    """Block number (1-based) → the configured seeds in it."""
+    blocks = {}
+    for s in sorted(int(x) for x in seeds):
+        blocks.setdefault((s - 1) // size + 1, []).append(s)
+    return blocks
+
+
+FIT_BLOCKS = seed_blocks(SEEDS, FIT_SEEDS_PER_JOB)
+
+for _block, _seeds in FIT_BLOCKS.items():
+
+    rule:
+        name:
+            f"fit_{_block}"
+        input:
+            data="results/data/s{scenario}/c{case}.csv",
+        output:
+            [update(f"results/fits/s{{scenario}}/c{{case}}/{{algorithm}}/seed{s}.json")
+             for s in _seeds],
+        log:
+            f"logs/fits/s{{scenario}}/c{{case}}/{{algorithm}}/block{_block}.log",
+        params:  # what a fit depends on beyond its data: changing any of it reruns the block
+            budget=config["budget"],
+            bounds=config["bounds_used"],
+            constants=config["constants"],
+            base_seed=config["base_seed"],
+            seeds=_seeds,
+        threads: 1
+        resources:
+            mem_mb=1000,  # measured: one fit process peaks at ~300 MB (numba, scipy, pandas)
+            runtime=5 + len(_seeds),  # minutes; a fit takes 0.2-0.6 s at the paper's budget
+        group:
+            "fits"  # used by cluster executors only (profiles/slurm); ignored locally
+        script:
+            "../scripts/job.py"

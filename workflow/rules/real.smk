@@ -26,9 +26,9 @@ rule panasonic_import:
         ptest="|".join(PAN_TESTS) or "none",
     params:
         sources=lambda w: {k: REAL["sources"][k] for k in PANASONIC[f"{w.ptemp}/{w.ptest}"]["keys"]},
-    run:
-        real_jobs.panasonic_import(config, f"{wildcards.ptemp}/{wildcards.ptest}", output.csv,
-                                   log[0])
+    threads: 1
+    script:
+        "../scripts/job.py"
 
 
 if PAN_EXP_TEMPS:
@@ -47,8 +47,9 @@ rule panasonic_ocv:
         meta=f"{PAN_OUT}/ocv_c20.json",
     log:
         "logs/real/panasonic/ocv_c20.log",
-    run:
-        real_jobs.panasonic_ocv(input[0], output.csv, log[0])
+    threads: 1
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_fit_paper:
@@ -68,11 +69,12 @@ rule panasonic_fit_paper:
     params:  # what a fit depends on beyond its data (not the figure or the gap switch)
         exp={k: v for k, v in PAN_EXP.items() if k not in ("figure_cycle", "gap")},
         base_seed=config["base_seed"],
+        tests=lambda w: pan_tests(w.ptemp),
+    group:
+        "fits"  # cluster executors only (profiles/slurm)
     threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.paper_fit_one, dict(config), wildcards.ptemp,
-                       wildcards.pmodel, wildcards.algorithm, input.train,
-                       pan_tests(wildcards.ptemp), output[0], log[0])
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_fit_c20:
@@ -91,10 +93,10 @@ rule panasonic_fit_c20:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
     params:
         train=lambda w: PAN_EXP["train"][w.ptemp],
+        tests=lambda w: pan_tests(w.ptemp),
     threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.c20_fit_one, wildcards.ptemp, input.train,
-                       pan_tests(wildcards.ptemp), input.ocv, output[0], log[0])
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_diagnose:
@@ -117,11 +119,11 @@ rule panasonic_diagnose:
         "logs/real/panasonic/diagnosis/{ptemp}.benchmark.tsv"
     wildcard_constraints:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        tests=lambda w: pan_tests(w.ptemp),
     threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.diagnose_one, [input.train, input.hppc],
-                       pan_tests(wildcards.ptemp), f"{PAN_OUT}/diagnosis/{wildcards.ptemp}",
-                       input.ocv, log[0])
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_fit_gap:
@@ -137,11 +139,11 @@ rule panasonic_fit_gap:
         "logs/real/panasonic/gap/{ptemp}.log",
     wildcard_constraints:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        tests=lambda w: pan_tests(w.ptemp),
     threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.diagnose_one, [input.train],
-                       pan_tests(wildcards.ptemp), f"{PAN_OUT}/gap/{wildcards.ptemp}", None,
-                       log[0])
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_cross_cycle:
@@ -159,12 +161,11 @@ rule panasonic_cross_cycle:
         "logs/real/panasonic/cross_cycle/{ptemp}.log",
     wildcard_constraints:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
+    params:
+        cycles=lambda w: {PAN_EXP["train"][w.ptemp]: pan_train(w), **pan_tests(w.ptemp)},
     threads: 1
-    run:
-        wf.run_in_pool(workflow.cores, real_jobs.cross_cycle_one, dict(config), wildcards.ptemp,
-                       input.model, {PAN_EXP["train"][wildcards.ptemp]: pan_train(wildcards),
-                                     **pan_tests(wildcards.ptemp)},
-                       input.ocv, output[0], log[0])
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_drive_cycle_table:
@@ -180,12 +181,13 @@ rule panasonic_drive_cycle_table:
         pred=f"{PAN_OUT}/figure_predictions.parquet",
     log:
         "logs/real/panasonic/drive_cycle_table.log",
-    run:
-        real_jobs.drive_cycle_table(
-            config, input.fits, pan_diagnoses(),
-            {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
-             for c in real_dc.unseen_cycles(config, t)},
-            output.csv, output.runs, output.pred, log[0])
+    params:
+        diagnoses=pan_diagnoses(),
+        tests={f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
+               for c in real_dc.unseen_cycles(config, t)},
+    threads: 1
+    script:
+        "../scripts/job.py"
 
 
 rule panasonic_drive_cycles_notebook:
@@ -212,8 +214,8 @@ rule panasonic_drive_cycles_notebook:
 # ------------------------------------------------------------------------------------------------
 # Samsung 30Q and NASA B0005: their rules go below this line (they add to REAL_TARGETS).
 # ------------------------------------------------------------------------------------------------
-# Thin run: blocks calling avoa_pipeline.real.cells_cli in the Snakemake process (each job takes
-# seconds; a fresh interpreter would add one more). A config without real.samsung or real.nasa
+# Script rules calling avoa_pipeline.real.cells_cli through avoa_pipeline.jobs. A config without
+# real.samsung or real.nasa
 # leaves that dataset's rules out. docs/real-data.md, sections "Samsung INR18650-30Q", "NASA B0005".
 import avoa_pipeline.real.cells_cli as real_cells
 
@@ -242,8 +244,9 @@ if SAMSUNG_CFG:
         params:
             samsung=SAMSUNG_CFG,
             sha256=lambda w: REAL["sources"][SAMSUNG_CFG["hppc"][w.stemp]["file"]],
-        run:
-            real_cells.samsung_import(config, wildcards.stemp, output.csv, log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule real_samsung_arrhenius:
         """Experiment 2: R0, Rtr, tau per 1C HPPC pulse at each temperature; Arrhenius fits."""
@@ -256,9 +259,10 @@ if SAMSUNG_CFG:
             "logs/real/samsung_arrhenius.log",
         params:
             samsung=SAMSUNG_CFG,
-        run:
-            real_cells.arrhenius(config, dict(zip(SAMSUNG_TEMPS, input)), output.rc,
-                                 output.arrhenius, log[0])
+            temperatures=SAMSUNG_TEMPS,
+        threads: 1
+        script:
+            "../scripts/job.py"
 
 
 if NASA_CFG:
@@ -276,8 +280,9 @@ if NASA_CFG:
         params:
             nasa=NASA_CFG,
             sha256=real_cells.nasa_source_sha256(config),
-        run:
-            real_cells.nasa_import(config, output.csv, log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
     rule real_nasa_fade:
         """Experiment 3: capacity and 20-s resistance per ageing state; fade laws (eqs. 7-9)."""
@@ -290,8 +295,9 @@ if NASA_CFG:
             "logs/real/nasa_fade.log",
         params:
             nasa=NASA_CFG,
-        run:
-            real_cells.fade(config, input[0], output.states, output.fits, log[0])
+        threads: 1
+        script:
+            "../scripts/job.py"
 
 
 if SAMSUNG_CFG and NASA_CFG:

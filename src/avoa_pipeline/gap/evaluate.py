@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import workflow
 from ..io import atomic_path, write_json, write_log
 from . import EFFECTS, VERDICTS, diagnoses
 
@@ -40,10 +39,8 @@ RATIO_EDGES = (0.0, 0.5, 1.0, 1.5, 3.0, 10.0, np.inf)
 SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
 
 
-# --- Snakemake jobs (workflow/rules/gap.smk) ---------------------------------------------------
-# Jobs run in the Snakemake process (``run:``); the heavy ones hand their work to the workflow's
-# worker-process pool (see avoa_pipeline.workflow): no interpreter start per job, and the
-# scheduler's process is never busy with numerics.
+# --- Snakemake jobs (workflow/rules/gap.smk, through avoa_pipeline.jobs) ----------------------
+# Each runs in a job process of its own (a ``script:`` rule); nothing here starts processes.
 
 
 def diagnose_file(csv_path, out_json, log=None) -> None:
@@ -61,41 +58,27 @@ def diagnose_file(csv_path, out_json, log=None) -> None:
     )
 
 
-def diagnose_job(csv_path, out_json, log=None, workers=1) -> None:
-    workflow.run_in_pool(workers, diagnose_file, str(csv_path), str(out_json), log)
-
-
-def _generate(base_seed, gcfg, profile, replicate, out_dir, log):
+def generate(base_seed, gcfg, profile, replicate, out_dir, log=None) -> None:
+    """Every withheld-effect dataset (and control) of one base cell."""
     from . import withheld
 
     start = time.perf_counter()
-    paths = withheld.write_batch(int(base_seed), gcfg, profile, int(replicate), out_dir)
+    paths = withheld.write_batch(int(base_seed), dict(gcfg), profile, int(replicate), out_dir)
     write_log(log, f"{len(paths)} datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
 
 
-def generate_job(base_seed, gcfg, profile, replicate, log=None, workers=1) -> None:
-    out_dir = f"results/gap/data/{profile}/r{replicate}"
-    workflow.run_in_pool(
-        workers, _generate, int(base_seed), dict(gcfg), profile, int(replicate), out_dir, log
-    )
-
-
-def _generate_pairs(base_seed, gcfg, profile, replicate, out_dir, log):
+def generate_pairs(base_seed, gcfg, profile, replicate, out_dir, log=None) -> None:
+    """Every two-effect dataset of one base cell."""
     from . import withheld
 
     start = time.perf_counter()
-    paths = withheld.write_pair_batch(int(base_seed), gcfg, profile, int(replicate), out_dir)
+    paths = withheld.write_pair_batch(int(base_seed), dict(gcfg), profile, int(replicate),
+                                      out_dir)  # fmt: skip
     write_log(log, f"{len(paths)} pair datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
 
 
-def pair_data_job(base_seed, gcfg, profile, replicate, log=None, workers=1) -> None:
-    out_dir = f"results/gap/data/{profile}/r{replicate}"
-    workflow.run_in_pool(
-        workers, _generate_pairs, int(base_seed), dict(gcfg), profile, int(replicate), out_dir, log
-    )
-
-
-def _pybamm(base_seed, name, out_csv, log):
+def pybamm(base_seed, name, out_csv, log=None) -> None:
+    """One PyBaMM record (made once, then a cached file)."""
     from ..synthetic import write
     from . import pybamm_data
 
@@ -103,10 +86,6 @@ def _pybamm(base_seed, name, out_csv, log):
     ds = pybamm_data.make(int(base_seed), name)
     write(ds, out_csv)
     write_log(log, f"{out_csv}: {ds.meta['generator']}, {time.perf_counter() - start:.1f} s")
-
-
-def pybamm_job(base_seed, name, out_csv, log=None, workers=1) -> None:
-    workflow.run_in_pool(workers, _pybamm, int(base_seed), name, str(out_csv), log)
 
 
 def paper_job(cfg, scenario, case, out_csv, log=None) -> None:

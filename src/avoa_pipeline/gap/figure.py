@@ -140,5 +140,7 @@ def _summary(report):
         )
         lines.append(f"Ladder: base ({report['base']['heldout_rmse_mv']:.2f} mV) → {steps}")
     p = report["base"]["parameters"]
-    lines.append("Base: " + ", ".join(f"{k}={val:.4g}" for k, val in p.items()))
+    # numbers only: with several training records the initial states are a per-record list
+    lines.append("Base: " + ", ".join(f"{k}={val:.4g}" for k, val in p.items()
+                                      if isinstance(val, int | float)))  # fmt: skip
     return "\n".join(lines)

@@ -52,7 +52,6 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
 FARADAY = 96485.33212
 GAS_R = 8.314462618
@@ -597,30 +596,52 @@ def starts_at_rest(rec: Record) -> bool:
     return abs(float(rec.i[0])) <= REST_FRACTION * rec.imax()
 
 
-def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots,
-                      table: OcvTable | None = None) -> float:  # fmt: skip
-    """The initial SOC whose OCV equals the record's first voltage corrected for the ohmic drop:
+def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None = None,
+              iterations: int = 60) -> np.ndarray:  # fmt: skip
+    """The library's one initial-SOC rule, for every physical row of ``P``: the SOC whose OCV
+    equals the record's first voltage corrected for the ohmic drop,
     OCV(s0) + M·h0 = V0 + R0·g(s0)·f0·(I0 + b), with no RC voltage (the record is taken to start
     at rest, or close to it: :func:`starts_at_rest` says which). Solved on [0, 1] (the table's
-    range for a table OCV); clipped to the range's end when the voltage lies beyond it."""
-    p = P_row
-    i0 = float(rec.i[0]) + p[IOFF]
-    f0 = float(np.exp(p[TH0] * rec.dinv_t[0]))
-    v0 = float(rec.v[0]) - p[HM] * p[H0]
+    range for a table OCV) by bisection on all rows at once (the two sides cross once: the OCV
+    rises with SOC, the ohmic term falls or stays); clipped to the range's end when the voltage
+    lies beyond it. Closed form for the plain rational curve (:func:`rational_soc0`)."""
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    i0 = float(rec.i[0]) + P[:, IOFF]
+    f0 = np.exp(P[:, TH0] * rec.dinv_t[0])
+    v0 = float(rec.v[0]) - P[:, HM] * P[:, H0]
+    shaped = np.any(P[:, D0:] != 0.0, axis=1)
+    if table is None and not np.any(P[:, KLOW] != 0) and not shaped.any():
+        return rational_soc0(P[:, VNOM], P[:, OMB], v0 + P[:, R0] * f0 * i0 - P[:, VOFF])
 
-    def gap(s: float) -> float:
-        g = 1.0 + p[KLOW] * np.exp(-min(max(s, -0.5), 2.0) / p[SIG]) if p[KLOW] != 0 else 1.0
-        return float(ocv_values(p, np.array([s]), knots, table)[0]) - (v0 + p[R0] * g * f0 * i0)
+    def gap(s):  # OCV − (V0 + ohmic drop), one SOC per row
+        g = 1.0 + P[:, KLOW] * np.exp(-np.clip(s, -0.5, 2.0) / P[:, SIG])
+        if table is None:
+            sc = np.clip(s, 0.0, 1.2)
+            e = P[:, VNOM] * sc / (P[:, OMB] + (1.0 - P[:, OMB]) * sc)
+        else:
+            sc = s
+            e = table(sc)
+        for r in np.flatnonzero(shaped):
+            e[r] += np.interp(sc[r], knots.grid(), P[r, D0:])
+        return e + P[:, VOFF] - (v0 + P[:, R0] * g * f0 * i0)
 
-    lo, hi = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
-    if table is None and p[KLOW] == 0 and not np.any(p[D0:] != 0):  # closed form
-        t = v0 + p[R0] * f0 * i0 - p[VOFF]
-        return float(rational_soc0(p[VNOM], p[OMB], np.array([t]))[0])
-    if gap(lo) >= 0:
-        return lo
-    if gap(hi) <= 0:
-        return hi
-    return float(brentq(gap, lo, hi, xtol=1e-10))
+    lo_s, hi_s = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
+    lo = np.full(P.shape[0], lo_s)
+    hi = np.full(P.shape[0], hi_s)
+    g_lo, g_hi = gap(lo), gap(hi)
+    for _ in range(iterations):  # 2^-60 of the range: below rounding
+        mid = 0.5 * (lo + hi)
+        below = gap(mid) < 0
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    s = 0.5 * (lo + hi)
+    s = np.where(g_lo >= 0, lo_s, s)
+    return np.where(g_hi <= 0, hi_s, s)
+
+
+def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots,
+                      table: OcvTable | None = None) -> float:  # fmt: skip
+    """:func:`soc0_rows` for one physical row."""
+    return float(soc0_rows(P_row, rec, knots, table)[0])
 
 
 def rational_soc0(vnom, omb, target) -> np.ndarray:

@@ -178,6 +178,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
         res = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
         nfev, X = nfev + res.nfev, res.X
     st = fitting.structure(recs, config, knots, fix_q, fix_s)
+    X = fitting.complete(st, recs, X)
     b = fitting.bounds_for(recs)
     bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
     if fix_q:

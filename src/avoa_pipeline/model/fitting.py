@@ -120,6 +120,7 @@ class Structure:
     hi: np.ndarray
     prior: np.ndarray  # (nz, 2): mean, sd (inf: none)
     knots: Knots = field(default_factory=lambda: Knots(0.0, 0.2))
+    soc0_rule: bool = False  # every record's SOC0 from its first voltage (ecm.soc0_rows)
 
     @property
     def effects(self) -> tuple[str, ...]:
@@ -159,12 +160,17 @@ class Structure:
 
 def structure(recs: list[Record], config: Config, knots: Knots | None = None,
               fix_capacity: bool = False, fix_soc0: bool = False) -> Structure:  # fmt: skip
+    """The free parameters of ``config`` on ``recs``. Initial SOC: given (``fix_soc0``); else,
+    when every record starts at rest, the library's one rule (``ecm.soc0_rows``: from the first
+    voltage, with the parameters being fitted), the same rule that starts any later prediction;
+    else fitted, one per record."""
     names = config.names()
     shared = [n for n in names if not ecm.PARAMS[n].per_record]
     per = [n for n in names if ecm.PARAMS[n].per_record]
     if fix_capacity:
         shared.remove("lq")
-    if fix_soc0:
+    rule = not fix_soc0 and all(ecm.starts_at_rest(r) for r in recs)
+    if fix_soc0 or rule:
         per.remove("soc0")
     b = bounds_for(recs)
     pr = priors_for(recs)
@@ -175,7 +181,22 @@ def structure(recs: list[Record], config: Config, knots: Knots | None = None,
     hi = np.array([b[n][1] for n in z_names])
     prior = np.array([pr.get(n, (0.0, np.inf)) for n in z_names])
     return Structure(config, tuple(shared), tuple(per), len(recs), lo, hi, prior,
-                     knots or Knots(0.0, 0.2))  # fmt: skip
+                     knots or Knots(0.0, 0.2), rule)  # fmt: skip
+
+
+def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
+    """Rows ``X`` (one record each, or several rows of one record when ``recs`` has one) with
+    the initial SOC set by the rule when the structure takes it from the rule."""
+    X = np.array(X, dtype=float)
+    if not st.soc0_rule:
+        return X
+    if len(recs) == 1 and X.ndim == 2:
+        X[:, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X), recs[0], st.knots, st.config.table)
+        return X
+    for r, rec in enumerate(recs):
+        X[r, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X[r]), rec, st.knots,
+                                          st.config.table)[0]  # fmt: skip
+    return X
 
 
 # ----------------------------------------------------------------------------------------------
@@ -230,6 +251,7 @@ class Problem:
 
     def _sim(self, r: int, X: np.ndarray) -> np.ndarray:
         c = self.st.config
+        X = complete(self.st, [self.recs[r]], X)
         return ecm.simulate_rows(self.recs[r], X, self.st.knots, c.table, c.load_ohm,
                                  idx=self.idxs[r])  # fmt: skip
 
@@ -298,7 +320,7 @@ def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
     res = least_squares(prob.residuals, z0, jac=prob.jacobian, bounds=(st.lo, st.hi),
                         method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
                         max_nfev=max_nfev)  # fmt: skip
-    return FitResult(st.rows(res.x, X0), float(res.cost), int(res.nfev))
+    return FitResult(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
 
 
 def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60,

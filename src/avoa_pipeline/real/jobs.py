@@ -1,8 +1,8 @@
 """What the Panasonic rules of ``workflow/rules/real.smk`` call: one function per rule.
 
-Each writes its outputs atomically and a one-line log. The light ones run in the Snakemake
-process (``run:``); the rules hand the fits (``*_one``) to the workflow's worker-process pool
-(``avoa_pipeline.workflow.run_in_pool``), and ``python -m avoa_pipeline.real`` calls them directly.
+Each writes its outputs atomically and a one-line log. The rules reach them through
+``avoa_pipeline.jobs`` (one process per job), and ``python -m avoa_pipeline.real`` calls them
+directly.
 """
 
 from __future__ import annotations

@@ -1,0 +1,70 @@
+"""The workflow's one workaround of a Snakemake behaviour. Written for Snakemake 9.27.1 (its file
+persistence keeps locks as ``.snakemake/locks/<n>.{input,output}.lock``); not future-proof.
+
+A ``kill -9`` of Snakemake leaves its lock files behind, and the next run refuses to start
+("Directory cannot be locked") until ``snakemake --unlock``. The lock files name no process, so
+Snakemake cannot tell a live run's lock from a killed run's. :func:`clear_stale_locks` removes
+them when no live Snakemake process works in this directory: then they can only be left over.
+It runs only in the main Snakemake process (not in job subprocesses or on cluster nodes, where
+the main run may live on another machine) and never for a dry run.
+
+The workflow runs correctly without it: after a killed run, ``snakemake --unlock`` once, as the
+README says. With it, a plain rerun resumes (the workflow profile's ``rerun-incomplete`` reruns
+the jobs the killed run left incomplete). Limit: it sees the processes of this machine only; a
+second Snakemake started on another machine on the same shared directory is not seen.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+WRITTEN_FOR = "9.27.1"
+
+
+def live_snakemakes_here(workdir: Path) -> list[int]:
+    """PIDs of other live Snakemake processes whose working directory is ``workdir``."""
+    import psutil
+
+    me = os.getpid()
+    ancestors = {p.pid for p in psutil.Process().parents()}
+    found = []
+    for p in psutil.process_iter(["pid", "cmdline", "cwd"]):
+        try:
+            cmd = p.info["cmdline"] or []
+            if p.info["pid"] == me or p.info["pid"] in ancestors:
+                continue
+            is_snakemake = any(os.path.basename(c).startswith("snakemake") for c in cmd[:3])
+            if is_snakemake and p.info["cwd"] and Path(p.info["cwd"]) == workdir:
+                found.append(p.info["pid"])
+        except (psutil.Error, OSError):
+            continue
+    return found
+
+
+def clear_stale_locks(workdir, main_process: bool, dryrun: bool) -> list[str]:
+    """Remove ``workdir/.snakemake/locks/*.lock`` when no other Snakemake works in ``workdir``;
+    returns the removed file names (empty when nothing was stale or this is no main run)."""
+    if not main_process or dryrun:
+        return []
+    workdir = Path(workdir).resolve()
+    lockdir = workdir / ".snakemake" / "locks"
+    locks = sorted(lockdir.glob("*.lock")) if lockdir.is_dir() else []
+    if not locks or live_snakemakes_here(workdir):
+        return []
+    for f in locks:
+        f.unlink(missing_ok=True)
+    return [f.name for f in locks]
+
+
+def clear_stale_locks_of(workflow) -> list[str]:
+    """:func:`clear_stale_locks` for the Snakefile's ``workflow`` object (its attributes as of
+    Snakemake 9.27: ``is_main_process``, ``dryrun``); does nothing if they are missing."""
+    main = getattr(workflow, "is_main_process", None)
+    try:
+        dry = bool(getattr(workflow, "dryrun", True))
+    except Exception:  # the executor is not set up yet in some modes: do nothing
+        return []
+    if main is not True:
+        return []
+    return clear_stale_locks(Path.cwd(), True, dry)
