@@ -299,3 +299,23 @@ def test_simulate_predicts_from_model_json_and_refuses_a_tampered_one(second_rc_
     assert err.count("\n") == 1
     assert "r2_ohm" in err
     assert not pred2.exists()
+
+
+def test_cli_takes_several_training_records_and_validation(tmp_path):
+    """Two training records of one cell (each its own initial SOC) and a validation record:
+    all three outputs, per-record states, and one validation row per rung."""
+    a = _csv(tmp_path, _good(), "a.csv")
+    other = profile_frame([(300, 0.0), (1500, 1.5), (600, 0.0), (900, -1.0), (300, 0.0)])
+    b = _csv(tmp_path, with_voltage(other, {**TRUTH, "soc0": 0.7}, noise_v=1e-3, seed=7), "b.csv")
+    test = _csv(tmp_path, with_voltage(profile_frame(), {**TRUTH, "soc0": 0.8}, seed=9), "t.csv")
+    out = tmp_path / "out"
+    assert main(["diagnose", str(a), str(b), "--out", str(out), "--validate", str(test)]) == 0
+    report = json.loads((out / "diagnosis.json").read_text())
+    assert {p.name for p in out.iterdir()} == {"diagnosis.json", "diagnosis.png", "model.json"}
+    per = report["base"]["parameters"]["per_record"]
+    assert [p["source"] for p in per] == [str(a), str(b)]
+    # each record its own start (SOC itself is not identifiable with a free rational OCV)
+    assert per[0]["soc0"] - per[1]["soc0"] > 0.1
+    rungs = 1 + len(report["ladder"])
+    assert len(report["validation"]) == rungs
+    assert report["validation"][0]["rmse_mv"] < 3.0  # the same cell, noise-free record
