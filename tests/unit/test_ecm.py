@@ -276,3 +276,23 @@ def test_fitted_model_round_trip_and_prediction(tmp_path):
     d["format_version"] = 99
     with pytest.raises(DataError, match="format_version"):
         FittedModel.from_json(d, "m.json")
+
+
+def test_soc0_rule_in_training_starts_each_record_from_its_first_voltage():
+    """With soc0_rule the fit has no free SOC0: each record at rest starts where the rule puts
+    it (the same rule that starts every prediction), and a known cell is still recovered."""
+    from avoa_pipeline.model import fitting
+    from avoa_pipeline.model.fitted import fit_model
+
+    frame = with_voltage(profile_frame(), {**TRUTH, "soc0": 0.8})
+    recs = [ecm.Record.from_frame(frame)]
+    st = fitting.structure(recs, ecm.Config(), soc0_rule=True)
+    assert st.soc0_rule
+    assert "soc0" not in st.per_record
+    assert "soc0" in fitting.structure(recs, ecm.Config()).per_record  # the default: fitted
+    fit = fit_model(frame, ecm.Config(), capacity_ah=2.57, soc0_rule=True)
+    assert fit.train_rmse_mv < 1e-2
+    P = ecm.to_physical(fit.X[0])[0]
+    assert fit.X[0, ecm.IDX["soc0"]] == pytest.approx(
+        ecm.soc0_from_voltage(P, recs[0], fit.model.knots), abs=1e-12
+    )

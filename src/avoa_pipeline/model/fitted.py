@@ -155,11 +155,13 @@ class Fit:
 
 
 def fit_model(frames, config: Config, capacity_ah: float | None = None,
-              soc0: float | None = None, provenance: dict | None = None) -> Fit:  # fmt: skip
+              soc0: float | None = None, provenance: dict | None = None,
+              soc0_rule: bool = False) -> Fit:  # fmt: skip
     """Fit ``config`` to one or several records of one cell: the base by multi-start least
     squares, then the configuration's elements one at a time, each started from the previous
     fit (as the diagnosis's ladder adds them). Shared cell parameters, each record its own
-    initial state; one reference temperature (the mean over all records)."""
+    initial state, fitted or, with ``soc0_rule``, the library's rule (``fitting.structure``);
+    one reference temperature (the mean over all records)."""
     from . import fitting
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
@@ -168,16 +170,16 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     recs = [Record.from_frame(f, tref_k=tref) for f in frames]
     base_cfg = Config((), config.table, config.load_ohm)
     fix_q, fix_s = capacity_ah is not None, soc0 is not None
-    st = fitting.structure(recs, base_cfg, fix_capacity=fix_q, fix_soc0=fix_s)
+    st = fitting.structure(recs, base_cfg, None, fix_q, fix_s, soc0_rule)
     res = fitting.best_of(recs, st, fitting.base_starts(recs, base_cfg, capacity_ah, soc0))
     knots = fitting.knots_for(recs, res.X)
     nfev, X, now = res.nfev, res.X, base_cfg
     for e in config.effects:
         now = now.with_effect(e)
-        st = fitting.structure(recs, now, knots, fix_q, fix_s)
+        st = fitting.structure(recs, now, knots, fix_q, fix_s, soc0_rule)
         res = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
         nfev, X = nfev + res.nfev, res.X
-    st = fitting.structure(recs, config, knots, fix_q, fix_s)
+    st = fitting.structure(recs, config, knots, fix_q, fix_s, soc0_rule)
     X = fitting.complete(st, recs, X)
     b = fitting.bounds_for(recs)
     bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
