@@ -328,17 +328,29 @@ def make(
     base_seed: int, effect: str, magnitude: float, noise_mv: float, profile: str, replicate: int
 ) -> Dataset:
     """One dataset: the base cell of (profile, replicate) with ``effect`` at ``magnitude``."""
+    return _dataset(
+        base_seed, ((effect, float(magnitude)),), noise_mv, profile, replicate,
+        # UNITS.get: an unknown effect is refused by _noise_free with a one-line ConfigError
+        {"effect": effect, "magnitude": float(magnitude), "magnitude_unit": UNITS.get(effect)},
+        lambda params: copy.deepcopy(params[effect]),
+    )
+
+
+def _dataset(base_seed, key, noise_mv, profile, replicate, head: dict, effect_params,
+             middle: dict | None = None) -> Dataset:  # fmt: skip
+    """The cell of (profile, replicate) with the effects of ``key`` and its sensor noise, and its
+    sidecar: ``head`` (what the effects are), the residuals, ``middle``, the cell, the effects'
+    parameters (``effect_params(params)``) and the provenance (one layout for single and pair
+    datasets)."""
     cell, logged, temp, params, v_effect, raw_mv, left_mv = _noise_free(
-        int(base_seed), ((effect, float(magnitude)),), profile, int(replicate)
+        int(base_seed), key, profile, int(replicate)
     )
     t, v_meas, i_meas, t_meas = _measured(
         v_effect, logged, temp, base_seed, noise_mv, profile, replicate
     )
     noise_rmse = _rms_mv(v_meas - v_effect)
     meta = {
-        "effect": effect,
-        "magnitude": float(magnitude),
-        "magnitude_unit": UNITS[effect],
+        **head,
         "noise_mv": float(noise_mv),
         "profile": profile,
         "replicate": int(replicate),
@@ -347,10 +359,11 @@ def make(
         "effect_residual_mv": left_mv,
         "noise_rmse_mv": noise_rmse,
         "ratio": left_mv / noise_rmse,
+        **(middle or {}),
         "capacity_ah": cell.q_ah,
         "soc0": cell.soc0,
         "cell": cell.as_dict(),
-        "effect_params": copy.deepcopy(params[effect]),
+        "effect_params": effect_params(params),
         "temperature_range_c": [float(t_meas.min()), float(t_meas.max())],
         "sensor": {"voltage_noise_v": noise_mv * 1e-3, **SENSOR},
         "seed_keys": [base_seed, profile, replicate],
@@ -388,13 +401,6 @@ def make_pair(
     """
     effects = pair_effects(magnitudes)
     key = tuple((e, float(magnitudes[e])) for e in effects)
-    cell, logged, temp, params, v_effect, raw_mv, left_mv = _noise_free(
-        int(base_seed), key, profile, int(replicate)
-    )
-    t, v_meas, i_meas, t_meas = _measured(
-        v_effect, logged, temp, base_seed, noise_mv, profile, replicate
-    )
-    noise_rmse = _rms_mv(v_meas - v_effect)
     alone = {}
     for effect, mag in key:
         single = make(base_seed, effect, mag, noise_mv, profile, replicate).meta
@@ -403,31 +409,13 @@ def make_pair(
             for k in ("magnitude", "raw_residual_mv", "effect_residual_mv", "noise_rmse_mv")
         }
         alone[effect]["ratio"] = single["ratio"]
-    meta = {
+    head = {
         "effects": list(effects),
         "magnitudes": [m for _, m in key],
         "magnitude_units": [UNITS[e] for e in effects],
-        "noise_mv": float(noise_mv),
-        "profile": profile,
-        "replicate": int(replicate),
-        "n_samples": int(t.size),
-        "raw_residual_mv": raw_mv,
-        "effect_residual_mv": left_mv,
-        "noise_rmse_mv": noise_rmse,
-        "ratio": left_mv / noise_rmse,
-        "alone": alone,
-        "capacity_ah": cell.q_ah,
-        "soc0": cell.soc0,
-        "cell": cell.as_dict(),
-        "effect_params": copy.deepcopy(params),
-        "temperature_range_c": [float(t_meas.min()), float(t_meas.max())],
-        "sensor": {"voltage_noise_v": noise_mv * 1e-3, **SENSOR},
-        "seed_keys": [base_seed, profile, replicate],
-        "generator": f"avoa_pipeline {__version__} gap.withheld",
     }
-    return Dataset(
-        _as_written(t), _as_written(i_meas), _as_written(v_meas), _as_written(t_meas), meta
-    )
+    return _dataset(base_seed, key, noise_mv, profile, replicate, head, copy.deepcopy,
+                    {"alone": alone})  # fmt: skip
 
 
 # --- the grid --------------------------------------------------------------------------------
