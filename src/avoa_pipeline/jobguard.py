@@ -36,6 +36,12 @@ POLL_S = 0.5
 _STARTED: list = []
 
 
+def is_snakemake(cmdline) -> bool:
+    """Whether a command line runs Snakemake (``snakemake ...``, ``python .../snakemake ...``,
+    ``python -m snakemake ...``)."""
+    return any(os.path.basename(c).startswith("snakemake") for c in list(cmdline)[:3])
+
+
 def snakemake_ancestor():
     """The nearest ancestor process whose command line runs Snakemake, or None."""
     import psutil
@@ -49,7 +55,7 @@ def snakemake_ancestor():
             cmd = p.cmdline()
         except psutil.Error:
             continue
-        if any(os.path.basename(c).startswith("snakemake") or c == "snakemake" for c in cmd[:3]):
+        if is_snakemake(cmd):
             return p
     return None
 

@@ -26,6 +26,8 @@ def live_snakemakes_here(workdir: Path) -> list[int]:
     """PIDs of other live Snakemake processes whose working directory is ``workdir``."""
     import psutil
 
+    from .jobguard import is_snakemake
+
     me = os.getpid()
     ancestors = {p.pid for p in psutil.Process().parents()}
     found = []
@@ -34,8 +36,7 @@ def live_snakemakes_here(workdir: Path) -> list[int]:
             cmd = p.info["cmdline"] or []
             if p.info["pid"] == me or p.info["pid"] in ancestors:
                 continue
-            is_snakemake = any(os.path.basename(c).startswith("snakemake") for c in cmd[:3])
-            if is_snakemake and p.info["cwd"] and Path(p.info["cwd"]) == workdir:
+            if is_snakemake(cmd) and p.info["cwd"] and Path(p.info["cwd"]) == workdir:
                 found.append(p.info["pid"])
         except (psutil.Error, OSError):
             continue
