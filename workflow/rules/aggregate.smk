@@ -8,6 +8,7 @@ rule aggregate_case:
     log:
         "logs/aggregate/s{scenario}/c{case}.log",
     threads: 1
+    priority: 5  # a finished pair's aggregate and report run between fits, not after the last
     script:
         "../scripts/job.py"
 

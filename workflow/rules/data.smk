@@ -10,6 +10,7 @@ rule dataset:
         truth=config["true_params"],
         profile=config["profile"],
     threads: 1
+    priority: 10  # before any fit: the fits of a pair wait for its dataset
     script:
         "../scripts/job.py"
 
@@ -23,5 +24,6 @@ rule effective_config:
     log:
         "logs/config.log",
     threads: 1
+    priority: 10  # every notebook reads it: run first, so reports need not wait for it
     script:
         "../scripts/job.py"

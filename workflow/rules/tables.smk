@@ -36,6 +36,7 @@ rule case_report:
         runs=lambda w, input: input.agg[0] if input.agg else "",
         hist=lambda w, input: input.agg[1] if input.agg else "",
         not_run=lambda w: not ran(*scenario_case(w.nn)),
+    priority: 5
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", figures_dir="results/figures",
