@@ -18,13 +18,24 @@ from .model.battery import PARAM_NAMES
 KEYS = ["scenario", "case", "algorithm", "seed"]
 
 
+def excess(ise, true_ise):
+    """The excess over the truth, (ISE − ISE_true) / ISE_true (docs/reproduction-notes.md, E1):
+    NaN where the truth's ISE is unknown or not positive (a real cell has no truth)."""
+    ise = np.asarray(ise, dtype=float)
+    t = np.asarray(true_ise, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(t) & (t > 0), (ise - t) / t, np.nan)
+
+
 def run_row(rec: dict) -> dict:
     hist_nfe = rec["history"]["nfe"]
     iters = max(int(rec["iterations"]), 1)
     row = {k: rec[k] for k in KEYS}
+    true_ise = np.nan if rec.get("true_ise") is None else float(rec["true_ise"])
     row.update(
         best_ise=float(rec["best_ise"]),
-        true_ise=np.nan if rec.get("true_ise") is None else float(rec["true_ise"]),
+        true_ise=true_ise,
+        excess_ise=float(excess(rec["best_ise"], true_ise)),
         nfe=int(rec["nfe"]),
         iterations=int(rec["iterations"]),
         n_samples=int(rec["n_samples"]),
@@ -48,6 +59,7 @@ def run_row_columns() -> list[str]:
         *KEYS,
         "best_ise",
         "true_ise",
+        "excess_ise",
         "nfe",
         "iterations",
         "n_samples",
@@ -73,10 +85,12 @@ def empty_runs() -> pd.DataFrame:
 def history_frame(rec: dict) -> pd.DataFrame:
     h = rec["history"]
     n = len(h["best_ise"])
+    true_ise = np.nan if rec.get("true_ise") is None else float(rec["true_ise"])
     df = pd.DataFrame(
         {
             "iteration": np.arange(n, dtype=np.int64),
             "best_ise": np.asarray(h["best_ise"], dtype=float),
+            "excess_ise": excess(h["best_ise"], true_ise),
             "nfe": np.asarray(h["nfe"], dtype=np.int64),
             "wall_s": np.asarray(h["wall_s"], dtype=float),
         }

@@ -7,6 +7,12 @@ compares algorithms reads only ``best_ise`` from its frame, so the frame returne
 :func:`best_at_nfe` / :func:`at_budget` (same key columns, ``best_ise`` read at an equal budget)
 can stand in for *runs* to compare algorithms at equal evaluations.
 
+What is compared: ``excess_ise`` (the excess over the truth, docs/reproduction-notes.md E1)
+where a frame has it for its rows, else ``best_ise`` (:func:`value_column`); within one scenario
+× case the two give the same p-values, the excess reads as a size. Every paired comparison also
+gets an equivalence test (two one-sided Wilcoxon tests against a margin, E2-E3) and one of four
+verdicts: "lower", "higher", "practically equivalent", "inconclusive" (:func:`four_way`).
+
 Conventions
 - Rows whose ``best_ise`` is NaN (a run that never reached the budget) are left out.
 - Seeds are the blocks of every paired comparison: a comparison uses only the seeds that every
@@ -31,6 +37,20 @@ from scipy import stats as st
 from ..optimizers import ALGORITHMS, PAPER_LABELS
 
 KEYS = ["scenario", "case", "algorithm", "seed"]
+DELTA_V = 1e-4
+"""The equivalence margin's model error, 0.1 mV RMS (docs/reproduction-notes.md, E2)."""
+TIME_RATIO = 1.25
+"""Time ratios inside [1/1.25, 1.25] are practically equivalent (E5)."""
+SHARE_MARGIN = 0.10
+"""Shares (parameter accuracy, E7) closer than 10 percentage points are practically equivalent."""
+BUDGET_FRACTIONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
+"""Fixed budgets, as fractions of a scenario × case's common evaluation count N (E8)."""
+EXCESS_TARGETS = (0.1, 0.01, 0.001)
+"""Excess-over-truth targets of the fixed-budget ECDFs (E8): 10 %, 1 %, 0.1 % of ISE_true."""
+ACCURACY_TOLERANCES = (0.01, 0.05)
+"""Parameter accuracy (E7): every identified parameter within 1 % (5 %) of the truth."""
+LOWER, HIGHER, EQUIVALENT, INCONCLUSIVE = "lower", "higher", "practically equivalent", "inconclusive"
+TOO_FEW = "too few seeds"
 MIN_SEEDS = 6
 """Fewest matched seeds for which a Wilcoxon comparison is run (two-sided exact p ≥ 0.03 at
 n = 6, so below that nothing could reach α = 0.05 after a Holm correction over six)."""
@@ -58,12 +78,61 @@ def scenario_cases(df: pd.DataFrame) -> list[tuple[int, int]]:
     return sorted((int(s), int(c)) for s, c in pairs)
 
 
+def value_column(df: pd.DataFrame) -> str:
+    """``"excess_ise"`` if ``df`` has that column with a value on every row that has an ISE,
+    else ``"best_ise"`` (records without a truth, or frames built before the column existed)."""
+    if "excess_ise" in df.columns:
+        has = df["best_ise"].notna() if "best_ise" in df.columns else slice(None)
+        if len(df) and df.loc[has, "excess_ise"].notna().all():
+            return "excess_ise"
+    return "best_ise"
+
+
+def with_excess(runs: pd.DataFrame, histories: pd.DataFrame | None = None):
+    """``runs`` (and ``histories``) with ``excess_ise``, computed from ``best_ise`` and the run's
+    ``true_ise`` where the column is missing (aggregates written before it existed). Returns
+    ``runs`` alone, or ``(runs, histories)`` when histories are given."""
+    from ..aggregate import excess
+
+    runs = runs.copy()
+    if "excess_ise" not in runs.columns:
+        t = runs["true_ise"] if "true_ise" in runs.columns else np.nan
+        runs["excess_ise"] = excess(runs["best_ise"], t)
+    if histories is None:
+        return runs
+    histories = histories.copy()
+    if "excess_ise" not in histories.columns:
+        if "true_ise" in runs.columns:
+            t = histories[KEYS].merge(runs[[*KEYS, "true_ise"]], on=KEYS, how="left")["true_ise"]
+            histories["excess_ise"] = excess(histories["best_ise"], t.to_numpy())
+        else:
+            histories["excess_ise"] = np.nan
+    return runs, histories
+
+
+def margin_of(df: pd.DataFrame, scenario: int, case: int, delta_v: float = DELTA_V) -> float:
+    """The equivalence margin of one scenario × case in the units of :func:`value_column`:
+    the rise of the ISE that a model error of ``delta_v`` (RMS, volts) causes on that record,
+    N·δ² (E2), relative to the truth's ISE for the excess (δ²/σ₀², σ₀² = ISE_true / N). NaN
+    when the frame lacks ``n_samples`` (or, for the excess, ``true_ise``)."""
+    sub = df[(df["scenario"] == scenario) & (df["case"] == case)]
+    if "n_samples" not in sub.columns or sub["n_samples"].isna().all():
+        return np.nan
+    n = float(sub["n_samples"].median())
+    if value_column(df) == "best_ise":
+        return n * delta_v**2
+    if "true_ise" not in sub.columns or sub["true_ise"].isna().all():
+        return np.nan
+    return n * delta_v**2 / float(sub["true_ise"].median())
+
+
 def _select(df: pd.DataFrame, scenario: int, case: int) -> pd.DataFrame:
     sub = df[(df["scenario"] == scenario) & (df["case"] == case)]
     return sub[sub["best_ise"].notna()]
 
 
 def _wide(df: pd.DataFrame, scenario: int, case: int, algorithms=None) -> pd.DataFrame:
+    value = value_column(df)
     sub = _select(df, scenario, case)
     if algorithms is not None:
         sub = sub[sub["algorithm"].isin(list(algorithms))]
@@ -73,13 +142,14 @@ def _wide(df: pd.DataFrame, scenario: int, case: int, algorithms=None) -> pd.Dat
             f"scenario {scenario} case {case}: algorithm {dup['algorithm']!r} seed "
             f"{dup['seed']} appears more than once"
         )
-    wide = sub.pivot(index="seed", columns="algorithm", values="best_ise")
+    wide = sub.pivot(index="seed", columns="algorithm", values=value)
     order = algorithm_order(wide.columns) if algorithms is None else list(algorithms)
     return wide.reindex(columns=order).sort_index()
 
 
 def seed_matrix(df: pd.DataFrame, scenario: int, case: int, algorithms=None) -> pd.DataFrame:
-    """Seeds × algorithms matrix of ``best_ise`` for one scenario × case, complete seeds only.
+    """Seeds × algorithms matrix of :func:`value_column` for one scenario × case, complete seeds
+    only.
 
     Raises ``ValueError`` if a (algorithm, seed) appears twice.
     """
@@ -131,9 +201,95 @@ def wilcoxon_pair(a, b, min_n: int = MIN_SEEDS) -> dict:
     return out
 
 
+def tost_pair(a, b, margin: float, min_n: int = MIN_SEEDS) -> float:
+    """Two one-sided Wilcoxon signed-rank tests that the paired differences ``a − b`` lie within
+    ±``margin`` (H1 of the first: d − margin tends below 0; of the second: d + margin above 0).
+    Returns the larger p (small: practically equivalent); NaN with fewer than ``min_n`` pairs or
+    a margin that is not a positive number."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    if len(d) < min_n or not np.isfinite(margin) or margin <= 0:
+        return np.nan
+    p = []
+    for shifted, alt in ((d - margin, "less"), (d + margin, "greater")):
+        if not np.count_nonzero(shifted):
+            p.append(1.0)
+            continue
+        p.append(float(st.wilcoxon(shifted, alternative=alt, zero_method="wilcox").pvalue))
+    return max(p)
+
+
+def four_way(p_diff, p_less, p_greater, p_equiv, alpha: float = 0.05) -> str:
+    """One comparison's verdict (docs/reproduction-notes.md, E3): "practically equivalent" if the
+    equivalence p is below ``alpha`` (whatever the difference test says: a significant
+    difference inside the margin does not matter), else "lower" / "higher" if the difference p
+    is below ``alpha`` (by the smaller one-sided p), else "inconclusive"; "too few seeds" when
+    the difference was not tested."""
+    if p_diff is None or np.isnan(p_diff):
+        return TOO_FEW
+    if p_equiv is not None and not np.isnan(p_equiv) and p_equiv < alpha:
+        return EQUIVALENT
+    if p_diff < alpha:
+        return LOWER if p_less < p_greater else HIGHER
+    return INCONCLUSIVE
+
+
+def combine_four(verdicts, lowest: bool = True) -> str:
+    """A claim's verdict from its reference's verdicts against each rival (E4). For a "lowest"
+    claim: "higher" if any rival beats the reference, else "inconclusive" if any comparison is
+    undecided (or too few seeds), else "practically equivalent" if any is, else "lower". For a
+    "highest" claim (``lowest=False``) the same with lower and higher swapped."""
+    v = list(verdicts)
+    bad, good = (HIGHER, LOWER) if lowest else (LOWER, HIGHER)
+    if not v:
+        return INCONCLUSIVE
+    if bad in v:
+        return bad
+    if INCONCLUSIVE in v or TOO_FEW in v:
+        return INCONCLUSIVE
+    if EQUIVALENT in v:
+        return EQUIVALENT
+    return good
+
+
+def interval_equivalent(lo: float, hi: float, margin: float) -> bool:
+    """Whether a (1 − 2α) confidence interval lies inside ±margin (the interval form of TOST)."""
+    return bool(np.isfinite(lo) and np.isfinite(hi) and -margin < lo and hi < margin)
+
+
+def bootstrap_interval(statistic, samples, n_boot: int = 2000, level: float = 0.90, seed=0):
+    """Percentile bootstrap interval of ``statistic(*resampled)``; the samples (equal-length
+    arrays, one per group, paired by position: the seeds) are resampled together. Returns
+    ``(estimate, lo, hi)``; NaNs for fewer than two pairs."""
+    arrays = [np.asarray(x, dtype=float) for x in samples]
+    n = len(arrays[0])
+    est = float(statistic(*arrays)) if n else np.nan
+    if n < 2:
+        return est, np.nan, np.nan
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, n, size=(n_boot, n))
+    vals = np.array([statistic(*[x[i] for x in arrays]) for i in idx], dtype=float)
+    lo, hi = np.quantile(vals, [(1 - level) / 2, (1 + level) / 2])
+    return est, float(lo), float(hi)
+
+
+def mcnemar_exact(x, y) -> dict:
+    """Exact McNemar test of two paired binary outcomes (x[i], y[i] for seed i): binomial test on
+    the discordant seeds. Returns ``n``, ``x_only``, ``y_only``, ``p_two``, ``p_greater`` (H1:
+    x is true more often) and ``p_less``; p = 1 with no discordant seed."""
+    x = np.asarray(x, dtype=bool)
+    y = np.asarray(y, dtype=bool)
+    b, c = int(np.sum(x & ~y)), int(np.sum(~x & y))
+    out = {"n": len(x), "x_only": b, "y_only": c, "p_two": 1.0, "p_greater": 1.0, "p_less": 1.0}
+    if b + c:
+        for key, alt in (("p_two", "two-sided"), ("p_greater", "greater"), ("p_less", "less")):
+            out[key] = float(st.binomtest(b, b + c, 0.5, alternative=alt).pvalue)
+    return out
+
+
 # ---------------------------------------------------------------------- equal-budget readings
 def _best_at(histories: pd.DataFrame, column: str, limit) -> pd.DataFrame:
-    h = histories[[*KEYS, "iteration", "nfe", "best_ise"]].reset_index(drop=True)
+    vals = ["best_ise", *(["excess_ise"] if "excess_ise" in histories.columns else [])]
+    h = histories[[*KEYS, "iteration", "nfe", *vals]].reset_index(drop=True)
     if isinstance(limit, Mapping):
         lim = pd.Series(
             [
@@ -149,9 +305,9 @@ def _best_at(histories: pd.DataFrame, column: str, limit) -> pd.DataFrame:
     last = within.groupby(KEYS, sort=False).tail(1)
     runs = h[KEYS].drop_duplicates().copy()
     runs[f"budget_{column}"] = lim.loc[runs.index].to_numpy()
-    out = runs.merge(last[[*KEYS, "best_ise", "iteration", "nfe"]], on=KEYS, how="left")
+    out = runs.merge(last[[*KEYS, *vals, "iteration", "nfe"]], on=KEYS, how="left")
     out = out.sort_values(KEYS, kind="stable").reset_index(drop=True)
-    return out[[*KEYS, "best_ise", "iteration", "nfe", f"budget_{column}"]]
+    return out[[*KEYS, *vals, "iteration", "nfe", f"budget_{column}"]]
 
 
 def best_at_nfe(histories: pd.DataFrame, nfe) -> pd.DataFrame:
@@ -209,6 +365,36 @@ def at_budget(histories: pd.DataFrame, fraction: float = 1.0, by: str = "nfe") -
         (int(s), int(c)): int(np.floor(fraction * final(histories, s, c) + 1e-9)) for s, c in combos
     }
     return _best_at(histories, by, limits)
+
+
+# ------------------------------------------------------------------------- parameter accuracy
+def within_truth(runs: pd.DataFrame, tol: float) -> pd.Series:
+    """Per run: whether every identified parameter (the run's non-NaN ``relerr_*`` columns) lies
+    within ``tol`` (relative) of the truth; False for a run with no relative error at all."""
+    cols = [c for c in runs.columns if c.startswith("relerr_")]
+    if not cols:
+        return pd.Series(False, index=runs.index)
+    rel = runs[cols].abs()
+    return (rel.le(tol) | rel.isna()).all(axis=1) & rel.notna().any(axis=1)
+
+
+def accuracy_shares(runs: pd.DataFrame, tols=ACCURACY_TOLERANCES) -> pd.DataFrame:
+    """Per scenario × case × algorithm: ``n_seeds`` (runs with an ISE) and ``share_within_<x>pct``
+    for each tolerance (the share of those seeds whose every identified parameter lies within
+    x % of the truth; docs/reproduction-notes.md, E7)."""
+    d = runs[runs["best_ise"].notna()].copy()
+    names = [f"share_within_{round(100 * t):d}pct" for t in tols]
+    for name, t in zip(names, tols, strict=True):
+        d[name] = within_truth(d, t).astype(float)
+    g = d.groupby(["scenario", "case", "algorithm"], sort=True)
+    out = g[names].mean()
+    out.insert(0, "n_seeds", g.size())
+    out = out.reset_index()
+    order = {a: i for i, a in enumerate(algorithm_order(out["algorithm"]))}
+    out = out.sort_values(["scenario", "case"], kind="stable")
+    return out.sort_values(
+        ["scenario", "case", "algorithm"], key=lambda c: c.map(order) if c.name == "algorithm" else c
+    ).reset_index(drop=True)
 
 
 # ------------------------------------------------------------------------------------- ranks
@@ -280,7 +466,12 @@ def friedman(df: pd.DataFrame, scenario: int, case: int) -> dict:
 
 
 def holm_wilcoxon(
-    df: pd.DataFrame, scenario: int, case: int, ref: str = "avoa", alpha: float = 0.05
+    df: pd.DataFrame,
+    scenario: int,
+    case: int,
+    ref: str = "avoa",
+    alpha: float = 0.05,
+    margin: float | None = None,
 ) -> pd.DataFrame:
     """Paired Wilcoxon signed-rank tests of ``ref`` against every other algorithm, Holm-corrected.
 
@@ -294,9 +485,13 @@ def holm_wilcoxon(
       Holm), ``p_one_sided_greater_holm`` (H1: ref higher, Holm);
     - ``verdict``: "too few seeds" (n < MIN_SEEDS, p NaN); else, when ``p_holm < alpha``,
       "ref better" or "ref worse" by the direction of the smaller one-sided p; else
-      "no difference".
+      "no difference";
+    - ``value`` (what was compared, :func:`value_column`), ``margin`` (``margin`` if given, else
+      :func:`margin_of`), ``p_tost_holm`` (:func:`tost_pair`, Holm over the rivals) and
+      ``size_verdict``: :func:`four_way` of ref against this rival ("lower": ref lower).
     """
     wide = _wide(df, scenario, case)
+    margin = margin_of(df, scenario, case) if margin is None else float(margin)
     if ref not in wide.columns:
         raise ValueError(f"scenario {scenario} case {case}: no runs of {ref!r}")
     rows = []
@@ -317,6 +512,7 @@ def holm_wilcoxon(
                 "p_raw": w["p_two"],
                 "_p_less": w["p_less"],
                 "_p_greater": w["p_greater"],
+                "_p_tost": tost_pair(pair[ref], pair[other], margin),
             }
         )
     out = pd.DataFrame(rows)
@@ -325,6 +521,13 @@ def holm_wilcoxon(
     out["p_holm"] = holm(out["p_raw"])
     out["p_one_sided_holm"] = holm(out["_p_less"])
     out["p_one_sided_greater_holm"] = holm(out["_p_greater"])
+    out["value"] = value_column(df)
+    out["margin"] = margin
+    out["p_tost_holm"] = holm(out["_p_tost"])
+    out["size_verdict"] = [
+        four_way(*v, alpha)
+        for v in zip(out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"])
+    ]
 
     def verdict(r) -> str:
         if np.isnan(r["p_raw"]):
@@ -334,17 +537,22 @@ def holm_wilcoxon(
         return "no difference"
 
     out["verdict"] = out.apply(verdict, axis=1)
-    return out.drop(columns=["_p_less", "_p_greater"])
+    return out.drop(columns=["_p_less", "_p_greater", "_p_tost"])
 
 
-def pairwise_wilcoxon(df: pd.DataFrame, scenario: int, case: int) -> pd.DataFrame:
+def pairwise_wilcoxon(
+    df: pd.DataFrame, scenario: int, case: int, margin: float | None = None, alpha: float = 0.05
+) -> pd.DataFrame:
     """Paired Wilcoxon tests of every pair of algorithms, Holm-corrected over all pairs.
 
     Columns: ``a, b, n, median_diff`` (median of a − b), ``p_raw`` (two-sided), ``p_holm``,
     ``lower`` (the algorithm whose one-sided p is smaller: the one that tends to be lower;
-    empty when the pair was not tested or all differences are zero).
+    empty when the pair was not tested or all differences are zero), ``margin``,
+    ``p_tost_holm`` (equivalence within ±margin, Holm over all pairs) and ``size_verdict``
+    (:func:`four_way` of a against b).
     """
     wide = _wide(df, scenario, case)
+    margin = margin_of(df, scenario, case) if margin is None else float(margin)
     algos = list(wide.columns)
     rows = []
     for i, a in enumerate(algos):
@@ -362,11 +570,21 @@ def pairwise_wilcoxon(df: pd.DataFrame, scenario: int, case: int) -> pd.DataFram
                     "median_diff": w["median_diff"],
                     "p_raw": w["p_two"],
                     "lower": lower,
+                    "_p_less": w["p_less"],
+                    "_p_greater": w["p_greater"],
+                    "_p_tost": tost_pair(pair[a], pair[b], margin),
                 }
             )
-    out = pd.DataFrame(rows, columns=["a", "b", "n", "median_diff", "p_raw", "lower"])
+    cols = ["a", "b", "n", "median_diff", "p_raw", "lower", "_p_less", "_p_greater", "_p_tost"]
+    out = pd.DataFrame(rows, columns=cols)
     out.insert(5, "p_holm", holm(out["p_raw"]) if len(out) else [])
-    return out
+    out["margin"] = margin
+    out["p_tost_holm"] = holm(out["_p_tost"]) if len(out) else []
+    out["size_verdict"] = [
+        four_way(*v, alpha)
+        for v in zip(out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"])
+    ]
+    return out.drop(columns=["_p_less", "_p_greater", "_p_tost"])
 
 
 def mannwhitney_less(x, y, min_n: int = MIN_SEEDS) -> float:
