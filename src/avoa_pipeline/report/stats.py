@@ -49,7 +49,8 @@ EXCESS_TARGETS = (0.1, 0.01, 0.001)
 """Excess-over-truth targets of the fixed-budget ECDFs (E8): 10 %, 1 %, 0.1 % of ISE_true."""
 ACCURACY_TOLERANCES = (0.01, 0.05)
 """Parameter accuracy (E7): every identified parameter within 1 % (5 %) of the truth."""
-LOWER, HIGHER, EQUIVALENT, INCONCLUSIVE = "lower", "higher", "practically equivalent", "inconclusive"
+LOWER, HIGHER, EQUIVALENT = "lower", "higher", "practically equivalent"
+INCONCLUSIVE = "inconclusive"
 TOO_FEW = "too few seeds"
 MIN_SEEDS = 6
 """Fewest matched seeds for which a Wilcoxon comparison is run (two-sided exact p ≥ 0.03 at
@@ -391,10 +392,9 @@ def accuracy_shares(runs: pd.DataFrame, tols=ACCURACY_TOLERANCES) -> pd.DataFram
     out.insert(0, "n_seeds", g.size())
     out = out.reset_index()
     order = {a: i for i, a in enumerate(algorithm_order(out["algorithm"]))}
-    out = out.sort_values(["scenario", "case"], kind="stable")
-    return out.sort_values(
-        ["scenario", "case", "algorithm"], key=lambda c: c.map(order) if c.name == "algorithm" else c
-    ).reset_index(drop=True)
+    out["_order"] = out["algorithm"].map(order)
+    out = out.sort_values(["scenario", "case", "_order"], kind="stable")
+    return out.drop(columns="_order").reset_index(drop=True)
 
 
 # ------------------------------------------------------------------------------------- ranks
@@ -526,7 +526,9 @@ def holm_wilcoxon(
     out["p_tost_holm"] = holm(out["_p_tost"])
     out["size_verdict"] = [
         four_way(*v, alpha)
-        for v in zip(out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"])
+        for v in zip(
+            out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"], strict=True
+        )
     ]
 
     def verdict(r) -> str:
@@ -582,7 +584,9 @@ def pairwise_wilcoxon(
     out["p_tost_holm"] = holm(out["_p_tost"]) if len(out) else []
     out["size_verdict"] = [
         four_way(*v, alpha)
-        for v in zip(out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"])
+        for v in zip(
+            out["p_holm"], out["_p_less"], out["_p_greater"], out["p_tost_holm"], strict=True
+        )
     ]
     return out.drop(columns=["_p_less", "_p_greater", "_p_tost"])
 
