@@ -320,7 +320,7 @@ def test_claims_table_shape(claim_table):
         assert col in claim_table.columns
     assert set(claim_table["our_verdict"]) <= {"supported", "not supported", "inconclusive"}
     assert set(claim_table["protocol"]) == {P, E}
-    assert set(claim_table["claim_id"]) == {f"C{i}" for i in range(1, 9)}
+    assert set(claim_table["claim_id"]) == {f"C{i}" for i in range(1, 10)}
     assert not claim_table.duplicated(["claim_id", "where", "protocol"]).any()
 
 
@@ -383,3 +383,137 @@ def test_missing_algorithms_make_claims_inconclusive():
     assert r.our_verdict == "inconclusive"
     assert "no runs of GWO" in r.evidence
     assert verdict(t, "C2", "all", E).our_verdict == "inconclusive"
+
+
+def test_signed_rank_equals_scipy():
+    """stats.signed_rank is scipy's wilcoxon (zero_method="wilcox", default method) for every
+    branch: exact, permutation (n ≤ 13 with ties/zeros), normal approximation with ties."""
+    from scipy import stats as st
+
+    rng = np.random.default_rng(5)
+    cases = []
+    for n in (6, 9, 13, 14, 20, 30, 50, 60):
+        cases.append(rng.normal(0.2, 1, n))  # untied, no zeros
+        cases.append(np.round(rng.normal(0.3, 1, n), 1))  # ties
+        z = rng.normal(-0.2, 1, n)
+        z[: n // 4] = 0.0  # zeros
+        cases.append(z)
+    for d in cases:
+        ours = stats.signed_rank(d)
+        ref = [
+            st.wilcoxon(d, alternative=alt, zero_method="wilcox").pvalue
+            for alt in ("two-sided", "less", "greater")
+        ]
+        np.testing.assert_allclose(ours, ref, rtol=1e-9, atol=1e-12)
+
+
+# --------------------------------------------------------- effect sizes and equivalence (E1-E8)
+N_SAMPLES, TRUE_ISE = 5701, 0.006  # margin m = N·(0.1 mV)² / ISE_true = 0.950 % of ISE_true
+FINAL_EXCESS = {"avoa": 0.008, "ga": 0.20}  # everyone else ends at the truth's ISE
+
+
+def sized_inputs(n_seeds=12):
+    """One pair, S1/C2. At the end AVOA is 0.8 % of the truth's ISE above the rest (significant,
+    but inside the 0.95 % margin), GA 20 % above. Early on AVOA is ahead: its excess falls
+    from 10 % while every other algorithm's falls from 50 %. AVOA and Nelder-Mead find every
+    parameter within 1 % on every seed, the rest on none."""
+    rng = np.random.default_rng(3)
+    runs, hist = [], []
+    for a in ALGORITHMS:
+        for seed in range(1, n_seeds + 1):
+            it = np.arange(11)
+            final = FINAL_EXCESS.get(a, 0.0) + 1e-4 * rng.random()
+            start = 0.10 if a == "avoa" else 0.50
+            excess = final + (start - final) * np.exp(-it)
+            ise = TRUE_ISE * (1 + excess)
+            key = {"scenario": 1, "case": 2, "algorithm": a, "seed": seed}
+            hist.append(
+                pd.DataFrame({**key, "iteration": it, "best_ise": ise, "nfe": 20 + 20 * it})
+            )
+            rel = 0.001 if a in ("avoa", "nelder_mead") else 0.03
+            runs.append(
+                {
+                    **key,
+                    "best_ise": ise[-1],
+                    "true_ise": TRUE_ISE,
+                    "n_samples": N_SAMPLES,
+                    "nfe": 220,
+                    "iterations": 10,
+                    "wall_s": 1.0,
+                    "time_per_iter_s": 0.1 * (1 + 0.01 * rng.random()),
+                    "evals_per_iter": 20.0,
+                    "time_per_eval_s": 0.005 * (1 + 0.01 * rng.random()),
+                    "relerr_r0": rel,
+                    "relerr_tau": -rel,
+                }
+            )
+    return pd.DataFrame(runs), pd.concat(hist, ignore_index=True)
+
+
+@pytest.fixture(scope="module")
+def sized_table():
+    runs, hist = sized_inputs()
+    return cl.claims(runs, hist, None, None, seed=7)
+
+
+def test_margin_is_a_model_error_of_a_tenth_of_a_millivolt():
+    runs, _ = sized_inputs()
+    runs = stats.with_excess(runs)
+    assert stats.margin_of(runs, 1, 2) == pytest.approx(N_SAMPLES * 1e-8 / TRUE_ISE)
+    assert runs["excess_ise"].between(-1e-9, 0.21).all()
+
+
+def test_a_significant_difference_inside_the_margin_is_practically_equivalent(sized_table):
+    r = verdict(sized_table, "C1", "S1/C2", P)
+    assert r.our_verdict == "not supported"  # AVOA significantly higher than five rivals
+    assert r.verdict == "practically equivalent"  # ... by 0.8 %, inside the 0.95 % margin
+    assert r["size"] == pytest.approx(0.8, abs=0.02)
+    assert r.margin == pytest.approx(100 * N_SAMPLES * 1e-8 / TRUE_ISE)
+    assert r.unit == "% of the truth's ISE"
+    assert "vs GA" in r.evidence
+    assert "lower" in r.evidence.split("vs GA")[1].split(";")[0]
+
+
+def test_a_difference_beyond_the_margin_is_higher_or_lower(sized_table):
+    r = verdict(sized_table, "C3", "S1/C2", P)
+    assert r.our_verdict == "supported"
+    assert r.verdict == "higher"  # GA 19 % above the closest rival
+    assert r["size"] == pytest.approx(19.2, abs=0.1)
+
+
+def test_best_run_and_reliability_take_sizes(sized_table):
+    assert verdict(sized_table, "C8", "S1/C2", P).verdict == "practically equivalent"
+    assert verdict(sized_table, "C7", "S1/C2", P).verdict == "practically equivalent"
+
+
+def test_parameter_accuracy_claim(sized_table):
+    r = verdict(sized_table, "C9", "S1/C2", P)
+    assert r.verdict == "practically equivalent"  # ties Nelder-Mead, beats the other five
+    assert r["size"] == pytest.approx(0.0)
+    assert r.margin == pytest.approx(10.0)
+    assert r.our_verdict == "not supported"  # not better than Nelder-Mead
+    assert not ((sized_table.claim_id == "C9") & (sized_table.protocol == E)).any()
+
+
+def test_budget_sentence_shows_where_the_verdict_changes(sized_table):
+    r = verdict(sized_table, "C1", "S1/C2", P)
+    # at 10-20 % of N (22-44 evaluations) AVOA is far ahead; at the end within the margin
+    assert r.budgets.startswith("at equal evaluations, by share of each pair's N: ")
+    assert "10-20 %: lower" in r.budgets  # 1-5 %: below the initial population, no reading
+    assert r.budgets.endswith("100 %: practically equivalent")
+    assert "C4 reads C1" in verdict(sized_table, "C4", "S1/C2", P).budgets
+    assert "same at every budget" in verdict(sized_table, "C5", "S4/C4", P).budgets
+
+
+def test_every_verdict_states_size_and_margin(sized_table):
+    decided = sized_table[sized_table["verdict"] != "inconclusive"]
+    assert len(decided) > 10
+    assert decided["size"].notna().all()
+    assert decided["margin"].notna().all()
+    assert (decided["unit"] != "").all()
+    assert set(sized_table["verdict"]) <= {
+        "lower",
+        "higher",
+        "practically equivalent",
+        "inconclusive",
+    }

@@ -49,6 +49,25 @@ C8 *AVOA reaches the lowest ISE of all.* The paper prints one run per algorithm,
    "AVOA's best run beats every rival's best run": min over seeds, descriptive (no test);
    supported if AVOA's minimum is strictly the lowest.
 
+C9 *AVOA identifies the parameters most accurately* (new; the Abstract's "high accuracy"): per
+   scenario × case the share of seeds whose every identified parameter lies within 1 % of the
+   truth; exact McNemar test (paired by seed) of AVOA against each rival, Holm over six;
+   supported only if AVOA's share is significantly larger than all six. Final parameters only,
+   so under the paper protocol only.
+
+How much, not only whether (docs/reproduction-notes.md, E1-E8). Every comparison is made on the
+excess over the truth, e = (ISE − ISE_true) / ISE_true, and has an equivalence margin: for ISE
+the rise a 0.1 mV model error causes on that record (m = N·δ² / ISE_true; about 1 % of the
+truth's ISE in cases 2 and 4, whose truth leaves only the 1 mV noise, and 0.001-0.02 % in cases
+1 and 3, whose truth also leaves the relaxation the model lacks), for time the ratio 0.8-1.25,
+for spread ±m, for parameter-accuracy shares ±10 points. ``verdict`` then reads the claim's
+reference against its rivals in four words (lower, higher, practically equivalent,
+inconclusive; E4), ``size`` is the decisive comparison's effect (the median paired difference,
+in ``unit``) and ``margin`` the margin it was judged against. ``budgets`` says which verdict the
+claim gets at 1, 2, 5, 10, 20, 50 and 100 % of each pair's common evaluation count N (E8).
+``our_verdict`` keeps the earlier supported / not supported reading and ``evidence`` its
+p-values.
+
 ``paper_verdict`` is what the paper's own printed numbers say ("supported" / "not supported"),
 or "claimed (no numbers)" / "claimed (figures only)" where the paper gives only words or
 figures. For C1, C3 and C8 it reads the printed ISE of Tables 20-23; for C2 it says whether the
@@ -59,6 +78,7 @@ swapped); for C5 it reads Table 24.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
@@ -103,6 +123,11 @@ CLAIM_TEXT = {
         "AVOA is the most reliable: smallest spread of ISE over seeds (Sec. 6: 'The AVOA "
         "produces the most reliable and effective solution.')"
     ),
+    "C9": (
+        "AVOA identifies the parameters most accurately: the largest share of seeds with every "
+        "parameter within 1 % of the truth (Abstract: 'The proposed AVOA was fulfilled with high "
+        "accuracy, the least error, and high closeness with the experimental data')"
+    ),
     "C8": (
         "AVOA's best run reaches the lowest ISE (Sec. 6: 'When compared with other methods, "
         "the fitness function reaches the lowest value.')"
@@ -118,8 +143,32 @@ COLUMNS = [
     "protocol",
     "paper_verdict",
     "our_verdict",
+    "verdict",
+    "size",
+    "margin",
+    "unit",
+    "reference",
+    "budgets",
     "evidence",
 ]
+
+
+@dataclass(frozen=True)
+class _Ctx:
+    """What every claim function needs besides its data."""
+
+    alpha: float
+    margins: dict  # (scenario, case) → equivalence margin in the compared value's units (E2)
+    scale: float  # compared value → reported unit (100: excess as % of the truth's ISE)
+    unit: str
+    value: str  # "excess_ise" or "best_ise"
+    seed: int  # bootstrap seed (E6, E7)
+
+    def margin(self, s, c) -> float:
+        return float(self.margins.get((s, c), np.nan))
+
+    def rng(self, *key) -> np.random.SeedSequence:
+        return np.random.SeedSequence([int(self.seed), *[int(k) for k in key]])
 
 
 # ------------------------------------------------------------------------------------ helpers
@@ -139,7 +188,9 @@ def _where(s, c) -> str:
     return "all" if s is None else f"S{s}/C{c}"
 
 
-def _row(cid, s, c, protocol, paper_verdict, verdict, evidence) -> dict:
+def _row(cid, s, c, protocol, paper_verdict, verdict, evidence, size=None) -> dict:
+    """One row; ``size`` is a :class:`_Size` (the four-word verdict, its size and margin)."""
+    size = size or _Size(stats.INCONCLUSIVE)
     return {
         "claim_id": cid,
         "claim": CLAIM_TEXT[cid],
@@ -149,8 +200,28 @@ def _row(cid, s, c, protocol, paper_verdict, verdict, evidence) -> dict:
         "protocol": protocol,
         "paper_verdict": paper_verdict,
         "our_verdict": verdict,
+        "verdict": size.verdict,
+        "size": size.size,
+        "margin": size.margin,
+        "unit": size.unit,
+        "reference": size.reference,
+        "budgets": "",
         "evidence": evidence,
+        "_counts": size.counts,
     }
+
+
+@dataclass
+class _Size:
+    """A claim's four-word verdict (reproduction-notes E4), the size of the decisive comparison
+    and the margin it was judged against."""
+
+    verdict: str
+    size: float = np.nan
+    margin: float = np.nan
+    unit: str = ""
+    reference: str = ""
+    counts: str = ""
 
 
 def _missing(df: pd.DataFrame, s: int, c: int) -> list[str]:
@@ -181,6 +252,27 @@ def _combine(verdicts: dict, expected: set) -> tuple[str, str]:
     return verdict, "; ".join(parts)
 
 
+def _combine_sizes(sizes: dict, expected: set, lowest: bool) -> _Size:
+    """The "all" row's four-word verdict from the places' (E4: one place against the claim is
+    enough; a place without runs leaves it inconclusive otherwise); its size is the decisive
+    place's (largest for a "lowest" claim, smallest for a "highest" one), its margin the
+    median of the places'."""
+    if not sizes:
+        return _Size(stats.INCONCLUSIVE)
+    words = [z.verdict for z in sizes.values()]
+    v = stats.combine_four(words, lowest=lowest)
+    bad = stats.HIGHER if lowest else stats.LOWER
+    if expected - set(sizes) and v != bad:
+        v = stats.INCONCLUSIVE
+    vals = [z.size for z in sizes.values() if np.isfinite(z.size)]
+    size = (max(vals) if lowest else min(vals)) if vals else np.nan
+    margins = [z.margin for z in sizes.values() if np.isfinite(z.margin)]
+    first = next(iter(sizes.values()))
+    counts = ", ".join(f"{w} {words.count(w)}" for w in sorted(set(words), key=words.index))
+    return _Size(v, size, float(np.median(margins)) if margins else np.nan, first.unit,
+                 first.reference, counts)  # fmt: skip
+
+
 def _paper_lookup(paper_objective: pd.DataFrame | None) -> dict:
     """{(scenario, case): {algorithm: (ise, rank)}} from objective.csv."""
     out: dict = {}
@@ -204,21 +296,31 @@ def _paper_extreme(paper: dict, key, ref: str, lowest: bool) -> str:
     return SUPPORTED if ok else NOT_SUPPORTED
 
 
-def _dominance(df, s, c, ref, column, alpha, lower: bool) -> tuple[str, str]:
-    """C1/C3 per scenario × case: ``ref`` significantly lower (higher) than all six rivals."""
+def _value_name(ctx: _Ctx) -> str:
+    return "excess" if ctx.value == "excess_ise" else "ISE"
+
+
+def _dominance(df, s, c, ref, column, ctx: _Ctx, lower: bool) -> tuple[str, str, _Size]:
+    """C1/C3 per scenario × case: ``ref`` significantly lower (higher) than all six rivals, and
+    the four-word verdict with the decisive rival's median paired difference."""
     missing = _missing(df, s, c)
+    m = ctx.margin(s, c)
+    ref_text = f"{_lab(ref)} − each rival"
     if ref in missing:
-        return INCONCLUSIVE, f"no runs of {_lab(ref)}"
-    hw = stats.holm_wilcoxon(df, s, c, ref=ref, alpha=alpha)
+        return INCONCLUSIVE, f"no runs of {_lab(ref)}", _Size(stats.INCONCLUSIVE)
+    hw = stats.holm_wilcoxon(df, s, c, ref=ref, alpha=ctx.alpha, margin=m)
     if hw.empty:
-        return INCONCLUSIVE, "no rivals with runs"
+        return INCONCLUSIVE, "no rivals with runs", _Size(stats.INCONCLUSIVE)
+    alpha = ctx.alpha
     sig = hw[column] < alpha
     contra = hw[hw["verdict"] == ("ref worse" if lower else "ref better")]["other"]
-    parts = [f"{_lab(ref)} median ISE {_g(hw['median_ref'].iloc[0])}"]
+    name = _value_name(ctx)
+    parts = [f"{_lab(ref)} median {name} {_g(hw['median_ref'].iloc[0] * ctx.scale)}"]
     for r in hw.itertuples(index=False):
         parts.append(
-            f"vs {_lab(r.other)}: n={r.n}, median diff {_g(r.median_diff)}, "
-            f"p_holm(one-sided)={_p(getattr(r, column))}"
+            f"vs {_lab(r.other)}: n={r.n}, median diff {_g(r.median_diff * ctx.scale)}, "
+            f"p_holm(one-sided)={_p(getattr(r, column))}, p_equiv(Holm)={_p(r.p_tost_holm)}: "
+            f"{r.size_verdict}"
         )
     if len(contra):
         word = "lower" if lower else "higher"
@@ -226,32 +328,43 @@ def _dominance(df, s, c, ref, column, alpha, lower: bool) -> tuple[str, str]:
             "rivals significantly " + word + " than " + _lab(ref) + ": "
             f"{', '.join(map(_lab, contra))}"
         )
+    diffs = hw["median_diff"] * ctx.scale
+    size = _Size(
+        stats.combine_four(hw["size_verdict"], lowest=lower),
+        float(diffs.max() if lower else diffs.min()),
+        m * ctx.scale,
+        ctx.unit,
+        ref_text,
+    )
     if missing:
         parts.append("no runs of " + ", ".join(map(_lab, missing)))
-        return INCONCLUSIVE, "; ".join(parts)
+        size.verdict = stats.INCONCLUSIVE
+        return INCONCLUSIVE, "; ".join(parts), size
     if (hw["verdict"] == "too few seeds").any():
-        return INCONCLUSIVE, "; ".join(parts)
+        return INCONCLUSIVE, "; ".join(parts), size
     not_beaten = hw[~sig]["other"]
     if len(not_beaten):
         parts.append(
             ("not significantly " + ("lower" if lower else "higher") + " than: ")
             + ", ".join(map(_lab, not_beaten))
         )
-    return (SUPPORTED if sig.all() else NOT_SUPPORTED), "; ".join(parts)
+    return (SUPPORTED if sig.all() else NOT_SUPPORTED), "; ".join(parts), size
 
 
 # ------------------------------------------------------------------------------------ claims
-def _c1_c3(df, combos, expected, paper, protocol, alpha, cid):
+def _c1_c3(df, combos, expected, paper, protocol, ctx, cid):
     ref, lower = ("avoa", True) if cid == "C1" else ("ga", False)
     column = "p_one_sided_holm" if lower else "p_one_sided_greater_holm"
-    rows, verdicts = [], {}
+    rows, verdicts, sizes = [], {}, {}
     for s, c in combos:
-        v, ev = _dominance(df, s, c, ref, column, alpha, lower)
-        verdicts[(s, c)] = v
-        rows.append(_row(cid, s, c, protocol, _paper_extreme(paper, (s, c), ref, lower), v, ev))
+        v, ev, z = _dominance(df, s, c, ref, column, ctx, lower)
+        verdicts[(s, c)], sizes[(s, c)] = v, z
+        pv = _paper_extreme(paper, (s, c), ref, lower)
+        rows.append(_row(cid, s, c, protocol, pv, v, ev, z))
     v, ev = _combine(verdicts, expected)
     pv = [_paper_extreme(paper, k, ref, lower) for k in sorted(expected)]
-    rows.append(_row(cid, None, None, protocol, _combine_paper(pv), v, ev))
+    z = _combine_sizes(sizes, expected, lower)
+    rows.append(_row(cid, None, None, protocol, _combine_paper(pv), v, ev, z))
     return rows
 
 
@@ -271,8 +384,44 @@ def _kendall(x, y) -> tuple[float, float]:
     return float(res.statistic), float(res.pvalue)
 
 
-def _c2(df, combos, expected, paper, protocol, alpha):
-    rows, verdicts, taus = [], {}, []
+_SWAP = {stats.LOWER: stats.HIGHER, stats.HIGHER: stats.LOWER}
+
+
+def _printed_pairs(pw: pd.DataFrame, p_rank: pd.Series, ctx: _Ctx, m: float) -> tuple[_Size, str]:
+    """C2's four-word verdict: every pair the paper ranks apart, read as printed-better against
+    printed-worse ("lower" = the printed order holds beyond the margin)."""
+    words, diffs = [], []
+    for better, worse in combinations(ALGORITHMS, 2):
+        if p_rank[better] == p_rank[worse]:
+            continue  # a printed tie constrains nothing
+        if p_rank[better] > p_rank[worse]:
+            better, worse = worse, better
+        if (better, worse) in pw.index:
+            r = pw.loc[(better, worse)]
+            word, d = r["size_verdict"], r["median_diff"]
+        else:
+            r = pw.loc[(worse, better)]
+            word, d = _SWAP.get(r["size_verdict"], r["size_verdict"]), -r["median_diff"]
+        words.append(word)
+        diffs.append(d * ctx.scale)
+    counts = {w: words.count(w) for w in dict.fromkeys(words)}
+    text = (
+        f"{len(words)} pairs ranked apart by the paper, ours (printed-better − printed-worse): "
+        + ", ".join(f"{w} {n}" for w, n in counts.items())
+    )
+    size = _Size(
+        stats.combine_four(words, lowest=True),
+        float(np.nanmax(diffs)) if diffs else np.nan,
+        m * ctx.scale,
+        ctx.unit,
+        "printed-better − printed-worse, each pair ranked apart",
+    )
+    return size, text
+
+
+def _c2(df, combos, expected, paper, protocol, ctx):
+    alpha = ctx.alpha
+    rows, verdicts, taus, sizes = [], {}, [], {}
     rk = stats.ranks(df)
     for s, c in combos:
         pr = paper.get((s, c), {})
@@ -306,15 +455,19 @@ def _c2(df, combos, expected, paper, protocol, alpha):
                 "paper's printed ranks contradict its printed ISE for "
                 + ", ".join(map(_lab, clash))
             )
+        m = ctx.margin(s, c)
+        pw = stats.pairwise_wilcoxon(df, s, c, margin=m, alpha=alpha).set_index(["a", "b"])
+        size, pairs_text = _printed_pairs(pw, p_rank, ctx, m)
+        parts.append(pairs_text)
+        sizes[(s, c)] = size
         if int(r["n_blocks"].iloc[0]) < stats.MIN_SEEDS:
             verdicts[(s, c)] = INCONCLUSIVE
-            rows.append(_row("C2", s, c, protocol, pv, INCONCLUSIVE, "; ".join(parts)))
+            rows.append(_row("C2", s, c, protocol, pv, INCONCLUSIVE, "; ".join(parts), size))
             continue
         if not disc:
             v = SUPPORTED
             parts.append("no pair ordered against the paper")
         else:
-            pw = stats.pairwise_wilcoxon(df, s, c).set_index(["a", "b"])
             reversed_sig, desc = [], []
             for better, worse in disc:  # the paper ranks `better` above `worse`
                 key = (better, worse) if (better, worse) in pw.index else (worse, better)
@@ -329,32 +482,34 @@ def _c2(df, combos, expected, paper, protocol, alpha):
             v = NOT_SUPPORTED if any(reversed_sig) else INCONCLUSIVE
             parts.append(f"{len(disc)} of 21 pairs ordered against the paper: " + ", ".join(desc))
         verdicts[(s, c)] = v
-        rows.append(_row("C2", s, c, protocol, pv, v, "; ".join(parts)))
+        rows.append(_row("C2", s, c, protocol, pv, v, "; ".join(parts), size))
     v, ev = _combine(verdicts, expected)
     if taus:
         finite = [t for t in taus if np.isfinite(t)]
         ev += f"; mean Kendall tau-b {_g(float(np.mean(finite)) if finite else np.nan)}"
     pvs = [r["paper_verdict"] for r in rows]
-    rows.append(_row("C2", None, None, protocol, _combine_paper(pvs), v, ev))
+    z = _combine_sizes(sizes, expected, True)
+    rows.append(_row("C2", None, None, protocol, _combine_paper(pvs), v, ev, z))
     return rows
 
 
-def _c4(histories, combos, expected, protocol, alpha):
+def _c4(histories, combos, expected, protocol, ctx):
     by = "iteration" if protocol == PROTOCOL_PAPER else "nfe"
     frames = {f: stats.at_budget(histories, f, by=by) for f in CHECKPOINTS}
-    rows, verdicts = [], {}
+    rows, verdicts, sizes = [], {}, {}
     for s, c in combos:
-        vs, parts = [], []
+        vs, zs, parts = [], [], []
         for f, fr in frames.items():
-            v, ev = _dominance(fr, s, c, "avoa", "p_one_sided_holm", alpha, True)
+            v, ev, z = _dominance(fr, s, c, "avoa", "p_one_sided_holm", ctx, True)
             sub = fr[(fr["scenario"] == s) & (fr["case"] == c)]
             limit = sub[f"budget_{by}"].iloc[0] if len(sub) else np.nan
             med = sub.groupby("algorithm")["best_ise"].median()
             rank = int(med.rank(method="min").get("avoa", 0)) if med.notna().any() else 0
             vs.append(v)
+            zs.append(z)
             parts.append(
-                f"at {f:.0%} ({by} ≤ {_g(float(limit))}): {v}; AVOA's median rank {rank}/"
-                f"{med.notna().sum()}; {ev}"
+                f"at {f:.0%} ({by} ≤ {_g(float(limit))}): {v} ({z.verdict}); AVOA's median "
+                f"rank {rank}/{med.notna().sum()}; {ev}"
             )
         if NOT_SUPPORTED in vs:
             v = NOT_SUPPORTED
@@ -362,10 +517,19 @@ def _c4(histories, combos, expected, protocol, alpha):
             v = SUPPORTED
         else:
             v = INCONCLUSIVE
-        verdicts[(s, c)] = v
-        rows.append(_row("C4", s, c, protocol, "claimed (figures only)", v, " | ".join(parts)))
+        sizes_f = [z.size for z in zs if np.isfinite(z.size)]
+        z = _Size(
+            stats.combine_four([z.verdict for z in zs], lowest=True),
+            max(sizes_f) if sizes_f else np.nan,
+            zs[0].margin,
+            ctx.unit,
+            "AVOA − each rival, at 10 % and 50 % of the budget",
+        )
+        verdicts[(s, c)], sizes[(s, c)] = v, z
+        rows.append(_row("C4", s, c, protocol, "claimed (figures only)", v, " | ".join(parts), z))
     v, ev = _combine(verdicts, expected)
-    rows.append(_row("C4", None, None, protocol, "claimed (figures only)", v, ev))
+    z = _combine_sizes(sizes, expected, True)
+    rows.append(_row("C4", None, None, protocol, "claimed (figures only)", v, ev, z))
     return rows
 
 
@@ -375,7 +539,17 @@ def _time_measure(protocol: str) -> tuple[str, str]:
     return "time_per_eval_s", "time per evaluation"
 
 
-def _c5(runs, paper_time, protocol, alpha):
+def _time_size(words, ratios, lowest: bool, reference: str) -> _Size:
+    finite = [r for r in ratios if np.isfinite(r)]
+    size = (max(finite) if lowest else min(finite)) if finite else np.nan
+    unit = (
+        f"time ratio; practically equivalent inside {1 / stats.TIME_RATIO:.2f}-{stats.TIME_RATIO}"
+    )
+    return _Size(stats.combine_four(words, lowest=lowest), size, stats.TIME_RATIO, unit, reference)
+
+
+def _c5(runs, paper_time, protocol, ctx):
+    alpha = ctx.alpha
     col, what = _time_measure(protocol)
     paper = {}
     if paper_time is not None and len(paper_time):
@@ -399,9 +573,20 @@ def _c5(runs, paper_time, protocol, alpha):
         rivals = [a for a in ALGORITHMS if a != "avoa"]
         p_less = stats.holm([stats.mannwhitney_less(t["avoa"], t[a]) for a in rivals])
         p_more = stats.holm([stats.mannwhitney_less(t[a], t["avoa"]) for a in rivals])
+        p_two = stats.holm([stats.mannwhitney_two(t["avoa"], t[a]) for a in rivals])
+        p_eq = stats.holm(
+            [stats.tost_ratio_unpaired(t["avoa"], t[a], stats.TIME_RATIO) for a in rivals]
+        )
+        words = [stats.four_way(*x, alpha) for x in zip(p_two, p_less, p_more, p_eq, strict=True)]
+        ratios = [
+            float(np.median(t["avoa"]) / np.median(t[a]))
+            if len(t[a]) and len(t["avoa"])
+            else np.nan
+            for a in rivals
+        ]
         mean_avoa = float(np.mean(t["avoa"])) if len(t["avoa"]) else np.nan
         parts = [f"{what}: AVOA mean {_g(mean_avoa)} s"]
-        for a, pl in zip(rivals, p_less, strict=True):
+        for a, pl, pe, w in zip(rivals, p_less, p_eq, words, strict=True):
             ratio = float(np.mean(t[a])) / mean_avoa if len(t[a]) and mean_avoa > 0 else np.nan
             pr = ""
             if s is not None and a in paper and "avoa" in paper and col == "time_per_iter_s":
@@ -409,7 +594,9 @@ def _c5(runs, paper_time, protocol, alpha):
             if not len(t[a]):
                 parts.append(f"{_lab(a)}: no runs")
                 continue
-            parts.append(f"{_lab(a)} {_g(ratio)}x AVOA (p_holm={_p(pl)}{pr})")
+            parts.append(
+                f"{_lab(a)} {_g(ratio)}x AVOA (p_holm={_p(pl)}, p_equiv={_p(pe)}{pr}): AVOA {w}"
+            )
         faster = [_lab(a) for a, pm in zip(rivals, p_more, strict=True) if pm < alpha]
         if faster:
             parts.append("significantly faster than AVOA: " + ", ".join(faster))
@@ -438,11 +625,13 @@ def _c5(runs, paper_time, protocol, alpha):
             pvr = pv
         else:
             pvr = pv + " (per iteration; per evaluation not printed)" if pv != "not printed" else pv
-        rows.append(_row("C5", s, c, protocol, pvr, v, "; ".join(parts)))
+        z = _time_size(words, ratios, True, f"AVOA / each rival, median {what}")
+        rows.append(_row("C5", s, c, protocol, pvr, v, "; ".join(parts), z))
     return rows
 
 
-def _c6(runs, protocol, alpha):
+def _c6(runs, protocol, ctx):
+    alpha = ctx.alpha
     col, what = _time_measure(protocol)
     if col not in runs:
         return [_row("C6", 4, 4, protocol, CLAIMED, INCONCLUSIVE, f"no {what} in the runs")]
@@ -459,9 +648,26 @@ def _c6(runs, protocol, alpha):
         o = d[(d["scenario"] == s) & (d["case"] == c)].set_index(key)[col]
         both = pd.concat([tgt.rename("t"), o.rename("o")], axis=1, join="inner")
         w = stats.wilcoxon_pair(both["t"], both["o"])
-        results.append((s, c, w["p_greater"], float(o.median()), w["n"]))
-    p_holm = stats.holm([r[2] for r in results])
-    med = {(s, c): m for s, c, _, m, _ in results}
+        lt, lo = np.log(both["t"].to_numpy()), np.log(both["o"].to_numpy())
+        results.append(
+            {
+                "s": s,
+                "c": c,
+                "p_two": w["p_two"],
+                "p_less": w["p_less"],
+                "p_greater": w["p_greater"],
+                "p_eq": stats.tost_pair(lt, lo, np.log(stats.TIME_RATIO)),
+                "median": float(o.median()),
+                "ratio": float(np.exp(np.median(lt - lo))) if len(lt) else np.nan,
+            }
+        )
+    res = pd.DataFrame(results)
+    for k in ("p_two", "p_less", "p_greater", "p_eq"):
+        res[k + "_holm"] = stats.holm(res[k])
+    cols = ["p_two_holm", "p_less_holm", "p_greater_holm", "p_eq_holm"]
+    words = [stats.four_way(*x, alpha) for x in res[cols].itertuples(index=False)]
+    p_holm = res["p_greater_holm"].to_numpy()
+    med = {(r.s, r.c): r.median for r in res.itertuples(index=False)}
     med[target] = float(tgt.median())
     order = sorted(med, key=med.get, reverse=True)
     parts = [
@@ -470,30 +676,35 @@ def _c6(runs, protocol, alpha):
         f"slowest: {_where(*order[0])} ({_g(med[order[0]])} s)",
     ]
     weak = [
-        f"{_where(s, c)} (p_holm={_p(p)})"
-        for (s, c, _, _, _), p in zip(results, p_holm, strict=True)
+        f"{_where(r.s, r.c)} (p_holm={_p(p)})"
+        for r, p in zip(res.itertuples(index=False), p_holm, strict=True)
         if not p < alpha
     ]
     if weak:
         parts.append("S4/C4 not significantly slower than: " + ", ".join(weak))
+    equiv = [_where(r.s, r.c) for r, w in zip(res.itertuples(index=False), words, strict=True)
+             if w == stats.EQUIVALENT]  # fmt: skip
+    if equiv:
+        parts.append("practically as slow (ratio inside 0.8-1.25): " + ", ".join(equiv))
     if np.isnan(p_holm).any():
         v = INCONCLUSIVE
     else:
         v = SUPPORTED if (p_holm < alpha).all() else NOT_SUPPORTED
-    return [_row("C6", 4, 4, protocol, CLAIMED, v, "; ".join(parts))]
+    z = _time_size(words, list(res["ratio"]), False, f"S4/C4 / each other pair, {what}")
+    return [_row("C6", 4, 4, protocol, CLAIMED, v, "; ".join(parts), z)]
 
 
-def _c7(df, combos, expected, protocol, alpha):
-    rows, verdicts = [], {}
+def _c7(df, combos, expected, protocol, ctx):
+    alpha = ctx.alpha
+    rows, verdicts, sizes = [], {}, {}
+    value = stats.value_column(df)
     for s, c in combos:
         sub = df[(df["scenario"] == s) & (df["case"] == c) & df["best_ise"].notna()]
         missing = _missing(df, s, c)
-        x = {a: sub[sub["algorithm"] == a]["best_ise"].to_numpy() for a in ALGORITHMS}
-        spread = {
-            a: float(np.mean(np.abs(v - np.median(v)))) if len(v) else np.nan for a, v in x.items()
-        }
+        x = {a: sub[sub["algorithm"] == a][value].to_numpy() for a in ALGORITHMS}
+        spread = {a: float(stats.spread(v)) if len(v) else np.nan for a, v in x.items()}
         iqr = {
-            a: float(np.subtract(*np.percentile(v, [75, 25]))) if len(v) else np.nan
+            a: float(np.subtract(*np.percentile(v, [75, 25]))) * ctx.scale if len(v) else np.nan
             for a, v in x.items()
         }
         rivals = [a for a in ALGORITHMS if a != "avoa"]
@@ -502,60 +713,216 @@ def _c7(df, combos, expected, protocol, alpha):
             [stats.brown_forsythe(x["avoa"], x[a]) if enough else np.nan for a in rivals]
         )
         rank = pd.Series(iqr).rank(method="min")
+        m = ctx.margin(s, c)
         parts = [
-            f"IQR of ISE over seeds: AVOA {_g(iqr['avoa'])} (rank {_g(rank.get('avoa'))} of 7)"
+            f"IQR of {_value_name(ctx)} over seeds: AVOA {_g(iqr['avoa'])} "
+            f"(rank {_g(rank.get('avoa'))} of 7)"
         ]
-        ok = []
-        for a, pa in zip(rivals, p, strict=True):
+        ok, words, diffs = [], [], []
+        for i, (a, pa) in enumerate(zip(rivals, p, strict=True)):
             smaller = spread["avoa"] < spread[a]
             ok.append(bool(pa < alpha and smaller))
-            parts.append(f"{_lab(a)} IQR {_g(iqr[a])} (Brown-Forsythe p_holm={_p(pa)})")
+            pair = stats.seed_matrix(df, s, c, ["avoa", a]) if enough else pd.DataFrame()
+            if len(pair) >= stats.MIN_SEEDS:
+                est, lo, hi = stats.bootstrap_interval(
+                    lambda u, w: stats.spread(u) - stats.spread(w),
+                    [pair["avoa"], pair[a]],
+                    seed=ctx.rng(s, c, i),
+                )
+                if stats.interval_equivalent(lo, hi, m):
+                    word = stats.EQUIVALENT
+                elif pa < alpha:
+                    word = stats.LOWER if smaller else stats.HIGHER
+                else:
+                    word = stats.INCONCLUSIVE
+            else:
+                est, lo, hi, word = np.nan, np.nan, np.nan, stats.TOO_FEW
+            words.append(word)
+            diffs.append(est * ctx.scale)
+            parts.append(
+                f"{_lab(a)} IQR {_g(iqr[a])} (Brown-Forsythe p_holm={_p(pa)}; spread difference "
+                f"{_g(est * ctx.scale)}, 90 % interval {_g(lo * ctx.scale)} to "
+                f"{_g(hi * ctx.scale)}): AVOA {word}"
+            )
+        finite = [d for d in diffs if np.isfinite(d)]
+        z = _Size(
+            stats.combine_four(words, lowest=True),
+            max(finite) if finite else np.nan,
+            m * ctx.scale,
+            ctx.unit,
+            "spread of AVOA − spread of each rival (mean |x − median|)",
+        )
         if missing or not enough:
             v = INCONCLUSIVE
+            z.verdict = stats.INCONCLUSIVE
             parts.append(
                 "too few runs" if not missing else "no runs of " + ", ".join(map(_lab, missing))
             )
         else:
             v = SUPPORTED if all(ok) else NOT_SUPPORTED
-        verdicts[(s, c)] = v
-        rows.append(_row("C7", s, c, protocol, CLAIMED, v, "; ".join(parts)))
+        verdicts[(s, c)], sizes[(s, c)] = v, z
+        rows.append(_row("C7", s, c, protocol, CLAIMED, v, "; ".join(parts), z))
     v, ev = _combine(verdicts, expected)
-    rows.append(_row("C7", None, None, protocol, CLAIMED, v, ev))
+    z = _combine_sizes(sizes, expected, True)
+    rows.append(_row("C7", None, None, protocol, CLAIMED, v, ev, z))
     return rows
 
 
-def _c8(df, combos, expected, paper, protocol):
-    rows, verdicts = [], {}
+def _c8(df, combos, expected, paper, protocol, ctx):
+    rows, verdicts, sizes = [], {}, {}
+    value = stats.value_column(df)
     for s, c in combos:
         sub = df[(df["scenario"] == s) & (df["case"] == c) & df["best_ise"].notna()]
         missing = _missing(df, s, c)
-        best = sub.groupby("algorithm")["best_ise"].min().reindex(list(ALGORITHMS))
+        best = sub.groupby("algorithm")[value].min().reindex(list(ALGORITHMS))
+        m = ctx.margin(s, c)
         parts = [
-            "best run over seeds: " + ", ".join(f"{_lab(a)} {_g(best[a])}" for a in ALGORITHMS)
+            f"best run over seeds ({_value_name(ctx)}): "
+            + ", ".join(f"{_lab(a)} {_g(best[a] * ctx.scale)}" for a in ALGORITHMS)
         ]
+        diffs = (best["avoa"] - best.drop("avoa")) * ctx.scale
+        words = [
+            stats.EQUIVALENT
+            if abs(d) < m * ctx.scale or d == 0
+            else (stats.LOWER if d < 0 else stats.HIGHER)
+            for d in diffs
+        ]
+        z = _Size(
+            stats.combine_four(words, lowest=True),
+            float(diffs.max()),
+            m * ctx.scale,
+            ctx.unit,
+            "AVOA's best run − each rival's best run (descriptive, no test)",
+        )
         if missing:
             v = INCONCLUSIVE
+            z.verdict = stats.INCONCLUSIVE
             parts.append("no runs of " + ", ".join(map(_lab, missing)))
         else:
             others = best.drop("avoa")
             v = SUPPORTED if (best["avoa"] < others).all() else NOT_SUPPORTED
             parts.append(f"AVOA's best run ranks {int(best.rank(method='min')['avoa'])} of 7")
-        verdicts[(s, c)] = v
-        rows.append(
-            _row(
-                "C8",
-                s,
-                c,
-                protocol,
-                _paper_extreme(paper, (s, c), "avoa", True),
-                v,
-                "; ".join(parts),
-            )
-        )
+        verdicts[(s, c)], sizes[(s, c)] = v, z
+        pv = _paper_extreme(paper, (s, c), "avoa", True)
+        rows.append(_row("C8", s, c, protocol, pv, v, "; ".join(parts), z))
     v, ev = _combine(verdicts, expected)
     pv = [_paper_extreme(paper, k, "avoa", True) for k in sorted(expected)]
-    rows.append(_row("C8", None, None, protocol, _combine_paper(pv), v, ev))
+    z = _combine_sizes(sizes, expected, True)
+    rows.append(_row("C8", None, None, protocol, _combine_paper(pv), v, ev, z))
     return rows
+
+
+def _c9(runs, combos, expected, protocol, ctx):
+    """Parameter accuracy (E7): AVOA's share of seeds with every parameter within 1 %."""
+    alpha = ctx.alpha
+    tol = stats.ACCURACY_TOLERANCES[0]
+    rows, verdicts, sizes = [], {}, {}
+    d = runs[runs["best_ise"].notna()].copy()
+    for t in stats.ACCURACY_TOLERANCES:
+        d[f"_within_{t}"] = stats.within_truth(d, t).astype(float)
+    unit = f"percentage points of seeds within {tol:.0%} of the truth"
+    for s, c in combos:
+        sub = d[(d["scenario"] == s) & (d["case"] == c)]
+        missing = _missing(runs, s, c)
+        share = {
+            t: sub.groupby("algorithm")[f"_within_{t}"].mean().reindex(list(ALGORITHMS))
+            for t in stats.ACCURACY_TOLERANCES
+        }
+        parts = [
+            f"share of seeds with every parameter within {t:.0%}: "
+            + ", ".join(f"{_lab(a)} {_g(100 * share[t][a])} %" for a in ALGORITHMS)
+            for t in stats.ACCURACY_TOLERANCES
+        ]
+        if missing:
+            verdicts[(s, c)] = INCONCLUSIVE
+            parts.append("no runs of " + ", ".join(map(_lab, missing)))
+            rows.append(_row("C9", s, c, protocol, CLAIMED, INCONCLUSIVE, "; ".join(parts)))
+            continue
+        wide = sub.pivot(index="seed", columns="algorithm", values=f"_within_{tol}").dropna()
+        rivals = [a for a in ALGORITHMS if a != "avoa"]
+        tests = [stats.mcnemar_exact(wide["avoa"] > 0, wide[a] > 0) for a in rivals]
+        p_two = stats.holm([x["p_two"] for x in tests])
+        p_more = stats.holm([x["p_greater"] for x in tests])
+        words, diffs = [], []
+        for i, (a, pt) in enumerate(zip(rivals, p_two, strict=True)):
+            est, lo, hi = stats.bootstrap_interval(
+                lambda u, w: u.mean(axis=-1) - w.mean(axis=-1),
+                [wide["avoa"], wide[a]],
+                seed=ctx.rng(s, c, 100 + i),
+            )
+            if len(wide) < stats.MIN_SEEDS:
+                word = stats.TOO_FEW
+            elif stats.interval_equivalent(lo, hi, stats.SHARE_MARGIN):
+                word = stats.EQUIVALENT
+            elif pt < alpha:
+                word = stats.HIGHER if est > 0 else stats.LOWER
+            else:
+                word = stats.INCONCLUSIVE
+            words.append(word)
+            diffs.append(100 * est)
+            parts.append(
+                f"vs {_lab(a)}: AVOA − rival {_g(100 * est)} points (90 % interval "
+                f"{_g(100 * lo)} to {_g(100 * hi)}), McNemar p_holm={_p(pt)}: AVOA {word}"
+            )
+        finite = [x for x in diffs if np.isfinite(x)]
+        z = _Size(
+            stats.combine_four(words, lowest=False),
+            min(finite) if finite else np.nan,
+            100 * stats.SHARE_MARGIN,
+            unit,
+            "AVOA's share − each rival's share (paired by seed)",
+        )
+        if len(wide) < stats.MIN_SEEDS:
+            v = INCONCLUSIVE
+        else:
+            v = SUPPORTED if (p_more < alpha).all() else NOT_SUPPORTED
+        verdicts[(s, c)], sizes[(s, c)] = v, z
+        rows.append(_row("C9", s, c, protocol, CLAIMED, v, "; ".join(parts), z))
+    v, ev = _combine(verdicts, expected)
+    z = _combine_sizes(sizes, expected, False)
+    rows.append(_row("C9", None, None, protocol, CLAIMED, v, ev, z))
+    return rows
+
+
+# ------------------------------------------------------------------------------------ budgets
+def _fraction(f: float) -> str:
+    return f"{100 * f:g} %"
+
+
+def _budget_sentence(readings: list[tuple[float, str]]) -> str:
+    """ "1-2 %: higher; 5-100 %: practically equivalent" from (fraction, text) in order."""
+    groups: list[list] = []
+    for f, text in readings:
+        if groups and groups[-1][2] == text:
+            groups[-1][1] = f
+        else:
+            groups.append([f, f, text])
+    spans = [
+        (_fraction(a) if a == b else f"{100 * a:g}-{_fraction(b)}") + f": {t}" for a, b, t in groups
+    ]
+    return "at equal evaluations, by share of each pair's N: " + "; ".join(spans)
+
+
+def _budget_rows(histories, combos, expected, paper, ctx) -> dict:
+    """(claim, where) → its budget sentence, for the claims that read the ISE (E8)."""
+    readings: dict = {}
+    for f in stats.BUDGET_FRACTIONS:
+        fr = stats.at_budget(histories, f, by="nfe")
+        rows = [
+            *_c1_c3(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx, "C1"),
+            *_c1_c3(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx, "C3"),
+            *_c2(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx),
+            *_c7(fr, combos, expected, PROTOCOL_EQUAL, ctx),
+            *_c8(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx),
+        ]
+        for r in rows:
+            text = r["verdict"] + (f" ({r['_counts']})" if r["where"] == "all" else "")
+            readings.setdefault((r["claim_id"], r["where"]), []).append((f, text))
+    out = {k: _budget_sentence(v) for k, v in readings.items()}
+    for (cid, where), text in list(out.items()):
+        if cid == "C1":
+            out[("C4", where)] = "C4 reads C1 at 10 % and 50 % of N; C1 " + text
+    return out
 
 
 def claims(
@@ -564,40 +931,60 @@ def claims(
     paper_objective: pd.DataFrame | None,
     paper_time: pd.DataFrame | None,
     alpha: float = 0.05,
+    seed: int = 0,
 ) -> pd.DataFrame:
-    """Decide the paper's claims (C1-C8 of the module docstring) under both protocols.
+    """Decide the paper's claims (C1-C9 of the module docstring) under both protocols.
 
-    ``runs`` and ``histories`` are the aggregates of docs/records.md; ``paper_objective`` and
-    ``paper_time`` are config/paper/objective.csv and time_per_iteration.csv as DataFrames.
+    ``runs`` and ``histories`` are the aggregates of docs/records.md (``excess_ise`` is added
+    where missing); ``paper_objective`` and ``paper_time`` are config/paper/objective.csv and
+    time_per_iteration.csv as DataFrames; ``seed`` seeds the bootstrap intervals (C7, C9).
     Returns one row per claim × place × protocol with columns ``claim_id, claim, where``
     ("S<s>/C<c>" or "all"), ``scenario, case`` (nullable ints; empty for "all"), ``protocol,
-    paper_verdict, our_verdict`` ("supported" / "not supported" / "inconclusive"), and
-    ``evidence`` (the numbers behind the verdict: medians, p-values, ranks, ratios).
+    paper_verdict, our_verdict`` ("supported" / "not supported" / "inconclusive": the tests
+    alone), ``verdict`` (the four words of reproduction-notes E4), ``size`` (the decisive
+    comparison's effect), ``margin`` and ``unit`` (what size and margin are in), ``reference``
+    (what was subtracted from what), ``budgets`` (one sentence: the verdict at each budget, E8)
+    and ``evidence`` (the numbers behind the verdicts: medians, p-values, ranks, ratios).
     """
+    runs, histories = stats.with_excess(runs, histories)
     paper = _paper_lookup(paper_objective)
     combos = stats.scenario_cases(runs)
     expected = set(paper) | set(combos)
+    value = stats.value_column(runs)
+    scale, unit = (100.0, "% of the truth's ISE") if value == "excess_ise" else (1.0, "V²")
+    margins = {(s, c): stats.margin_of(runs, s, c) for s, c in combos}
+    ctx = _Ctx(alpha, margins, scale, unit, value, seed)
     protocols = {
         PROTOCOL_PAPER: runs,
         PROTOCOL_EQUAL: stats.at_budget(histories, 1.0, by="nfe"),
     }
     rows: list[dict] = []
-    for cid in ("C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8"):
+    for cid in ("C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8", "C9"):
         for protocol, df in protocols.items():
             if cid in ("C1", "C3"):
-                rows += _c1_c3(df, combos, expected, paper, protocol, alpha, cid)
+                rows += _c1_c3(df, combos, expected, paper, protocol, ctx, cid)
             elif cid == "C2":
-                rows += _c2(df, combos, expected, paper, protocol, alpha)
+                rows += _c2(df, combos, expected, paper, protocol, ctx)
             elif cid == "C4":
-                rows += _c4(histories, combos, expected, protocol, alpha)
+                rows += _c4(histories, combos, expected, protocol, ctx)
             elif cid == "C5":
-                rows += _c5(runs, paper_time, protocol, alpha)
+                rows += _c5(runs, paper_time, protocol, ctx)
             elif cid == "C6":
-                rows += _c6(runs, protocol, alpha)
+                rows += _c6(runs, protocol, ctx)
             elif cid == "C7":
-                rows += _c7(df, combos, expected, protocol, alpha)
-            else:
-                rows += _c8(df, combos, expected, paper, protocol)
+                rows += _c7(df, combos, expected, protocol, ctx)
+            elif cid == "C8":
+                rows += _c8(df, combos, expected, paper, protocol, ctx)
+            elif protocol == PROTOCOL_PAPER:  # C9: final parameters only
+                rows += _c9(runs, combos, expected, protocol, ctx)
+    budgets = _budget_rows(histories, combos, expected, paper, ctx)
+    for r in rows:
+        if r["claim_id"] in ("C5", "C6"):
+            r["budgets"] = "a time per iteration or per evaluation: the same at every budget"
+        elif r["claim_id"] == "C9":
+            r["budgets"] = "final parameters only: the histories record no parameters"
+        else:
+            r["budgets"] = budgets.get((r["claim_id"], r["where"]), "")
     out = pd.DataFrame(rows, columns=COLUMNS)
     out["scenario"] = out["scenario"].astype("Int64")
     out["case"] = out["case"].astype("Int64")

@@ -29,6 +29,7 @@ Conventions
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import cache
 
 import numpy as np
 import pandas as pd
@@ -173,6 +174,57 @@ def holm(p) -> np.ndarray:
     return out
 
 
+@cache
+def _signed_rank_cdf(n: int) -> np.ndarray:
+    """Cumulative null distribution of the signed-rank sum R+ for n untied non-zero pairs:
+    the number of subsets of {1..n} with each sum, over 2^n (the exact distribution)."""
+    counts = np.zeros(n * (n + 1) // 2 + 1)
+    counts[0] = 1.0
+    for k in range(1, n + 1):
+        counts[k:] = counts[k:] + counts[:-k].copy()
+    return np.cumsum(counts) / 2.0**n
+
+
+def signed_rank(d) -> tuple[float, float, float]:
+    """p-values (two-sided, H1 "less", H1 "greater") of the Wilcoxon signed-rank test of the
+    paired differences ``d``, as ``scipy.stats.wilcoxon(d, zero_method="wilcox")`` gives them
+    with its default method (exact without zeros or ties for n ≤ 50; a permutation test for
+    n ≤ 13 otherwise; else the normal approximation with the tie correction and no continuity
+    correction), at a small part of its cost: this test runs some 25,000 times per claims
+    table. ``tests/unit/test_report_stats.py`` checks it against scipy. Needs a non-zero
+    difference."""
+    d = np.asarray(d, dtype=float)
+    nz = d[d != 0]
+    n = len(nz)
+    a = np.abs(nz)
+    ranks = st.rankdata(a)
+    _, tie_sizes = np.unique(a, return_counts=True)
+    has_ties = bool((tie_sizes > 1).any())
+    has_zero = n < len(d)
+    r_plus = float(ranks[nz > 0].sum())
+    if not (has_ties or has_zero) and len(d) <= 50:
+        cdf = _signed_rank_cdf(n)
+        k_lo, k_hi = int(np.ceil(r_plus)), int(np.floor(r_plus))
+        p_less = float(cdf[k_lo])
+        p_greater = float(1.0 - cdf[k_hi - 1]) if k_hi > 0 else 1.0
+        return float(min(1.0, 2 * min(p_less, p_greater))), p_less, p_greater
+    if len(d) <= 13:  # scipy's exact permutation test: every sign pattern of the pairs
+        full = np.zeros(len(d))
+        full[d != 0] = ranks
+        flips = ((np.arange(2 ** len(d))[:, None] >> np.arange(len(d))) & 1).astype(bool)
+        null = ((d > 0) ^ flips) & (d != 0)
+        null_r = (null * full).sum(axis=1)
+        gamma = abs(100 * np.finfo(float).eps * r_plus)
+        p_less = float(np.mean(null_r <= r_plus + gamma))
+        p_greater = float(np.mean(null_r >= r_plus - gamma))
+        return float(min(1.0, 2 * min(p_less, p_greater))), p_less, p_greater
+    mn = n * (n + 1) / 4
+    se = np.sqrt((n * (n + 1) * (2 * n + 1) - np.sum(tie_sizes**3 - tie_sizes) / 2) / 24)
+    z = (r_plus - mn) / se
+    p_less, p_greater = float(st.norm.cdf(z)), float(st.norm.sf(z))
+    return float(min(1.0, 2 * min(p_less, p_greater))), p_less, p_greater
+
+
 def wilcoxon_pair(a, b, min_n: int = MIN_SEEDS) -> dict:
     """Paired Wilcoxon signed-rank test of ``a`` against ``b`` (same length, matched).
 
@@ -197,8 +249,7 @@ def wilcoxon_pair(a, b, min_n: int = MIN_SEEDS) -> dict:
     if nz == 0:
         out.update(p_two=1.0, p_less=1.0, p_greater=1.0)
         return out
-    for key, alt in (("p_two", "two-sided"), ("p_less", "less"), ("p_greater", "greater")):
-        out[key] = float(st.wilcoxon(a, b, alternative=alt, zero_method="wilcox").pvalue)
+    out["p_two"], out["p_less"], out["p_greater"] = signed_rank(d)
     return out
 
 
@@ -210,13 +261,9 @@ def tost_pair(a, b, margin: float, min_n: int = MIN_SEEDS) -> float:
     d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
     if len(d) < min_n or not np.isfinite(margin) or margin <= 0:
         return np.nan
-    p = []
-    for shifted, alt in ((d - margin, "less"), (d + margin, "greater")):
-        if not np.count_nonzero(shifted):
-            p.append(1.0)
-            continue
-        p.append(float(st.wilcoxon(shifted, alternative=alt, zero_method="wilcox").pvalue))
-    return max(p)
+    below = signed_rank(d - margin)[1] if np.count_nonzero(d - margin) else 1.0
+    above = signed_rank(d + margin)[2] if np.count_nonzero(d + margin) else 1.0
+    return max(below, above)
 
 
 def four_way(p_diff, p_less, p_greater, p_equiv, alpha: float = 0.05) -> str:
@@ -258,19 +305,27 @@ def interval_equivalent(lo: float, hi: float, margin: float) -> bool:
 
 
 def bootstrap_interval(statistic, samples, n_boot: int = 2000, level: float = 0.90, seed=0):
-    """Percentile bootstrap interval of ``statistic(*resampled)``; the samples (equal-length
-    arrays, one per group, paired by position: the seeds) are resampled together. Returns
-    ``(estimate, lo, hi)``; NaNs for fewer than two pairs."""
+    """Percentile bootstrap interval of ``statistic(*resampled)``. The samples (equal-length
+    arrays, one per group, paired by position: the seeds) are resampled together; ``statistic``
+    works along the last axis (it gets arrays of shape (n_boot, n) and returns n_boot values),
+    so the resamples are computed at once. Returns ``(estimate, lo, hi)``; NaNs for fewer than
+    two pairs."""
     arrays = [np.asarray(x, dtype=float) for x in samples]
     n = len(arrays[0])
-    est = float(statistic(*arrays)) if n else np.nan
     if n < 2:
+        est = float(statistic(*[x[None, :] for x in arrays])[0]) if n else np.nan
         return est, np.nan, np.nan
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, n, size=(n_boot, n))
-    vals = np.array([statistic(*[x[i] for x in arrays]) for i in idx], dtype=float)
+    est = float(statistic(*[x[None, :] for x in arrays])[0])
+    idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+    vals = np.asarray(statistic(*[x[idx] for x in arrays]), dtype=float)
     lo, hi = np.quantile(vals, [(1 - level) / 2, (1 + level) / 2])
     return est, float(lo), float(hi)
+
+
+def spread(x, axis: int = -1):
+    """Mean absolute deviation from the median along ``axis`` (C7's reliability measure)."""
+    x = np.asarray(x, dtype=float)
+    return np.mean(np.abs(x - np.median(x, axis=axis, keepdims=True)), axis=axis)
 
 
 def mcnemar_exact(x, y) -> dict:
@@ -292,14 +347,13 @@ def _best_at(histories: pd.DataFrame, column: str, limit) -> pd.DataFrame:
     vals = ["best_ise", *(["excess_ise"] if "excess_ise" in histories.columns else [])]
     h = histories[[*KEYS, "iteration", "nfe", *vals]].reset_index(drop=True)
     if isinstance(limit, Mapping):
-        lim = pd.Series(
-            [
-                limit.get((int(s), int(c)), np.nan)
-                for s, c in zip(h["scenario"], h["case"], strict=True)
-            ],
-            index=h.index,
-            dtype=float,
+        table = pd.DataFrame(
+            [(int(s), int(c), float(v)) for (s, c), v in limit.items()],
+            columns=["scenario", "case", "_limit"],
         )
+        keys = h[["scenario", "case"]].astype("int64")
+        lim = keys.merge(table, on=["scenario", "case"], how="left")["_limit"]
+        lim.index = h.index
     else:
         lim = pd.Series(float(limit), index=h.index)
     within = h[h[column] <= lim].sort_values([*KEYS, "iteration"], kind="stable")
@@ -605,6 +659,35 @@ def mannwhitney_less(x, y, min_n: int = MIN_SEEDS) -> float:
     if np.all(both == both[0]):
         return 1.0
     return float(st.mannwhitneyu(x, y, alternative="less").pvalue)
+
+
+def mannwhitney_two(x, y, min_n: int = MIN_SEEDS) -> float:
+    """Two-sided Mann-Whitney U p-value (unpaired); NaN / 1 as :func:`mannwhitney_less`."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    x, y = x[~np.isnan(x)], y[~np.isnan(y)]
+    if len(x) < min_n or len(y) < min_n:
+        return np.nan
+    both = np.concatenate([x, y])
+    if np.all(both == both[0]):
+        return 1.0
+    return float(st.mannwhitneyu(x, y, alternative="two-sided").pvalue)
+
+
+def tost_ratio_unpaired(x, y, ratio: float = TIME_RATIO, min_n: int = MIN_SEEDS) -> float:
+    """Two one-sided Mann-Whitney tests (unpaired) that ``x`` / ``y`` lies inside
+    [1/``ratio``, ``ratio``] (E5), on log values shifted by ±log ``ratio``: H1 of the first,
+    log x − log ratio tends below log y; of the second, log x + log ratio above it. Returns the
+    larger p; NaN with fewer than ``min_n`` positive values in either sample."""
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    x, y = x[np.isfinite(x) & (x > 0)], y[np.isfinite(y) & (y > 0)]
+    if len(x) < min_n or len(y) < min_n:
+        return np.nan
+    lx, ly, lr = np.log(x), np.log(y), np.log(ratio)
+    p1 = st.mannwhitneyu(lx - lr, ly, alternative="less").pvalue
+    p2 = st.mannwhitneyu(lx + lr, ly, alternative="greater").pvalue
+    return float(max(p1, p2))
 
 
 def brown_forsythe(x, y) -> float:
