@@ -72,9 +72,21 @@ def test_param_table_shows_the_median_run_and_the_paper():
     assert t.loc[(ise, "paper"), avoa] == pytest.approx(0.01 * (k + 1))
     assert t.loc[(ise, "ours mean"), "True"] == pytest.approx(0.5)
     assert t.loc[("Runs", "seed of median run"), avoa] == 2
+    # excess over the truth (ISE_true 0.5): 2·seed·(k + 1) − 1 → quartiles at seeds 1.5, 2, 2.5
+    assert t.loc[(ise, "excess (%) median"), avoa] == pytest.approx(100 * (4 * (k + 1) - 1))
+    assert t.loc[(ise, "excess (%) q25"), avoa] == pytest.approx(100 * (3 * (k + 1) - 1))
+    assert t.loc[(ise, "excess (%) q75"), avoa] == pytest.approx(100 * (5 * (k + 1) - 1))
+    assert t.loc[(ise, "excess (%) median"), "True"] == 0.0
     # only case 2's parameters appear (no Q), in the paper's row order
     quantities = list(dict.fromkeys(t.index.get_level_values(0)))
-    assert quantities == [*map(tables.param_label, CASES[2].free), ise, "Runs"]
+    assert quantities == [
+        *map(tables.param_label, CASES[2].free),
+        ise,
+        tables.ACCURACY_QUANTITY,
+        "Runs",
+    ]
+    rows = list(t.index.get_level_values(1))
+    assert rows.index("excess (%) median") == rows.index("paper", rows.index("ours worst")) + 1
 
 
 def test_param_table_even_seed_count_takes_the_lower_middle_run():
@@ -82,6 +94,60 @@ def test_param_table_even_seed_count_takes_the_lower_middle_run():
     t = tables.param_table(runs, None, 1, 2).set_index(["Quantity", "Row"])
     assert (t.loc[("Runs", "seed of median run")].drop("True") == 2).all()
     assert t.loc[(tables.param_label("vnom"), "paper")].drop("True").isna().all()
+
+
+def accuracy_runs():
+    """Seeds 1-4 of param_runs with chosen relative errors: AVOA's every parameter within 1 % on
+    seeds 1 and 2, one parameter 3 % off on seed 3 and 20 % on seed 4 → 50 % within 1 %, 75 %
+    within 5 %; GA's all 0.5 % off, but seed 4 has no ISE → 3 seeds, all within 1 %; the others
+    20 % off everywhere."""
+    runs = param_runs(seeds=(1, 2, 3, 4))
+    free = [f"relerr_{p}" for p in CASES[2].free]
+    runs[free] = 0.2
+    avoa, ga = runs["algorithm"] == "avoa", runs["algorithm"] == "ga"
+    runs.loc[avoa, free] = -0.005
+    runs.loc[avoa & (runs["seed"] == 3), free[-1]] = 0.03
+    runs.loc[avoa & (runs["seed"] == 4), free[0]] = -0.2
+    runs.loc[ga, free] = 0.005
+    runs.loc[ga & (runs["seed"] == 4), "best_ise"] = np.nan
+    return runs
+
+
+def test_param_table_accuracy_rows():
+    t = tables.param_table(accuracy_runs(), None, 1, 2).set_index(["Quantity", "Row"])
+    q = tables.ACCURACY_QUANTITY
+    one, five = (f"seeds within {x} % (all params) (%)" for x in (1, 5))
+    assert t.loc[(q, one), "AVOA"] == pytest.approx(50.0)
+    assert t.loc[(q, five), "AVOA"] == pytest.approx(75.0)
+    assert t.loc[(q, one), "GA"] == pytest.approx(100.0)
+    assert t.loc[(q, five), "GWO"] == 0.0
+    assert t.loc[("Runs", "seeds"), "GA"] == 3
+
+
+def test_accuracy_table_counts_seeds_within_the_tolerances():
+    runs = pd.concat([accuracy_runs(), param_runs(scenario=2, case=2)], ignore_index=True)
+    t = tables.accuracy_table(runs, scenario=1)
+    labels = [PAPER_LABELS[a] for a in ALGORITHMS]
+    assert list(t.columns) == ["Scenario", "Case", "Row", *labels]
+    assert list(t["Row"]) == [
+        "seeds within 1 % (all params) (%)",
+        "seeds within 5 % (all params) (%)",
+        "seeds",
+    ]
+    assert (t["Scenario"] == 1).all()
+    assert (t["Case"] == 2).all()
+    t = t.set_index("Row")
+    assert t.loc["seeds within 1 % (all params) (%)", "AVOA"] == pytest.approx(50.0)
+    assert t.loc["seeds within 5 % (all params) (%)", "AVOA"] == pytest.approx(75.0)
+    assert t.loc["seeds within 1 % (all params) (%)", "GA"] == pytest.approx(100.0)
+    assert t.loc["seeds", "GA"] == 3
+    assert t.loc["seeds", "AVOA"] == 4
+    assert (t.loc["seeds within 5 % (all params) (%)", ["GWO", "GTO"]] == 0).all()
+    both = tables.accuracy_table(runs)
+    assert list(both[["Scenario", "Case"]].drop_duplicates().itertuples(index=False)) == [
+        (1, 2),
+        (2, 2),
+    ]
 
 
 # ----------------------------------------------------------------------------- Tables 20-23
@@ -122,6 +188,76 @@ def test_objective_table():
     assert (t["Friedman p"] < 1e-6).all()
     assert list(t["Paper rank"][:7]) == list(range(1, 8))
     assert t.loc[t["Algorithm"] == "GA", "Paper ISE"].iloc[0] == pytest.approx(0.3)
+    # no truth in these runs: no excess, no margin; the size verdict is the difference test's
+    excess = ["Median excess (%)", "Excess q25 (%)", "Excess q75 (%)", "Margin (%)"]
+    assert (
+        t[[*excess, "AVOA − this (median, % of ISE_true)", "p equiv. (Holm)"]].isna().all(axis=None)
+    )
+    assert (rivals["AVOA vs this (size)"] == "AVOA lower").all()
+    assert (avoa["AVOA vs this (size)"] == "").all()
+
+
+def excess_runs(with_column: bool):
+    """Scenario 1 case 2, 30 seeds, N = 1000 samples and ISE_true = 1e-3 → margin
+    1000·(0.1 mV)²/1e-3 = 1 % of ISE_true. AVOA's excess is 2 % ± 1 %; each rival's is AVOA's
+    plus a shift (in excess units) and noise of the given spread."""
+    rng = np.random.default_rng(12)
+    n = 30
+    base = 0.02 + 0.01 * rng.uniform(-1, 1, n)
+    shift = {
+        "avoa": (0.0, 0.0),
+        "nelder_mead": (0.005, 0.001),  # 0.5 % worse, small spread: practically equivalent
+        "quasi_newton": (0.05, 0.001),  # 5 % worse: AVOA lower
+        "ga": (-0.05, 0.001),  # 5 % better: AVOA higher
+        "gwo": (0.005, 0.05),  # 0.5 % worse, wide spread: inconclusive
+        "run": (0.5, 0.01),
+        "gto": (0.5, 0.01),
+    }
+    rows = []
+    for a in ALGORITHMS:
+        mean, spread = shift[a]
+        e = base + mean + spread * rng.uniform(-1, 1, n)
+        for i in range(n):
+            row = {"scenario": 1, "case": 2, "algorithm": a, "seed": i + 1}
+            row |= {"best_ise": 1e-3 * (1 + e[i]), "true_ise": 1e-3, "n_samples": 1000}
+            if with_column:
+                row["excess_ise"] = e[i]
+            rows.append(row)
+    return pd.DataFrame(rows), base
+
+
+@pytest.mark.parametrize("with_column", [True, False], ids=["excess_ise", "older aggregate"])
+def test_objective_table_excess_and_equivalence(with_column):
+    runs, base = excess_runs(with_column)
+    t = tables.objective_table(runs, None, 1).set_index("Algorithm")
+    assert (t["Case"] == 2).all()
+    assert t["Margin (%)"].to_numpy() == pytest.approx(1.0)
+    assert t.loc["AVOA", "Median excess (%)"] == pytest.approx(100 * np.median(base))
+    q25, q75 = np.quantile(100 * base, [0.25, 0.75])
+    assert (t.loc["AVOA", "Excess q25 (%)"], t.loc["AVOA", "Excess q75 (%)"]) == pytest.approx(
+        (q25, q75)
+    )
+    assert t.loc["RK", "Median excess (%)"] == pytest.approx(100 * np.median(base) + 50, abs=1)
+    diff = t["AVOA − this (median, % of ISE_true)"]
+    assert np.isnan(diff["AVOA"])
+    assert diff["Nelder–Mead"] == pytest.approx(-0.5, abs=0.1)
+    assert diff["Quasi-Newton"] == pytest.approx(-5.0, abs=0.1)
+    assert diff["GA"] == pytest.approx(5.0, abs=0.1)
+    size = t["AVOA vs this (size)"]
+    assert size.to_dict() == {
+        "Nelder–Mead": "practically equivalent",
+        "Quasi-Newton": "AVOA lower",
+        "GA": "AVOA higher",
+        "GWO": "inconclusive",
+        "RK": "AVOA lower",
+        "AVOA": "",
+        "GTO": "AVOA lower",
+    }
+    # the difference test alone calls the 0.5 % a difference; the size verdict says it is small
+    assert t.loc["Nelder–Mead", "AVOA vs this"] == "AVOA lower"
+    assert t.loc["Nelder–Mead", "p equiv. (Holm)"] < 0.05
+    assert t.loc["Quasi-Newton", "p equiv. (Holm)"] > 0.05
+    assert t.loc["GWO", "p equiv. (Holm)"] > 0.05
 
 
 # ---------------------------------------------------------------------------------- Table 24

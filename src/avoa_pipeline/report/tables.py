@@ -10,11 +10,15 @@ a DataFrame whose column headings are the ones shown; :func:`write_table` writes
 - :func:`bounds_table` — Table 3 (bounds as printed and as searched, the truth).
 - :func:`param_table` — Tables 4-19 (parameters and ISE of one scenario × case).
 - :func:`objective_table` — Tables 20-23 (ISE and ranks of one scenario, with tests).
+- :func:`accuracy_table` — beside Tables 20-23 (not in the paper): the share of seeds whose
+  every identified parameter lies within 1 % / 5 % of the truth.
 - :func:`time_table` — Table 24 (time per iteration, scenario 4 case 4).
 
 For a table at equal evaluations, pass the frame of
 :func:`avoa_pipeline.report.stats.at_budget` (``by="nfe"``) as ``runs`` to
-:func:`objective_table`: it reads only ``best_ise`` and the key columns.
+:func:`objective_table`: it reads ``best_ise``, ``excess_ise`` (when the histories have it) and
+the key columns; without ``excess_ise``, ``true_ise`` and ``n_samples`` the excess columns and
+the margin are NaN and the tests compare ISE.
 """
 
 from __future__ import annotations
@@ -44,6 +48,21 @@ VERDICT_TEXT = {
     "ref worse": "AVOA higher",
     "no difference": "no difference",
     "too few seeds": "too few seeds",
+}
+"""The difference test's verdict (``holm_wilcoxon``'s ``verdict``) as Tables 20-23 word it."""
+SIZE_TEXT = {
+    stats.LOWER: "AVOA lower",
+    stats.HIGHER: "AVOA higher",
+    stats.EQUIVALENT: "practically equivalent",
+    stats.INCONCLUSIVE: "inconclusive",
+    stats.TOO_FEW: "too few seeds",
+}
+"""The size verdict (``holm_wilcoxon``'s ``size_verdict``, reproduction note E3) as worded."""
+EXCESS_ROWS = ("excess (%) median", "excess (%) q25", "excess (%) q75")
+ACCURACY_QUANTITY = "Parameter accuracy"
+ACCURACY_ROWS = {
+    tol: f"seeds within {round(100 * tol):d} % (all params) (%)"
+    for tol in stats.ACCURACY_TOLERANCES
 }
 
 
@@ -307,6 +326,11 @@ def bounds_table(cfg: dict) -> pd.DataFrame:
     )
 
 
+def _share_column(tol: float) -> str:
+    """The column of :func:`~avoa_pipeline.report.stats.accuracy_shares` for ``tol``."""
+    return f"share_within_{round(100 * tol):d}pct"
+
+
 # -------------------------------------------------------------------------- Tables 4 to 19
 def median_run(sub: pd.DataFrame) -> pd.Series | None:
     """The run of median ISE (for an even count the lower middle one, so it is a real run;
@@ -340,7 +364,14 @@ def param_table(
 
     Then the ISE rows (``True`` = ISE of the true parameters on the same noisy data, the noise
     floor): ``ours mean``, ``ours sd`` (over seeds, ddof 1), ``ours median``, ``ours best``,
-    ``ours worst``, ``paper``; and ``seed of median run``, ``seeds`` (runs with an ISE).
+    ``ours worst``, ``paper``; then, still under the ISE, the excess over the truth in percent
+    of the truth's ISE, 100·(ISE − ISE_true)/ISE_true over seeds (reproduction note E1; ``True``
+    = 0): ``excess (%) median``, ``excess (%) q25``, ``excess (%) q75`` (quartiles, linear
+    interpolation); then ``Parameter accuracy`` (E7): ``seeds within 1 % (all params) (%)`` and
+    ``seeds within 5 % (all params) (%)``, the share of seeds whose every identified parameter
+    lies within 1 % (5 %) of the truth; and ``seed of median run``, ``seeds`` (runs with an ISE).
+    Older aggregates without ``excess_ise`` get it from ``true_ise``
+    (:func:`~avoa_pipeline.report.stats.with_excess`).
     Missing values are NaN (the paper's Table 12, S3/C1, prints no ISE row; Table 22 has it).
     ``truth`` (parameter → fresh-cell value, e.g. the config's ``true_params`` of the case's
     temperature) fills the parameters' ``True`` column and the paper's relative errors when no
@@ -349,7 +380,7 @@ def param_table(
     if case not in CASES:
         raise ValueError(f"unknown case {case}")
     free = CASES[case].free
-    sub = runs[(runs["scenario"] == scenario) & (runs["case"] == case)]
+    sub = stats.with_excess(runs[(runs["scenario"] == scenario) & (runs["case"] == case)])
     pp = _paper(paper_params)
     paper = {}
     if len(pp):
@@ -416,6 +447,19 @@ def param_table(
     add(ISE_LABEL, "ours best", t_ise, agg(np.min))
     add(ISE_LABEL, "ours worst", t_ise, agg(np.max))
     add(ISE_LABEL, "paper", np.nan, lambda a: paper.get((a, "ise"), np.nan))
+    ex = {a: 100.0 * sub.loc[g[a].index, "excess_ise"].dropna() for a in algos}
+    t_ex = 0.0 if any(len(v) for v in ex.values()) else np.nan
+    for row, q in zip(EXCESS_ROWS, (0.5, 0.25, 0.75), strict=True):
+        add(ISE_LABEL, row, t_ex, lambda a, q=q: float(ex[a].quantile(q)) if len(ex[a]) else np.nan)
+    acc = stats.accuracy_shares(sub).set_index("algorithm")
+    for tol, row in ACCURACY_ROWS.items():
+        col = _share_column(tol)
+        add(
+            ACCURACY_QUANTITY,
+            row,
+            np.nan,
+            lambda a, col=col: 100.0 * float(acc.loc[a, col]) if a in acc.index else np.nan,
+        )
     add(
         "Runs", "seed of median run", np.nan, lambda a: np.nan if med[a] is None else med[a]["seed"]
     )
@@ -437,14 +481,31 @@ def objective_table(
 
     - ``Case``, ``Algorithm`` (paper heading), ``Seeds`` (runs with an ISE);
     - ``Mean ISE``, ``Median ISE`` (ours, over seeds);
+    - ``Median excess (%)``, ``Excess q25 (%)``, ``Excess q75 (%)``: median and quartiles over
+      seeds of the excess over the truth, 100·(ISE − ISE_true)/ISE_true (reproduction note E1);
     - ``Rank (mean)``, ``Rank (median)``: rank of the mean / median ISE (1 = lowest);
     - ``Mean rank``: mean over seeds of the per-seed rank (Friedman-style; complete seeds);
     - ``Paper ISE``, ``Paper rank (printed)`` (verbatim, e.g. "7 (Max.)"), ``Paper rank``;
     - ``AVOA vs this``: Holm-Wilcoxon verdict of AVOA against this algorithm ("AVOA lower",
-      "AVOA higher", "no difference", "too few seeds"; empty on the AVOA row) and ``p (Holm)``
-      (two-sided, Holm over the six rivals);
+      "AVOA higher", "no difference", "too few seeds"; :data:`VERDICT_TEXT`; empty on the AVOA
+      row) and ``p (Holm)`` (two-sided, Holm over the six rivals). Both test for *a*
+      difference, however small (on the excess where every run has one, else on the ISE; the
+      same p-values);
+    - ``AVOA − this (median, % of ISE_true)``: the median over seeds of the paired difference
+      of the excess, AVOA's minus this algorithm's, in percent of the truth's ISE (< 0: AVOA
+      lower); ``Margin (%)``: the equivalence margin of the case, a model error of 0.1 mV RMS
+      (E2; same on every row of a case); both NaN when the runs have no excess;
+    - ``AVOA vs this (size)``: whether the difference matters (E3; :data:`SIZE_TEXT`):
+      "practically equivalent" when the two one-sided tests put it inside ±margin (``p equiv.
+      (Holm)`` < α, Holm over the six rivals), else "AVOA lower" / "AVOA higher" when the
+      difference test is significant, else "inconclusive"; "too few seeds" below
+      ``stats.MIN_SEEDS`` matched seeds. Empty on the AVOA row;
     - ``Friedman p``: the case's Friedman test over all algorithms (same on every row of a case).
+
+    Aggregates written before ``excess_ise`` existed get it from ``true_ise``
+    (:func:`~avoa_pipeline.report.stats.with_excess`).
     """
+    runs = stats.with_excess(runs)
     sub = runs[runs["scenario"] == scenario]
     po = _paper(paper_objective)
     if len(po):
@@ -459,12 +520,18 @@ def objective_table(
         ).any()
         hw = stats.holm_wilcoxon(sub, scenario, c, "avoa", alpha) if has_avoa else pd.DataFrame()
         hw = hw.set_index("other") if len(hw) else hw
+        on_excess = stats.value_column(sub) == "excess_ise"  # what holm_wilcoxon compares
+        pct = 100.0 if on_excess else np.nan  # a difference in V² is not a percentage
+        margin = pct * stats.margin_of(sub, scenario, c)
+        ex = sub[(sub["case"] == c) & sub["best_ise"].notna()].groupby("algorithm")["excess_ise"]
+        ex_q = 100.0 * ex.quantile([0.25, 0.5, 0.75]).unstack()
         rkc = rk[rk["case"] == c].set_index("algorithm")
         poc = po[po["case"] == c].set_index("algorithm") if len(po) else po
         for a in ALGORITHMS:
             r = rkc.loc[a] if a in rkc.index else None
             p = poc.loc[a] if len(poc) and a in poc.index else None
             h = hw.loc[a] if len(hw) and a in hw.index else None
+            q = ex_q.loc[a] if a in ex_q.index else None
             rows.append(
                 {
                     "Case": int(c),
@@ -472,6 +539,9 @@ def objective_table(
                     "Seeds": int(r["n_seeds"]) if r is not None else 0,
                     "Mean ISE": r["mean_ise"] if r is not None else np.nan,
                     "Median ISE": r["median_ise"] if r is not None else np.nan,
+                    "Median excess (%)": q[0.5] if q is not None else np.nan,
+                    "Excess q25 (%)": q[0.25] if q is not None else np.nan,
+                    "Excess q75 (%)": q[0.75] if q is not None else np.nan,
                     "Rank (mean)": r["rank_by_mean"] if r is not None else pd.NA,
                     "Rank (median)": r["rank_by_median"] if r is not None else pd.NA,
                     "Mean rank": r["mean_rank"] if r is not None else np.nan,
@@ -480,6 +550,12 @@ def objective_table(
                     "Paper rank": int(p["rank"]) if p is not None else pd.NA,
                     "AVOA vs this": VERDICT_TEXT[h["verdict"]] if h is not None else "",
                     "p (Holm)": h["p_holm"] if h is not None else np.nan,
+                    "AVOA − this (median, % of ISE_true)": (
+                        pct * h["median_diff"] if h is not None else np.nan
+                    ),
+                    "Margin (%)": margin,
+                    "AVOA vs this (size)": SIZE_TEXT[h["size_verdict"]] if h is not None else "",
+                    "p equiv. (Holm)": h["p_tost_holm"] if h is not None else np.nan,
                     "Friedman p": fr["p"],
                 }
             )
@@ -488,7 +564,34 @@ def objective_table(
         return out
     for col in ("Rank (mean)", "Rank (median)", "Paper rank"):
         out[col] = out[col].astype("Int64")
-    for col in ("Mean ISE", "Median ISE", "Mean rank", "Paper ISE", "p (Holm)", "Friedman p"):
+    text = {"Case", "Algorithm", "Seeds", "Paper rank (printed)", "AVOA vs this"}
+    text |= {"AVOA vs this (size)", "Rank (mean)", "Rank (median)", "Paper rank"}
+    for col in out.columns.difference(list(text)):
+        out[col] = out[col].astype(float)
+    return out
+
+
+def accuracy_table(runs: pd.DataFrame, scenario: int | None = None) -> pd.DataFrame:
+    """Parameter accuracy (reproduction note E7; not in the paper): per scenario × case, the
+    share of seeds whose every identified parameter lies within 1 % (5 %) of the truth.
+
+    Wide, like Tables 4-19: one column per algorithm (paper headings, paper order) after
+    ``Scenario``, ``Case`` and ``Row``; per scenario × case present in ``runs`` (only
+    ``scenario`` if given) the rows ``seeds within 1 % (all params) (%)``, ``seeds within 5 %
+    (all params) (%)`` (percent of the algorithm's seeds with an ISE) and ``seeds`` (that count).
+    An algorithm without runs in a case has NaN.
+    """
+    sub = runs if scenario is None else runs[runs["scenario"] == scenario]
+    acc = stats.accuracy_shares(sub)
+    labels = [PAPER_LABELS[a] for a in ALGORITHMS]
+    rows = []
+    for (s, c), part in acc.groupby(["scenario", "case"], sort=True):
+        part = part.set_index("algorithm").reindex(list(ALGORITHMS))
+        for tol, row in ACCURACY_ROWS.items():
+            rows.append([int(s), int(c), row, *(100.0 * part[_share_column(tol)])])
+        rows.append([int(s), int(c), "seeds", *part["n_seeds"].astype(float)])
+    out = pd.DataFrame(rows, columns=["Scenario", "Case", "Row", *labels])
+    for col in labels:
         out[col] = out[col].astype(float)
     return out
 
