@@ -32,8 +32,11 @@ rule all:
 
 
 rule paper:
-    """The reproduction alone: Tables 1-24, Figures 1-21 and the claims (`snakemake -j2 paper`)."""
+    """The reproduction alone: Tables 1-24, Figures 1-21, the claims and the fixed-budget curves
+    (`snakemake -j2 paper`)."""
     input:
         all_tables(),
         all_figures(),
+        expand("results/figures/budget_s{s}{x}", s=SCENARIOS,
+               x=[".png", ".pdf", "_ecdf.csv", "_rank.csv"]),
         "results/tables/claims.csv",

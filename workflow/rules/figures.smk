@@ -47,3 +47,25 @@ rule fig_fit:
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   dataset_csv="{input.data}", runs="{input.runs}", out_dir="results/figures")
+
+
+rule fig_budget:
+    """Beyond the paper: fixed-budget curves of one scenario (ECDFs of the evaluations to reach
+    10 %, 1 %, 0.1 % excess over the truth; mean per-seed rank against evaluations; E8)."""
+    input:
+        nb="notebooks/fig_budget.ipynb",
+        cfg=EFFECTIVE_CONFIG,
+        runs="results/aggregate/runs.parquet",
+        histories="results/aggregate/histories.parquet",
+    output:
+        report(ext("results/figures/budget_s{scenario}", FIG_EXT), category="Figures",
+               subcategory="Fixed-budget curves (beyond the paper)"),
+        ecdf="results/figures/budget_s{scenario}_ecdf.csv",
+        rank="results/figures/budget_s{scenario}_rank.csv",
+        nb="results/notebooks/fig_budget_s{scenario}.ipynb",
+    log:
+        "logs/notebooks/fig_budget_s{scenario}.log",
+    shell:
+        papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
+                  runs="{input.runs}", histories="{input.histories}",
+                  scenario="{wildcards.scenario}", figures_dir="results/figures")

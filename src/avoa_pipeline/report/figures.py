@@ -17,6 +17,8 @@ imports this module is left alone.
 - :func:`convergence`: Figures 4-19, median best-ISE over seeds with the interquartile band,
   against iterations and against objective evaluations; numbers from :func:`convergence_bands`.
 - :func:`fig20` / :func:`fig21`: scenario 4 case 4 before / after optimisation (Figures 20, 21).
+- :func:`fig_budget` (beyond the paper): fixed-budget curves of one scenario, ECDFs of the
+  evaluations to reach excess targets and the mean per-seed rank against evaluations (E8).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from ..io import atomic_path
 from ..model.battery import CASES, PARAM_LABELS, PARAM_NAMES
 from ..optimizers import ALGORITHMS, PAPER_LABELS
 from ..optimizers import avoa as avoa_mod
+from . import budget, stats
+from .stats import EXCESS_TARGETS
 
 """Permissions of the written figures (the temporary files :func:`..io.atomic_path` makes are
 private, 0600)."""
@@ -641,6 +645,92 @@ def convergence(histories: pd.DataFrame, scenario: int, case: int, stem, paper_l
         _save(fig, stem)
     finally:
         fig.clear()
+
+
+# --------------------------------------------------------------------------------------------
+# Beyond the paper: fixed-budget curves (docs/reproduction-notes.md, E8)
+
+
+def fig_budget(histories: pd.DataFrame, scenario: int, stem, targets=EXCESS_TARGETS) -> None:
+    """Fixed-budget curves of one scenario: columns = its cases, one ECDF row per target (share
+    of seeds whose best excess over the truth is ≤ target after b evaluations) and a last row
+    with each algorithm's mean per-seed rank at b (1 = lowest excess; drawn at the top, so up is
+    better in every row). Evaluations on a log axis up to the pair's common N (dotted line).
+
+    ``histories`` needs ``excess_ise`` (:func:`.stats.with_excess` adds it to older aggregates).
+    Besides ``<stem>.png`` / ``.pdf`` writes the curves as ``<stem>_ecdf.csv`` (of
+    :func:`.budget.ecdf`, with ``common_nfe``) and ``<stem>_rank.csv`` (of
+    :func:`.budget.rank_curve`). For AVOA, GTO and RUN a reading at b is their full-budget run
+    seen at b (:mod:`.budget`).
+    """
+    _check_histories(histories, need=(*HISTORY_COLUMNS, "excess_ise"))
+    sel = histories[histories["scenario"] == scenario]
+    if sel.empty:
+        raise ValueError(f"histories: no rows for scenario {scenario}")
+    cases = sorted(int(c) for c in sel["case"].unique())
+    for c in cases:
+        _select(histories, scenario, c)  # the same checks as the convergence figures
+    targets = [float(t) for t in targets]
+    hits = budget.hitting_nfe(sel, targets)
+    ecdfs, ranks, commons = [], [], {}
+    for c in cases:
+        grid = budget.budget_grid(sel, scenario, c)
+        commons[c] = stats.common_nfe(sel, scenario, c)
+        ecdfs.append(budget.ecdf(hits, scenario, c, grid).assign(common_nfe=commons[c]))
+        ranks.append(budget.rank_curve(sel, scenario, c, grid).assign(common_nfe=commons[c]))
+    ecdf_df = pd.concat(ecdfs, ignore_index=True)
+    rank_df = pd.concat(ranks, ignore_index=True)
+    algos = stats.algorithm_order(sel["algorithm"])
+
+    nrow, ncol = len(targets) + 1, len(cases)
+    fig = Figure(figsize=(3.3 * ncol + 1.0, 2.3 * nrow + 1.4), layout="constrained")
+    try:
+        axes = np.asarray(fig.subplots(nrow, ncol, sharex="col", squeeze=False))
+        for j, c in enumerate(cases):
+            e = ecdf_df[ecdf_df["case"] == c]
+            r = rank_df[rank_df["case"] == c]
+            for algo in algos:
+                style = {
+                    "color": ALGORITHM_COLORS.get(algo, "0.3"),
+                    "ls": ALGORITHM_STYLES.get(algo, "-"),
+                    "lw": 2.0 if algo == "avoa" else 1.2,
+                    "label": PAPER_LABELS.get(algo, algo),
+                }
+                for i, t in enumerate(targets):
+                    cur = e[(e["algorithm"] == algo) & (e["target"] == t)]
+                    axes[i, j].step(cur["nfe"], cur["share"], where="post", **style)
+                cur = r[r["algorithm"] == algo]
+                axes[-1, j].plot(cur["nfe"], cur["mean_rank"], **style)
+            for i, t in enumerate(targets):
+                ax = axes[i, j]
+                ax.set_ylim(-0.03, 1.03)
+                if j == 0:
+                    ax.set_ylabel(f"share of seeds\nwith e ≤ {100 * t:g} %")
+            axes[-1, j].set_ylim(len(algos) + 0.3, 0.7)
+            axes[-1, j].set_yticks(range(1, len(algos) + 1))
+            axes[-1, j].set_xlabel("objective evaluations")
+            axes[0, j].set_title(f"case {c}: {describe(scenario, c).split('; ')[1]}", fontsize=9)
+            for ax in axes[:, j]:
+                ax.set_xscale("log")
+                ax.axvline(commons[c], color="0.4", lw=0.8, ls=":")
+                ax.grid(True, which="major", color="0.88", lw=0.6)
+        axes[-1, 0].set_ylabel("mean per-seed rank\n(1 = lowest excess)")
+        handles, labels = axes[-1, 0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside lower center", ncol=len(algos), fontsize=8)
+        fig.suptitle(
+            f"Scenario {scenario} ({_SCENARIO_TEXT.get(scenario, '')}): fixed-budget curves of "
+            "the excess over the truth e = (ISE − ISE_true) / ISE_true\n"
+            "dotted: common N; AVOA, GTO, RUN schedule exploration by iteration, so a reading "
+            "at b is their full-budget run seen at b",
+            fontsize=10,
+        )
+        _save(fig, stem)
+    finally:
+        fig.clear()
+    stem = Path(stem)
+    for name, df in (("ecdf", ecdf_df), ("rank", rank_df)):
+        with atomic_path(stem.with_name(f"{stem.name}_{name}.csv")) as tmp:
+            df.to_csv(tmp, index=False)
 
 
 # --------------------------------------------------------------------------------------------
