@@ -26,6 +26,7 @@ rule all:
     input:
         all_tables(),
         all_figures(),
+        budget_figures(),
         "results/tables/claims.csv",
         real_outputs(),
         GAP_OUTPUTS,
@@ -37,6 +38,5 @@ rule paper:
     input:
         all_tables(),
         all_figures(),
-        expand("results/figures/budget_s{s}{x}", s=SCENARIOS,
-               x=[".png", ".pdf", "_ecdf.csv", "_rank.csv"]),
+        budget_figures(),
         "results/tables/claims.csv",

@@ -70,6 +70,12 @@ def all_figures():
     return [f"results/figures/fig{n:02d}.{e}" for n in range(1, 22) for e in FIG_EXT]
 
 
+def budget_figures():
+    """The fixed-budget curves (beyond the paper), one figure and two CSVs per scenario."""
+    return expand("results/figures/budget_s{s}{x}", s=SCENARIOS,
+                  x=[".png", ".pdf", "_ecdf.csv", "_rank.csv"])
+
+
 def papermill(notebook, executed, log, **params):
     """Shell command executing ``notebook`` with papermill (kernel of this venv)."""
     args = " ".join(f"-p {k} {v!r}" if isinstance(v, str) else f"-p {k} {v}" for k, v in params.items())
