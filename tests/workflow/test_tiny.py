@@ -22,7 +22,13 @@ REPO = Path(__file__).resolve().parents[2]
 COPY = ("Snakefile", "workflow", "config", "notebooks", "profiles")
 
 TABLES = [f"results/tables/table{n:02d}.{e}" for n in range(1, 25) for e in ("csv", "md", "tex")]
+TABLE_EXT = ("csv", "md", "tex")
+TABLES += [f"results/tables/table{n}_accuracy.{e}" for n in range(20, 24) for e in TABLE_EXT]
 FIGURES = [f"results/figures/fig{n:02d}.{e}" for n in range(1, 22) for e in ("png", "pdf")]
+BUDGET_SCENARIOS = (1, 4)  # config/tiny.yaml's scenarios
+CURVE_KINDS = ("ecdf", "rank")
+FIGURES += [f"results/figures/budget_s{s}.{e}" for s in BUDGET_SCENARIOS for e in ("png", "pdf")]
+CURVES = [f"results/figures/budget_s{s}_{k}.csv" for s in BUDGET_SCENARIOS for k in CURVE_KINDS]
 TIMING_TABLES = {"table24"}  # wall-clock times differ run to run
 TIMING_CLAIMS = ("C5", "C6")  # claims about speed: their evidence quotes times
 
@@ -70,7 +76,7 @@ def test_every_table_and_figure_is_written(runs):
     wd = runs["2"]
     missing = [
         p
-        for p in [*TABLES, *FIGURES, "results/tables/claims.csv"]
+        for p in [*TABLES, *FIGURES, *CURVES, "results/tables/claims.csv"]
         if not (wd / p).is_file() or (wd / p).stat().st_size == 0
     ]
     assert not missing, missing
