@@ -223,6 +223,15 @@ class _Size:
     reference: str = ""
     counts: str = ""
 
+    @classmethod
+    def decide(cls, words, sizes, lowest: bool, margin, unit, reference) -> _Size:
+        """The claim's verdict from its comparisons' verdicts (:func:`stats.combine_four`) and
+        the decisive size: the largest of ``sizes`` for a "lowest" claim, the smallest for a
+        "highest" one (NaNs left out)."""
+        finite = [float(x) for x in sizes if np.isfinite(x)]
+        size = (max(finite) if lowest else min(finite)) if finite else np.nan
+        return cls(stats.combine_four(list(words), lowest=lowest), size, margin, unit, reference)
+
 
 def _missing(df: pd.DataFrame, s: int, c: int) -> list[str]:
     sub = df[(df["scenario"] == s) & (df["case"] == c) & df["best_ise"].notna()]
@@ -329,13 +338,7 @@ def _dominance(df, s, c, ref, column, ctx: _Ctx, lower: bool) -> tuple[str, str,
             f"{', '.join(map(_lab, contra))}"
         )
     diffs = hw["median_diff"] * ctx.scale
-    size = _Size(
-        stats.combine_four(hw["size_verdict"], lowest=lower),
-        float(diffs.max() if lower else diffs.min()),
-        m * ctx.scale,
-        ctx.unit,
-        ref_text,
-    )
+    size = _Size.decide(hw["size_verdict"], diffs, lower, m * ctx.scale, ctx.unit, ref_text)
     if missing:
         parts.append("no runs of " + ", ".join(map(_lab, missing)))
         size.verdict = stats.INCONCLUSIVE
@@ -409,13 +412,8 @@ def _printed_pairs(pw: pd.DataFrame, p_rank: pd.Series, ctx: _Ctx, m: float) -> 
         f"{len(words)} pairs ranked apart by the paper, ours (printed-better − printed-worse): "
         + ", ".join(f"{w} {n}" for w, n in counts.items())
     )
-    size = _Size(
-        stats.combine_four(words, lowest=True),
-        float(np.nanmax(diffs)) if diffs else np.nan,
-        m * ctx.scale,
-        ctx.unit,
-        "printed-better − printed-worse, each pair ranked apart",
-    )
+    ref = "printed-better − printed-worse, each pair ranked apart"
+    size = _Size.decide(words, diffs, True, m * ctx.scale, ctx.unit, ref)
     return size, text
 
 
@@ -517,14 +515,8 @@ def _c4(histories, combos, expected, protocol, ctx):
             v = SUPPORTED
         else:
             v = INCONCLUSIVE
-        sizes_f = [z.size for z in zs if np.isfinite(z.size)]
-        z = _Size(
-            stats.combine_four([z.verdict for z in zs], lowest=True),
-            max(sizes_f) if sizes_f else np.nan,
-            zs[0].margin,
-            ctx.unit,
-            "AVOA − each rival, at 10 % and 50 % of the budget",
-        )
+        z = _Size.decide([z.verdict for z in zs], [z.size for z in zs], True, zs[0].margin,
+                         ctx.unit, "AVOA − each rival, at 10 % and 50 % of the budget")  # fmt: skip
         verdicts[(s, c)], sizes[(s, c)] = v, z
         rows.append(_row("C4", s, c, protocol, "claimed (figures only)", v, " | ".join(parts), z))
     v, ev = _combine(verdicts, expected)
@@ -540,12 +532,10 @@ def _time_measure(protocol: str) -> tuple[str, str]:
 
 
 def _time_size(words, ratios, lowest: bool, reference: str) -> _Size:
-    finite = [r for r in ratios if np.isfinite(r)]
-    size = (max(finite) if lowest else min(finite)) if finite else np.nan
     unit = (
         f"time ratio; practically equivalent inside {1 / stats.TIME_RATIO:.2f}-{stats.TIME_RATIO}"
     )
-    return _Size(stats.combine_four(words, lowest=lowest), size, stats.TIME_RATIO, unit, reference)
+    return _Size.decide(words, ratios, lowest, stats.TIME_RATIO, unit, reference)
 
 
 def _c5(runs, paper_time, protocol, ctx):
@@ -571,9 +561,9 @@ def _c5(runs, paper_time, protocol, ctx):
         sub = sub[sub[col].notna()] if col in sub else sub.iloc[0:0]
         t = {a: sub[sub["algorithm"] == a][col].to_numpy() for a in ALGORITHMS}
         rivals = [a for a in ALGORITHMS if a != "avoa"]
-        p_less = stats.holm([stats.mannwhitney_less(t["avoa"], t[a]) for a in rivals])
-        p_more = stats.holm([stats.mannwhitney_less(t[a], t["avoa"]) for a in rivals])
-        p_two = stats.holm([stats.mannwhitney_two(t["avoa"], t[a]) for a in rivals])
+        p_less = stats.holm([stats.mannwhitney(t["avoa"], t[a]) for a in rivals])
+        p_more = stats.holm([stats.mannwhitney(t[a], t["avoa"]) for a in rivals])
+        p_two = stats.holm([stats.mannwhitney(t["avoa"], t[a], "two-sided") for a in rivals])
         p_eq = stats.holm(
             [stats.tost_ratio_unpaired(t["avoa"], t[a], stats.TIME_RATIO) for a in rivals]
         )
@@ -744,14 +734,8 @@ def _c7(df, combos, expected, protocol, ctx):
                 f"{_g(est * ctx.scale)}, 90 % interval {_g(lo * ctx.scale)} to "
                 f"{_g(hi * ctx.scale)}): AVOA {word}"
             )
-        finite = [d for d in diffs if np.isfinite(d)]
-        z = _Size(
-            stats.combine_four(words, lowest=True),
-            max(finite) if finite else np.nan,
-            m * ctx.scale,
-            ctx.unit,
-            "spread of AVOA − spread of each rival (mean |x − median|)",
-        )
+        ref = "spread of AVOA − spread of each rival (mean |x − median|)"
+        z = _Size.decide(words, diffs, True, m * ctx.scale, ctx.unit, ref)
         if missing or not enough:
             v = INCONCLUSIVE
             z.verdict = stats.INCONCLUSIVE
@@ -787,13 +771,8 @@ def _c8(df, combos, expected, paper, protocol, ctx):
             else (stats.LOWER if d < 0 else stats.HIGHER)
             for d in diffs
         ]
-        z = _Size(
-            stats.combine_four(words, lowest=True),
-            float(diffs.max()),
-            m * ctx.scale,
-            ctx.unit,
-            "AVOA's best run − each rival's best run (descriptive, no test)",
-        )
+        ref = "AVOA's best run − each rival's best run (descriptive, no test)"
+        z = _Size.decide(words, diffs, True, m * ctx.scale, ctx.unit, ref)
         if missing:
             v = INCONCLUSIVE
             z.verdict = stats.INCONCLUSIVE
@@ -864,14 +843,8 @@ def _c9(runs, combos, expected, protocol, ctx):
                 f"vs {_lab(a)}: AVOA − rival {_g(100 * est)} points (90 % interval "
                 f"{_g(100 * lo)} to {_g(100 * hi)}), McNemar p_holm={_p(pt)}: AVOA {word}"
             )
-        finite = [x for x in diffs if np.isfinite(x)]
-        z = _Size(
-            stats.combine_four(words, lowest=False),
-            min(finite) if finite else np.nan,
-            100 * stats.SHARE_MARGIN,
-            unit,
-            "AVOA's share − each rival's share (paired by seed)",
-        )
+        ref = "AVOA's share − each rival's share (paired by seed)"
+        z = _Size.decide(words, diffs, False, 100 * stats.SHARE_MARGIN, unit, ref)
         if len(wide) < stats.MIN_SEEDS:
             v = INCONCLUSIVE
         else:

@@ -645,10 +645,10 @@ def pairwise_wilcoxon(
     return out.drop(columns=["_p_less", "_p_greater", "_p_tost"])
 
 
-def mannwhitney_less(x, y, min_n: int = MIN_SEEDS) -> float:
-    """One-sided Mann-Whitney U p-value for H1: ``x`` tends to be lower than ``y`` (unpaired).
-
-    NaN when either sample has fewer than ``min_n`` values; 1 when all values are equal.
+def mannwhitney(x, y, alternative: str = "less", min_n: int = MIN_SEEDS) -> float:
+    """Mann-Whitney U p-value (unpaired) for ``alternative`` ("less": H1 ``x`` tends to be lower
+    than ``y``; "greater"; "two-sided"). NaN when either sample has fewer than ``min_n`` values;
+    1 when all values are equal.
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -658,20 +658,7 @@ def mannwhitney_less(x, y, min_n: int = MIN_SEEDS) -> float:
     both = np.concatenate([x, y])
     if np.all(both == both[0]):
         return 1.0
-    return float(st.mannwhitneyu(x, y, alternative="less").pvalue)
-
-
-def mannwhitney_two(x, y, min_n: int = MIN_SEEDS) -> float:
-    """Two-sided Mann-Whitney U p-value (unpaired); NaN / 1 as :func:`mannwhitney_less`."""
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    x, y = x[~np.isnan(x)], y[~np.isnan(y)]
-    if len(x) < min_n or len(y) < min_n:
-        return np.nan
-    both = np.concatenate([x, y])
-    if np.all(both == both[0]):
-        return 1.0
-    return float(st.mannwhitneyu(x, y, alternative="two-sided").pvalue)
+    return float(st.mannwhitneyu(x, y, alternative=alternative).pvalue)
 
 
 def tost_ratio_unpaired(x, y, ratio: float = TIME_RATIO, min_n: int = MIN_SEEDS) -> float:
