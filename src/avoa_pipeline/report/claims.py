@@ -282,6 +282,14 @@ def _combine_sizes(sizes: dict, expected: set, lowest: bool) -> _Size:
                  first.reference, counts)  # fmt: skip
 
 
+def _all_row(cid, protocol, paper_verdict, verdicts, sizes, expected, lowest, note="") -> dict:
+    """The "all" row of a claim: its test verdict over the places (:func:`_combine`) and its
+    four-word verdict and size (:func:`_combine_sizes`); ``note`` is added to the evidence."""
+    v, ev = _combine(verdicts, expected)
+    z = _combine_sizes(sizes, expected, lowest)
+    return _row(cid, None, None, protocol, paper_verdict, v, ev + note, z)
+
+
 def _paper_lookup(paper_objective: pd.DataFrame | None) -> dict:
     """{(scenario, case): {algorithm: (ise, rank)}} from objective.csv."""
     out: dict = {}
@@ -364,10 +372,8 @@ def _c1_c3(df, combos, expected, paper, protocol, ctx, cid):
         verdicts[(s, c)], sizes[(s, c)] = v, z
         pv = _paper_extreme(paper, (s, c), ref, lower)
         rows.append(_row(cid, s, c, protocol, pv, v, ev, z))
-    v, ev = _combine(verdicts, expected)
-    pv = [_paper_extreme(paper, k, ref, lower) for k in sorted(expected)]
-    z = _combine_sizes(sizes, expected, lower)
-    rows.append(_row(cid, None, None, protocol, _combine_paper(pv), v, ev, z))
+    pv = _combine_paper([_paper_extreme(paper, k, ref, lower) for k in sorted(expected)])
+    rows.append(_all_row(cid, protocol, pv, verdicts, sizes, expected, lower))
     return rows
 
 
@@ -481,13 +487,12 @@ def _c2(df, combos, expected, paper, protocol, ctx):
             parts.append(f"{len(disc)} of 21 pairs ordered against the paper: " + ", ".join(desc))
         verdicts[(s, c)] = v
         rows.append(_row("C2", s, c, protocol, pv, v, "; ".join(parts), size))
-    v, ev = _combine(verdicts, expected)
+    note = ""
     if taus:
         finite = [t for t in taus if np.isfinite(t)]
-        ev += f"; mean Kendall tau-b {_g(float(np.mean(finite)) if finite else np.nan)}"
-    pvs = [r["paper_verdict"] for r in rows]
-    z = _combine_sizes(sizes, expected, True)
-    rows.append(_row("C2", None, None, protocol, _combine_paper(pvs), v, ev, z))
+        note = f"; mean Kendall tau-b {_g(float(np.mean(finite)) if finite else np.nan)}"
+    pv = _combine_paper([r["paper_verdict"] for r in rows])
+    rows.append(_all_row("C2", protocol, pv, verdicts, sizes, expected, True, note))
     return rows
 
 
@@ -519,9 +524,8 @@ def _c4(histories, combos, expected, protocol, ctx):
                          ctx.unit, "AVOA − each rival, at 10 % and 50 % of the budget")  # fmt: skip
         verdicts[(s, c)], sizes[(s, c)] = v, z
         rows.append(_row("C4", s, c, protocol, "claimed (figures only)", v, " | ".join(parts), z))
-    v, ev = _combine(verdicts, expected)
-    z = _combine_sizes(sizes, expected, True)
-    rows.append(_row("C4", None, None, protocol, "claimed (figures only)", v, ev, z))
+    pv = "claimed (figures only)"
+    rows.append(_all_row("C4", protocol, pv, verdicts, sizes, expected, True))
     return rows
 
 
@@ -746,9 +750,7 @@ def _c7(df, combos, expected, protocol, ctx):
             v = SUPPORTED if all(ok) else NOT_SUPPORTED
         verdicts[(s, c)], sizes[(s, c)] = v, z
         rows.append(_row("C7", s, c, protocol, CLAIMED, v, "; ".join(parts), z))
-    v, ev = _combine(verdicts, expected)
-    z = _combine_sizes(sizes, expected, True)
-    rows.append(_row("C7", None, None, protocol, CLAIMED, v, ev, z))
+    rows.append(_all_row("C7", protocol, CLAIMED, verdicts, sizes, expected, True))
     return rows
 
 
@@ -784,10 +786,8 @@ def _c8(df, combos, expected, paper, protocol, ctx):
         verdicts[(s, c)], sizes[(s, c)] = v, z
         pv = _paper_extreme(paper, (s, c), "avoa", True)
         rows.append(_row("C8", s, c, protocol, pv, v, "; ".join(parts), z))
-    v, ev = _combine(verdicts, expected)
-    pv = [_paper_extreme(paper, k, "avoa", True) for k in sorted(expected)]
-    z = _combine_sizes(sizes, expected, True)
-    rows.append(_row("C8", None, None, protocol, _combine_paper(pv), v, ev, z))
+    pv = _combine_paper([_paper_extreme(paper, k, "avoa", True) for k in sorted(expected)])
+    rows.append(_all_row("C8", protocol, pv, verdicts, sizes, expected, True))
     return rows
 
 
@@ -851,9 +851,7 @@ def _c9(runs, combos, expected, protocol, ctx):
             v = SUPPORTED if (p_more < alpha).all() else NOT_SUPPORTED
         verdicts[(s, c)], sizes[(s, c)] = v, z
         rows.append(_row("C9", s, c, protocol, CLAIMED, v, "; ".join(parts), z))
-    v, ev = _combine(verdicts, expected)
-    z = _combine_sizes(sizes, expected, False)
-    rows.append(_row("C9", None, None, protocol, CLAIMED, v, ev, z))
+    rows.append(_all_row("C9", protocol, CLAIMED, verdicts, sizes, expected, False))
     return rows
 
 
