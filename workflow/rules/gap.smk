@@ -127,6 +127,8 @@ if GAP:
         group:
             "diagnoses"  # cluster executors only (profiles/slurm)
         threads: 1
+        resources:
+            group_lane=1,  # profiles/slurm: a group's members run one after another
         script:
             "../scripts/job.py"
 
@@ -143,6 +145,8 @@ if GAP:
         group:
             "diagnoses"  # cluster executors only (profiles/slurm)
         threads: 1
+        resources:
+            group_lane=1,  # profiles/slurm: a group's members run one after another
         script:
             "../scripts/job.py"
 

@@ -40,6 +40,7 @@ for _block, _seeds in FIT_BLOCKS.items():
         resources:
             mem_mb=1000,  # measured: one fit process peaks at ~300 MB (numba, scipy, pandas)
             runtime=5 + len(_seeds),  # minutes; a fit takes 0.2-0.6 s at the paper's budget
+            group_lane=1,  # profiles/slurm: a group's members run one after another
         group:
             "fits"  # used by cluster executors only (profiles/slurm); ignored locally
         script:

@@ -73,6 +73,8 @@ rule panasonic_fit_paper:
     group:
         "fits"  # cluster executors only (profiles/slurm)
     threads: 1
+    resources:
+        group_lane=1,  # profiles/slurm: a group's members run one after another
     script:
         "../scripts/job.py"
 
