@@ -77,7 +77,6 @@ def gap_data(job) -> None:
                 job.wildcards.replicate, _gap_dir(job), _log(job))  # fmt: skip
 
 
-
 def gap_pair_data(job) -> None:
     from .gap import evaluate as ev
 
@@ -109,7 +108,6 @@ def gap_diagnose(job) -> None:
     from .gap import evaluate as ev
 
     ev.diagnose_file(job.input[0], job.output[0], _log(job))
-
 
 
 def _table(job, make_row) -> None:

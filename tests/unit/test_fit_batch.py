@@ -26,8 +26,25 @@ def test_batch_equals_single_fits_and_computes_only_new_seeds(cfg, tmp_path):
     got = workflow.fit_batch(c, str(data), 1, 2, "gwo", [1, 2], outs[:2])
     assert got == {"computed": 2, "kept": 0}
     single = tmp_path / "single.json"  # the command line's one fit: the same record
-    args = ["fit", "--scenario", "1", "--case", "2", "--algorithm", "gwo", "--seed", "2",
-            "--data", str(data), "--pop-size", "6", "--iterations", "5", "--out", str(single)]
+    args = [
+        "fit",
+        "--scenario",
+        "1",
+        "--case",
+        "2",
+        "--algorithm",
+        "gwo",
+        "--seed",
+        "2",
+        "--data",
+        str(data),
+        "--pop-size",
+        "6",
+        "--iterations",
+        "5",
+        "--out",
+        str(single),
+    ]
     assert main(args) == 0
     assert _strip(json.loads(outs[1].read_text())) == _strip(json.loads(single.read_text()))
 

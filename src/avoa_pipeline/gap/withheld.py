@@ -329,7 +329,11 @@ def make(
 ) -> Dataset:
     """One dataset: the base cell of (profile, replicate) with ``effect`` at ``magnitude``."""
     return _dataset(
-        base_seed, ((effect, float(magnitude)),), noise_mv, profile, replicate,
+        base_seed,
+        ((effect, float(magnitude)),),
+        noise_mv,
+        profile,
+        replicate,
         # UNITS.get: an unknown effect is refused by _noise_free with a one-line ConfigError
         {"effect": effect, "magnitude": float(magnitude), "magnitude_unit": UNITS.get(effect)},
         lambda params: copy.deepcopy(params[effect]),
