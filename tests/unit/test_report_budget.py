@@ -3,6 +3,7 @@
 import numpy as np
 import pandas as pd
 import pytest
+import report_helpers
 
 from avoa_pipeline.optimizers import ALGORITHMS
 from avoa_pipeline.report import budget
@@ -11,19 +12,10 @@ from avoa_pipeline.report.stats import BUDGET_FRACTIONS, EXCESS_TARGETS
 
 
 def history(algorithm, seed, nfe, excess, scenario=1, case=1, true_ise=2.0):
+    """A run whose best-so-far excess over the truth (ISE_true = ``true_ise``) is ``excess``."""
     excess = np.asarray(excess, dtype=float)
-    return pd.DataFrame(
-        {
-            "scenario": scenario,
-            "case": case,
-            "algorithm": algorithm,
-            "seed": seed,
-            "iteration": np.arange(len(nfe)),
-            "best_ise": true_ise * (1.0 + excess),
-            "excess_ise": excess,
-            "nfe": np.asarray(nfe),
-            "wall_s": 0.0,
-        }
+    return report_helpers.history(
+        algorithm, seed, nfe, true_ise * (1.0 + excess), scenario, case, excess=excess
     )
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.figure import Figure
+from report_helpers import history
 
 from avoa_pipeline import problem, synthetic
 from avoa_pipeline.optimizers import ALGORITHMS
@@ -24,21 +25,6 @@ def assert_written(stem):
 
 def assert_empty(folder):
     assert not folder.exists() or list(folder.iterdir()) == []
-
-
-def history(algorithm, seed, nfe, best, scenario=4, case=4):
-    return pd.DataFrame(
-        {
-            "scenario": scenario,
-            "case": case,
-            "algorithm": algorithm,
-            "seed": seed,
-            "iteration": np.arange(len(nfe)),
-            "best_ise": np.asarray(best, dtype=float),
-            "nfe": np.asarray(nfe),
-            "wall_s": 0.0,
-        }
-    )
 
 
 @pytest.fixture
