@@ -496,9 +496,14 @@ def _c2(df, combos, expected, paper, protocol, ctx):
     return rows
 
 
-def _c4(histories, combos, expected, protocol, ctx):
+def _c4(histories, combos, expected, protocol, ctx, at_nfe):
+    """``at_nfe``: :func:`stats.at_budget` by evaluations, per fraction (read once in
+    :func:`claims`); the paper protocol reads the histories by iteration here."""
     by = "iteration" if protocol == PROTOCOL_PAPER else "nfe"
-    frames = {f: stats.at_budget(histories, f, by=by) for f in CHECKPOINTS}
+    if by == "nfe":
+        frames = {f: at_nfe[f] for f in CHECKPOINTS}
+    else:
+        frames = {f: stats.at_budget(histories, f, by=by) for f in CHECKPOINTS}
     rows, verdicts, sizes = [], {}, {}
     for s, c in combos:
         vs, zs, parts = [], [], []
@@ -874,11 +879,12 @@ def _budget_sentence(readings: list[tuple[float, str]]) -> str:
     return "at equal evaluations, by share of each pair's N: " + "; ".join(spans)
 
 
-def _budget_rows(histories, combos, expected, paper, ctx) -> dict:
-    """(claim, where) → its budget sentence, for the claims that read the ISE (E8)."""
+def _budget_rows(at_nfe, combos, expected, paper, ctx) -> dict:
+    """(claim, where) → its budget sentence, for the claims that read the ISE (E8); ``at_nfe``
+    as in :func:`_c4`."""
     readings: dict = {}
     for f in stats.BUDGET_FRACTIONS:
-        fr = stats.at_budget(histories, f, by="nfe")
+        fr = at_nfe[f]
         rows = [
             *_c1_c3(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx, "C1"),
             *_c1_c3(fr, combos, expected, paper, PROTOCOL_EQUAL, ctx, "C3"),
@@ -925,10 +931,13 @@ def claims(
     scale, unit = (100.0, "% of the truth's ISE") if value == "excess_ise" else (1.0, "V²")
     margins = {(s, c): stats.margin_of(runs, s, c) for s, c in combos}
     ctx = _Ctx(alpha, margins, scale, unit, value, seed)
-    protocols = {
-        PROTOCOL_PAPER: runs,
-        PROTOCOL_EQUAL: stats.at_budget(histories, 1.0, by="nfe"),
+    # every reading by evaluations, once: the equal-evaluation protocol (1.0), C4's checkpoints
+    # and the budget sentences share them
+    at_nfe = {
+        f: stats.at_budget(histories, f, by="nfe")
+        for f in sorted({1.0, *CHECKPOINTS, *stats.BUDGET_FRACTIONS})
     }
+    protocols = {PROTOCOL_PAPER: runs, PROTOCOL_EQUAL: at_nfe[1.0]}
     rows: list[dict] = []
     for cid in ("C1", "C2", "C3", "C4", "C5", "C6", "C7", "C8", "C9"):
         for protocol, df in protocols.items():
@@ -937,7 +946,7 @@ def claims(
             elif cid == "C2":
                 rows += _c2(df, combos, expected, paper, protocol, ctx)
             elif cid == "C4":
-                rows += _c4(histories, combos, expected, protocol, ctx)
+                rows += _c4(histories, combos, expected, protocol, ctx, at_nfe)
             elif cid == "C5":
                 rows += _c5(runs, paper_time, protocol, ctx)
             elif cid == "C6":
@@ -948,7 +957,7 @@ def claims(
                 rows += _c8(df, combos, expected, paper, protocol, ctx)
             elif protocol == PROTOCOL_PAPER:  # C9: final parameters only
                 rows += _c9(runs, combos, expected, protocol, ctx)
-    budgets = _budget_rows(histories, combos, expected, paper, ctx)
+    budgets = _budget_rows(at_nfe, combos, expected, paper, ctx)
     for r in rows:
         if r["claim_id"] in ("C5", "C6"):
             r["budgets"] = "a time per iteration or per evaluation: the same at every budget"

@@ -433,12 +433,17 @@ def within_truth(runs: pd.DataFrame, tol: float) -> pd.Series:
     return (rel.le(tol) | rel.isna()).all(axis=1) & rel.notna().any(axis=1)
 
 
+def share_column(tol: float) -> str:
+    """The column of :func:`accuracy_shares` for tolerance ``tol`` (0.01 → share_within_1pct)."""
+    return f"share_within_{round(100 * tol):d}pct"
+
+
 def accuracy_shares(runs: pd.DataFrame, tols=ACCURACY_TOLERANCES) -> pd.DataFrame:
     """Per scenario × case × algorithm: ``n_seeds`` (runs with an ISE) and ``share_within_<x>pct``
     for each tolerance (the share of those seeds whose every identified parameter lies within
     x % of the truth; docs/reproduction-notes.md, E7)."""
     d = runs[runs["best_ise"].notna()].copy()
-    names = [f"share_within_{round(100 * t):d}pct" for t in tols]
+    names = [share_column(t) for t in tols]
     for name, t in zip(names, tols, strict=True):
         d[name] = within_truth(d, t).astype(float)
     g = d.groupby(["scenario", "case", "algorithm"], sort=True)

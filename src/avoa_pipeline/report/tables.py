@@ -326,11 +326,6 @@ def bounds_table(cfg: dict) -> pd.DataFrame:
     )
 
 
-def _share_column(tol: float) -> str:
-    """The column of :func:`~avoa_pipeline.report.stats.accuracy_shares` for ``tol``."""
-    return f"share_within_{round(100 * tol):d}pct"
-
-
 # -------------------------------------------------------------------------- Tables 4 to 19
 def median_run(sub: pd.DataFrame) -> pd.Series | None:
     """The run of median ISE (for an even count the lower middle one, so it is a real run;
@@ -453,7 +448,7 @@ def param_table(
         add(ISE_LABEL, row, t_ex, lambda a, q=q: float(ex[a].quantile(q)) if len(ex[a]) else np.nan)
     acc = stats.accuracy_shares(sub).set_index("algorithm")
     for tol, row in ACCURACY_ROWS.items():
-        col = _share_column(tol)
+        col = stats.share_column(tol)
         add(
             ACCURACY_QUANTITY,
             row,
@@ -588,7 +583,7 @@ def accuracy_table(runs: pd.DataFrame, scenario: int | None = None) -> pd.DataFr
     for (s, c), part in acc.groupby(["scenario", "case"], sort=True):
         part = part.set_index("algorithm").reindex(list(ALGORITHMS))
         for tol, row in ACCURACY_ROWS.items():
-            rows.append([int(s), int(c), row, *(100.0 * part[_share_column(tol)])])
+            rows.append([int(s), int(c), row, *(100.0 * part[stats.share_column(tol)])])
         rows.append([int(s), int(c), "seeds", *part["n_seeds"].astype(float)])
     out = pd.DataFrame(rows, columns=["Scenario", "Case", "Row", *labels])
     for col in labels:
