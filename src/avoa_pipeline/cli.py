@@ -1,4 +1,4 @@
-"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,diagnose,simulate} ...``.
+"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,convert,diagnose,simulate} ...``.
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -19,6 +19,12 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 from .errors import UserError
 from .names import ALGORITHMS, CURRENT_SIGNS
+
+CYCLERS = ("arbin", "maccor", "neware", "biologic", "basytec")  # real/cycler.py reads them
+CYCLER_HELP = (
+    "the data files (and --ocv, --validate) are this cycler's raw exports; a file already in the "
+    "canonical columns is read as it is"
+)
 
 
 class Parser(argparse.ArgumentParser):
@@ -83,6 +89,32 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="CSV of runs; a .md summary goes beside it")
     r.add_argument("--config", default=None)
 
+    c = sub.add_parser("convert", help="a raw cycler export → the canonical CSV + JSON sidecar")
+    c.add_argument("raw", help="the cycler's export (docs/cyclers.md says which columns)")
+    c.add_argument("--cycler", choices=CYCLERS, required=True)
+    c.add_argument("--out", required=True, help="CSV path; the JSON sidecar goes beside it")
+    c.add_argument(
+        "--steps",
+        default=None,
+        metavar="A-B",
+        help="keep one contiguous range of the cycler's step numbers (default: all)",
+    )
+    c.add_argument(
+        "--rest-dt",
+        type=_float("rest-dt"),
+        default=None,
+        metavar="SECONDS",
+        help="thin long rests: 10 samples per decade of rest time, at most this far "
+        "apart (default: every sample)",
+    )
+    c.add_argument(
+        "--current-from",
+        choices=("counters", "channel"),
+        default="counters",
+        help="interval means from the charge counters (default, where the export has "
+        "them) or the held current channel",
+    )
+
     d = sub.add_parser("diagnose", help="sim-to-real gap diagnosis of a cell's measured records")
     d.add_argument(
         "data",
@@ -112,8 +144,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--current-sign",
         choices=CURRENT_SIGNS,
         default=CURRENT_SIGNS[0],
-        help="the files' convention (default: positive current = discharge)",
+        help="the canonical CSVs' convention (default: positive current = discharge)",
     )
+    d.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
 
     s = sub.add_parser("simulate", help="predict a record of the cell with a diagnosis's model")
     s.add_argument("model", help="model.json written by diagnose")
@@ -126,6 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="initial SOC (default: from the first voltage, the library's rule)",
     )
     s.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
+    s.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
     return p
 
 
@@ -185,6 +219,27 @@ def cmd_recovery(args) -> None:
     print(md)
 
 
+def cmd_convert(args) -> None:
+    from .real import cycler
+
+    frame, info = cycler.convert(
+        args.raw,
+        args.cycler,
+        steps=cycler.parse_steps(args.steps),
+        rest_dt=args.rest_dt,
+        current_from=args.current_from,
+    )
+    side = cycler.write(frame, info, args.out)
+    charge = info["charge"]["discharged_ah_output"]
+    check = info["sign"]["voltage_check"]
+    print(
+        f"{args.raw}: {len(frame)} samples over {frame['time_s'].iloc[-1]:.0f} s, current from "
+        f"the {info['current']['source']}, net discharge {charge:.4f} Ah, sign "
+        + ("confirmed" if check["confirmed"] else "not confirmable (no current step)")
+        + f"; wrote {args.out}, {side}"
+    )
+
+
 def cmd_diagnose(args) -> None:
     import json
     from pathlib import Path
@@ -196,10 +251,11 @@ def cmd_diagnose(args) -> None:
     if args.soc0 is not None and len(args.data) > 1:
         raise UserError("--soc0 gives one record's initial SOC; leave it out with several records")
     # every input is read and checked before any fit, so bad input costs no time
-    frames = [diagnose.read_record(p, args.current_sign) for p in args.data]
-    table = ocv.read(args.ocv) if args.ocv else None
+    frames = [diagnose.read_record(p, args.current_sign, cycler=args.cycler) for p in args.data]
+    table = ocv.read(args.ocv, cycler=args.cycler) if args.ocv else None
     tests = {
-        str(p): diagnose.read_record(p, args.current_sign, min_samples=2) for p in args.validate
+        str(p): diagnose.read_record(p, args.current_sign, min_samples=2, cycler=args.cycler)
+        for p in args.validate
     }
     report, arrays, model = diagnose.run(
         frames,
@@ -240,7 +296,7 @@ def cmd_simulate(args) -> None:
     from .model.fitted import FittedModel
 
     model = FittedModel.load(args.model)
-    frame = diagnose.read_record(args.data, args.current_sign, min_samples=2)
+    frame = diagnose.read_record(args.data, args.current_sign, min_samples=2, cycler=args.cycler)
     if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
         raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
     if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
@@ -270,6 +326,7 @@ def main(argv=None) -> int:
             "fit": cmd_fit,
             "generate": cmd_generate,
             "recovery": cmd_recovery,
+            "convert": cmd_convert,
             "diagnose": cmd_diagnose,
             "simulate": cmd_simulate,
         }

@@ -111,9 +111,20 @@ def check(frame: pd.DataFrame, source: str, capacity_ah: float | None = None,
     return apply_current_sign(df, source, current_sign)
 
 
-def read_record(path: str | Path, current_sign: str = "discharge-positive",
-                min_samples: int = MIN_SAMPLES) -> pd.DataFrame:  # fmt: skip
-    """The checked record of a CSV (time_s, current_a, voltage_v[, temperature_c])."""
+def read_record(
+    path: str | Path,
+    current_sign: str = "discharge-positive",
+    min_samples: int = MIN_SAMPLES,
+    cycler: str | None = None,
+) -> pd.DataFrame:
+    """The checked record of a CSV (time_s, current_a, voltage_v[, temperature_c]), or of a
+    cycler's raw export when ``cycler`` is named (``real.cycler``; its output is already
+    discharge-positive, so ``current_sign`` applies to canonical CSVs only)."""
+    from ..real.cycler import read_any
+
+    frame, _ = read_any(path, cycler)
+    if frame is not None:
+        return check(frame, str(path), min_samples=min_samples)
     df = read_measurement(path, min_samples=2)
     return check(df, str(path), current_sign=current_sign, min_samples=min_samples)
 

@@ -122,9 +122,15 @@ def from_table(frame: pd.DataFrame, source: str) -> OcvTable:
     return OcvTable.from_points(soc, v, source=str(source), how="table as given")
 
 
-def read(path: str | Path) -> OcvTable:
-    """``--ocv``: a table ``soc, ocv_v`` or a slow test in the canonical columns."""
+def read(path: str | Path, cycler: str | None = None) -> OcvTable:
+    """``--ocv``: a table ``soc, ocv_v`` or a slow test in the canonical columns, or a slow test
+    as a cycler's raw export when ``cycler`` is named."""
+    from ..real.cycler import read_any
+
     path = Path(path)
+    frame, _ = read_any(path, cycler)
+    if frame is not None:
+        return from_slow_test(frame, str(path))
     raw = read_csv(path)
     if {"soc", "ocv_v"} <= set(raw.columns):
         try:

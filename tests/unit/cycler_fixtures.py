@@ -1,0 +1,321 @@
+"""Small raw cycler exports with a known truth, written by the tests themselves.
+
+A cell (linear OCV, R0, one RC branch) runs a protocol of constant-current steps (charge
+positive, the cyclers' sign), simulated on a 10-ms grid. Each step is logged once a second, at
+its first 10 ms and at its exact end, as cyclers do. The truth is the net charge at every row,
+so every interval's mean current is known exactly. Writers give each cycler's own header lines,
+column names, units and counter style (docs/cyclers.md):
+
+- Arbin: pair counters in Ah, running over the test but restarting at one step (a new cycle);
+  optionally a current channel through a first-order filter (a lag at pulse edges);
+- Maccor: one unsigned ``Capacity`` restarting at every step;
+- Neware: pair counters in mAh restarting at every step; current in mA;
+- BioLogic: pair counters in mA.h restarting when the direction changes; current in mA;
+- Basytec: one signed running ``Ah[Ah]``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+
+GRID = 0.01
+# (duration s, current A charge positive); consecutive discharges at two currents on purpose
+PROTOCOL = (
+    (30.0, 0.0),
+    (40.37, -2.0),
+    (30.0, 0.0),
+    (40.0, 1.0),
+    (30.2, 0.0),
+    (20.0, -1.0),
+    (20.0, -2.5),
+    (60.0, 0.0),
+    (25.0, 1.5),
+    (30.0, 0.0),
+)
+R0, R1, TAU1 = 0.05, 0.02, 10.0
+CAPACITY_AH = 2.0
+START = datetime(2024, 5, 13, 11, 19, 51)
+
+
+@dataclass
+class Truth:
+    t: np.ndarray  # row times (s)
+    step: np.ndarray  # 1-based step numbers
+    current: np.ndarray  # the step's set current at the row (A, charge positive)
+    channel: np.ndarray  # what the current channel logs (the set current, or filtered)
+    voltage: np.ndarray
+    charged: np.ndarray  # cumulative charge in (Ah) and out, at each row
+    discharged: np.ndarray
+    temperature: np.ndarray
+
+    def interval_mean_discharge(self) -> np.ndarray:
+        """Exact mean current over [t_k, t_k+1), discharge positive."""
+        net = self.charged - self.discharged
+        return -np.diff(net) * 3600.0 / np.diff(self.t)
+
+
+def simulate(lag_tau: float | None = None, protocol=PROTOCOL) -> Truth:
+    """The cell and its log; ``lag_tau`` (s) filters the logged current channel."""
+    ends = np.cumsum([d for d, _ in protocol])
+    n = round(ends[-1] / GRID)
+    tg = GRID * np.arange(n + 1)
+    seg = np.searchsorted(ends, tg[:-1] + GRID / 2)  # the step of each grid interval
+    i = np.array([c for _, c in protocol])[seg]
+    charged = np.concatenate([[0], np.cumsum(np.clip(i, 0, None) * GRID)]) / 3600.0
+    discharged = np.concatenate([[0], np.cumsum(np.clip(-i, 0, None) * GRID)]) / 3600.0
+    soc = 0.5 + (charged - discharged) / CAPACITY_AH
+    a = np.exp(-GRID / TAU1)
+    v1 = np.zeros(n + 1)
+    filt = np.zeros(n + 1)
+    b = np.exp(-GRID / lag_tau) if lag_tau else 0.0
+    for k in range(n):
+        v1[k + 1] = a * v1[k] + R1 * (1 - a) * i[k]
+        filt[k + 1] = b * filt[k] + (1 - b) * i[k]
+    i_at = np.append(i, i[-1])  # the current flowing at a grid point (the step just begun)
+    vg = 3.4 + 0.6 * soc + R0 * i_at + v1
+    # rows: each step's first 10 ms, then every second, then its exact end
+    rows, steps = [], []
+    starts = np.concatenate([[0.0], ends[:-1]])
+    for j, (s, e) in enumerate(zip(starts, ends, strict=True)):
+        ts = np.concatenate([[s + GRID], np.arange(s + 1.0, e - 0.5, 1.0), [e]])
+        rows.append(np.round(ts / GRID).astype(int))
+        steps.append(np.full(ts.size, j + 1))
+    k = np.concatenate(rows)
+    step = np.concatenate(steps)
+    cur = np.array([c for _, c in protocol])[step - 1]
+    channel = filt[k] if lag_tau else cur
+    temp = 25.0 + 0.1 * np.sin(tg[k] / 50.0)
+    return Truth(tg[k], step, cur, channel.copy(), vg[k], charged[k], discharged[k], temp)
+
+
+def from_frame(frame) -> Truth:
+    """The log of a canonical record (discharge positive, each row's current held until the
+    next row): a new step at every change of current, starting at its first row. No row marks
+    a step's end, so only running counters (Arbin without a restart, Basytec) keep its charge."""
+    t = frame["time_s"].to_numpy(dtype=float)
+    cp = -frame["current_a"].to_numpy(dtype=float)
+    dt = np.diff(t)
+    charged = np.concatenate([[0.0], np.cumsum(np.clip(cp[:-1], 0, None) * dt)]) / 3600.0
+    discharged = np.concatenate([[0.0], np.cumsum(np.clip(-cp[:-1], 0, None) * dt)]) / 3600.0
+    step = 1 + np.concatenate([[0], np.cumsum(np.diff(cp) != 0)])
+    temp = frame["temperature_c"].to_numpy() if "temperature_c" in frame else np.full(t.size, 25.0)
+    v = frame["voltage_v"].to_numpy(dtype=float)
+    return Truth(t, step, cp, cp.copy(), v, charged, discharged, temp)
+
+
+def _restart(counter: np.ndarray, restart_rows: np.ndarray) -> np.ndarray:
+    """A running counter made to restart at zero at each of ``restart_rows`` (the value at
+    that row is the count since the restart, which happened at the step's start)."""
+    out = counter.copy()
+    for r in sorted(restart_rows):
+        out[r:] = counter[r:] - counter[r - 1]
+    return out
+
+
+def _step_starts(step: np.ndarray) -> np.ndarray:
+    return np.flatnonzero(np.diff(step) != 0) + 1
+
+
+def _per_step(counter: np.ndarray, truth: Truth) -> np.ndarray:
+    """The counter's count since its step began (at the previous row, the last step's end)."""
+    start_value = np.zeros_like(counter)
+    starts = np.r_[_step_starts(truth.step), counter.size]
+    for s, e in itertools.pairwise(starts):
+        start_value[s:e] = counter[s - 1]
+    return counter - start_value
+
+
+def write_arbin(
+    truth: Truth,
+    path: Path,
+    current_unit: str = "A",
+    restart_step: int = 6,
+    extra_columns: dict | None = None,
+) -> Path:
+    scale = {"A": 1.0, "mA": 1e3}[current_unit]
+    restart = np.flatnonzero(truth.step == restart_step)[:1] if restart_step else []
+    chg = _restart(truth.charged, restart)
+    dch = _restart(truth.discharged, restart)
+    lines = []
+    cols = [
+        "Data Point",
+        "Date Time",
+        "Test Time (s)",
+        "Step Time (s)",
+        "Cycle Index",
+        "Step Index",
+        f"Current ({current_unit})",
+        "Voltage (V)",
+        "Charge Capacity (Ah)",
+        "Discharge Capacity (Ah)",
+        "Aux_Temperature_1 (C)",
+    ]
+    cols += list(extra_columns or {})
+    lines.append(",".join(cols))
+    for k in range(truth.t.size):
+        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%m/%d/%Y %H:%M:%S.%f")
+        row = [
+            k + 1,
+            stamp[:-3],
+            f"{truth.t[k]:.4f}",
+            "0",
+            1,
+            int(truth.step[k]),
+            f"{truth.channel[k] * scale:.9g}",
+            f"{truth.voltage[k]:.9g}",
+            f"{chg[k]:.12g}",
+            f"{dch[k]:.12g}",
+            f"{truth.temperature[k]:.5f}",
+        ]
+        row += [str(v[k]) for v in (extra_columns or {}).values()]
+        lines.append(",".join(map(str, row)))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None) -> Path:
+    capacity = _per_step(truth.charged + truth.discharged, truth)
+    lines = [
+        "Today's Date ,28-Nov-23",
+        "Date of Test:,13-May-24 11:19:51 AM",
+        "Rec,Cycle C,Step,Test Time (sec),Step Time (sec),Capacity,Energy,Current,Voltage,"
+        "DPT Time,Temp 1",
+    ]
+    for k in range(truth.t.size):
+        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%d-%b-%y %I:%M:%S %p")
+        row = [
+            k + 1,
+            1,
+            int(truth.step[k]),
+            f"{truth.t[k]:.4f}",
+            "0",
+            f"{capacity[k]:.12g}",
+            0,
+            f"{truth.channel[k]:.9g}",
+            f"{truth.voltage[k]:.9g}",
+            stamp,
+            f"{truth.temperature[k]:.4f}",
+        ]
+        lines.append(",".join(map(str, row)))
+        if duplicate_row == k:  # the logger writes an instant twice; the later row is kept
+            lines.append(",".join(map(str, row)))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def write_neware(truth: Truth, path: Path) -> Path:
+    chg = _per_step(truth.charged, truth) * 1e3
+    dch = _per_step(truth.discharged, truth) * 1e3
+    lines = [
+        "DataPoint,Cycle Index,Step Index,Step Type,Time,Current(mA),Voltage(V),"
+        "Chg. Cap.(mAh),DChg. Cap.(mAh),Date,T1(℃)"
+    ]
+    for k in range(truth.t.size):
+        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%Y-%m-%d %H:%M:%S.%f")
+        kind = (
+            "Rest" if truth.current[k] == 0 else ("CC Chg" if truth.current[k] > 0 else "CC DChg")
+        )
+        row = [
+            k + 1,
+            1,
+            int(truth.step[k]),
+            kind,
+            "00:00:00",
+            f"{truth.channel[k] * 1e3:.9g}",
+            f"{truth.voltage[k]:.9g}",
+            f"{chg[k]:.12g}",
+            f"{dch[k]:.12g}",
+            stamp[:-3],
+            f"{truth.temperature[k]:.3f}",
+        ]
+        lines.append(",".join(map(str, row)))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def write_biologic(truth: Truth, path: Path) -> Path:
+    direction = np.sign(truth.current)
+    changes = []
+    last = 0
+    for k in range(truth.t.size):
+        if direction[k] != 0 and direction[k] != last:
+            if last != 0:
+                changes.append(k)
+            last = direction[k]
+    chg = _restart(truth.charged, np.array(changes, dtype=int)) * 1e3
+    dch = _restart(truth.discharged, np.array(changes, dtype=int)) * 1e3
+    head = [
+        "EC-Lab ASCII FILE",
+        "Nb header lines : 4",
+        "Acquisition started on : 05/13/2024 11:19:51.000",
+    ]
+    cols = (
+        "mode\tox/red\ttime/s\tEcell/V\tI/mA\tNs\tQ charge/mA.h\tQ discharge/mA.h\tTemperature/°C"
+    )
+    lines = [*head, cols]
+    for k in range(truth.t.size):
+        row = [
+            1,
+            int(truth.current[k] > 0),
+            f"{truth.t[k]:.6E}",
+            f"{truth.voltage[k]:.9E}",
+            f"{truth.channel[k] * 1e3:.9E}",
+            int(truth.step[k]) - 1,
+            f"{chg[k]:.12E}",
+            f"{dch[k]:.12E}",
+            f"{truth.temperature[k]:.6E}",
+        ]
+        lines.append("\t".join(map(str, row)))
+    path.write_text("\n".join(lines) + "\n", encoding="iso-8859-1")
+    return path
+
+
+def write_basytec(truth: Truth, path: Path) -> Path:
+    head = [
+        "~Resultfile from Basytec Battery Test System",
+        "~Name of Test: fixture",
+        "~Start of Test: 13.05.2024 11:19:51",
+        "~",
+    ]
+    cols = "~Time[s]\tDataSet\tLine\tCommand\tU[V]\tI[A]\tAh[Ah]\tT1[°C]"
+    lines = [*head, cols]
+    net = truth.charged - truth.discharged
+    for k in range(truth.t.size):
+        kind = (
+            "Pause"
+            if truth.current[k] == 0
+            else ("Charge" if truth.current[k] > 0 else "Discharge")
+        )
+        row = [
+            f"{truth.t[k]:.6f}",
+            k + 1,
+            int(truth.step[k]),
+            kind,
+            f"{truth.voltage[k]:.9g}",
+            f"{truth.channel[k]:.9g}",
+            f"{net[k]:.12g}",
+            f"{truth.temperature[k]:.4f}",
+        ]
+        lines.append("\t".join(map(str, row)))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+WRITERS = {
+    "arbin": (write_arbin, ".csv"),
+    "maccor": (write_maccor, ".csv"),
+    "neware": (write_neware, ".csv"),
+    "biologic": (write_biologic, ".txt"),
+    "basytec": (write_basytec, ".txt"),
+}
+
+
+def export(cycler: str, folder: Path, truth: Truth | None = None, **kw) -> tuple[Path, Truth]:
+    truth = simulate() if truth is None else truth
+    writer, ext = WRITERS[cycler]
+    return writer(truth, Path(folder) / f"{cycler}{ext}", **kw), truth

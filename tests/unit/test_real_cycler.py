@@ -1,0 +1,287 @@
+"""Raw cycler exports → the canonical record (real/cycler.py): each supported format against a
+known truth (sign, units, charge, time, voltage samples), the lag a filtered current channel
+adds, rests, steps, and one-line errors that write nothing."""
+
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+from cycler_fixtures import WRITERS, export, from_frame, simulate, write_arbin, write_basytec
+from test_ecm import TRUTH, profile_frame, with_voltage
+
+from avoa_pipeline.cli import main
+from avoa_pipeline.errors import DataError
+from avoa_pipeline.io import sha256
+from avoa_pipeline.real import cycler
+
+CYCLERS = list(WRITERS)
+
+
+@pytest.mark.parametrize("name", CYCLERS)
+def test_each_cycler_gives_the_truth(tmp_path, name):
+    """Discharge-positive interval means equal the truth's; time, voltage and temperature are
+    the logged samples themselves; charge is conserved; the sidecar says what was done."""
+    path, truth = export(name, tmp_path)
+    frame, info = cycler.convert(path, name)
+    assert list(frame.columns) == ["time_s", "current_a", "voltage_v", "temperature_c"]
+    np.testing.assert_allclose(frame["time_s"], truth.t - truth.t[0], atol=1e-3)
+    np.testing.assert_allclose(frame["current_a"][:-1], truth.interval_mean_discharge(), atol=1e-6)
+    assert frame["current_a"].iloc[-1] == pytest.approx(-truth.channel[-1])
+    np.testing.assert_allclose(frame["voltage_v"], truth.voltage, atol=1e-8)
+    np.testing.assert_allclose(frame["temperature_c"], truth.temperature, atol=1e-3)
+    # discharged minus charged over the record: the truth's, to the counters' rounding
+    net = -(truth.charged[-1] - truth.discharged[-1])
+    assert info["charge"]["discharged_ah_output"] == pytest.approx(net, abs=1e-9)
+    assert info["source_sha256"] == sha256(path)
+    assert info["cycler"] == name
+    assert info["sign"]["cycler_convention"] == "charge-positive"
+    assert info["sign"]["voltage_check"]["confirmed"]
+    assert info["sign"]["voltage_check"]["median_step_resistance_ohm"] == pytest.approx(
+        0.05, rel=0.05
+    )  # R0 of the fixture cell
+    assert info["current"]["source"] == "charge counters"
+    assert len(info["steps"]["kept"]) == 10
+    assert info["steps"]["dropped"] == []
+    assert info["resampling"].startswith("none")
+    json.dumps(info, allow_nan=False)
+
+
+def test_counter_restarts_are_counted(tmp_path):
+    """Per-step (Maccor, Neware), per-cycle (Arbin) and per-direction (BioLogic) restarts."""
+    restarts = {
+        n: cycler.convert(export(n, tmp_path)[0], n)[1]["current"]["counters"]["restarts"]
+        for n in ("arbin", "maccor", "neware", "biologic", "basytec")
+    }
+    # Maccor counts throughput per step (5 restarts after a non-rest step); Neware's pair
+    # restarts at every step after charge or discharge; Arbin's both at step 6; BioLogic's at
+    # the three changes of direction; Basytec's running counter never
+    assert restarts == {"arbin": 2, "maccor": 5, "neware": 5, "biologic": 3, "basytec": 0}
+
+
+def test_units_are_converted(tmp_path):
+    truth = simulate()
+    in_a, _ = cycler.convert(write_arbin(truth, tmp_path / "a.csv"), "arbin")
+    in_ma, info = cycler.convert(
+        write_arbin(truth, tmp_path / "ma.csv", current_unit="mA"), "arbin"
+    )
+    pd.testing.assert_frame_equal(in_a, in_ma, atol=1e-9, check_exact=False)
+    assert info["columns"]["current"] == {"column": "Current (mA)", "unit": "mA"}
+    # the last row has no interval: its channel reading, in A
+    assert in_ma["current_a"].iloc[-1] == pytest.approx(-truth.channel[-1])
+
+
+def test_lagging_current_channel_is_bypassed_by_the_counters(tmp_path):
+    """A channel through a 1.5-s filter misses the truth at pulse edges by amps; the counters do
+    not, and the sidecar shows where the two disagree."""
+    truth = simulate(lag_tau=1.5)
+    path = write_arbin(truth, tmp_path / "lag.csv")
+    frame, info = cycler.convert(path, "arbin")
+    want = truth.interval_mean_discharge()
+    np.testing.assert_allclose(frame["current_a"][:-1], want, atol=1e-6)
+    held, held_info = cycler.convert(path, "arbin", current_from="channel")
+    assert np.max(np.abs(held["current_a"][:-1] - want)) > 1.0
+    assert held_info["current"]["source"] == "current channel (held)"
+    vs = info["current"]["counters_vs_channel"]
+    assert vs["rms_difference_step_edges_a"] > 1.0 > vs["rms_difference_steady_a"]
+
+
+def test_rests_are_thinned_from_existing_samples_with_charge_kept(tmp_path):
+    path, _truth = export("arbin", tmp_path)
+    full, _ = cycler.convert(path, "arbin")
+    thin, info = cycler.convert(path, "arbin", rest_dt=10.0)
+    assert len(thin) < len(full)
+    assert info["rows"]["rest_thinned"] == len(full) - len(thin)
+    # every written sample is a logged one (no interpolation): voltage and time pairs
+    logged = dict(zip(np.round(full["time_s"], 6), full["voltage_v"], strict=True))
+    assert all(logged[round(t, 6)] == v for t, v in zip(thin["time_s"], thin["voltage_v"],
+                                                         strict=True))  # fmt: skip
+    charge = np.sum(thin["current_a"][:-1] * np.diff(thin["time_s"])) / 3600.0
+    assert charge == pytest.approx(info["charge"]["discharged_ah_counters"], abs=1e-12)
+    gaps = np.diff(thin["time_s"])
+    assert gaps.max() <= 10.0 + 1e-9
+    # load steps keep every sample: the 1-s spacing of every non-rest row survives
+    load = np.abs(full["current_a"].to_numpy()) > 0.1
+    assert set(np.round(full["time_s"][load], 6)) <= set(np.round(thin["time_s"], 6))
+
+
+def test_repeated_time_keeps_the_later_row(tmp_path):
+    path, truth = export("maccor", tmp_path, duplicate_row=50)
+    frame, info = cycler.convert(path, "maccor")
+    assert info["rows"]["repeated_time_dropped"] == 1
+    assert len(frame) == truth.t.size
+    np.testing.assert_allclose(frame["current_a"][:-1], truth.interval_mean_discharge(), atol=1e-6)
+
+
+def test_a_step_range_is_kept_and_the_rest_listed(tmp_path):
+    path, truth = export("neware", tmp_path)
+    frame, info = cycler.convert(path, "neware", steps=(2, 8))
+    rows = (truth.step >= 2) & (truth.step <= 8)
+    assert len(frame) == rows.sum()
+    assert frame["time_s"].iloc[0] == 0.0
+    assert [s["step"] for s in info["steps"]["kept"]] == list(range(2, 9))
+    assert [s["step"] for s in info["steps"]["dropped"]] == [1, 9, 10]
+    with pytest.raises(DataError, match=r"Step Index.*no step 12"):
+        cycler.convert(path, "neware", steps=(2, 12))
+
+
+@pytest.mark.parametrize(
+    ("name", "column"), [("maccor", "'Current'"), ("basytec", "'I[A]'"), ("arbin", "'Current (A)'")]
+)
+def test_a_sign_against_the_cyclers_convention_is_refused(tmp_path, name, column):
+    """Maccor (direction from the channel) and Basytec (a signed counter) with everything
+    negated fail the voltage check; Arbin with its channel negated contradicts its counters."""
+    truth = simulate()
+    truth.channel = -truth.channel
+    if name == "basytec":
+        truth.charged, truth.discharged = truth.discharged, truth.charged
+    if name == "maccor":
+        truth.current = -truth.current
+    path, _ = export(name, tmp_path, truth)
+    with pytest.raises(DataError, match=re.escape(column) + ".*not charge-positive"):
+        cycler.convert(path, name)
+
+
+def _cli_error(tmp_path, capsys, raw, name, word):
+    out = tmp_path / "out" / "x.csv"
+    assert main(["convert", str(raw), "--cycler", name, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert str(raw) in err, err
+    assert word in err, err
+    assert not out.parent.exists() or not any(out.parent.iterdir())
+
+
+def test_bad_exports_are_one_line_errors_naming_file_and_column(tmp_path, capsys):
+    arbin, _truth = export("arbin", tmp_path)
+    base = pd.read_csv(arbin)
+
+    def variant(name, frame):
+        path = tmp_path / name
+        frame.to_csv(path, index=False)
+        return path
+
+    cases = [
+        (arbin, "maccor", "not a Maccor export (it reads as --cycler arbin)"),
+        (variant("no_i.csv", base.drop(columns="Current (A)")), "arbin", "no current column"),
+        (variant("no_v.csv", base.drop(columns="Voltage (V)")), "arbin", "'Voltage (<unit>)'"),
+        (
+            variant("two.csv", base.assign(**{"Current (mA)": base["Current (A)"] * 1e3})),
+            "arbin",
+            "'Current (A)', 'Current (mA)'",
+        ),
+        (
+            variant("unit.csv", base.rename(columns={"Current (A)": "Current (mAmp)"})),
+            "arbin",
+            "column 'Current (mAmp)': unit 'mAmp' not recognised",
+        ),
+        # counters written in mAh but labelled Ah: the counters' current is 1000× the channel's
+        (
+            variant(
+                "mixed.csv",
+                base.assign(
+                    **{
+                        c: base[c] * 1e3
+                        for c in ("Charge Capacity (Ah)", "Discharge Capacity (Ah)")
+                    }
+                ),
+            ),
+            "arbin",
+            "mixed units",
+        ),
+        (variant("text.csv", base.assign(**{"Voltage (V)": "n/a"})), "arbin", "Voltage"),
+        (tmp_path / "missing.csv", "arbin", "no such file"),
+    ]
+    wrong_ext = tmp_path / "arbin.dat"
+    wrong_ext.write_text(arbin.read_text())
+    cases.append((wrong_ext, "arbin", "'.dat'"))
+    for raw, name, word in cases:
+        _cli_error(tmp_path, capsys, raw, name, word)
+    # a mixed-units message names both columns
+    _cli_error(tmp_path, capsys, tmp_path / "mixed.csv", "arbin", "'Charge Capacity (Ah)'")
+
+
+def test_cli_convert_writes_csv_and_sidecar(tmp_path, capsys):
+    path, _truth = export("biologic", tmp_path)
+    out = tmp_path / "conv" / "cell.csv"
+    assert main(["convert", str(path), "--cycler", "biologic", "--out", str(out),
+                 "--rest-dt", "20", "--steps", "1-9"]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    assert "sign confirmed" in printed
+    assert str(out) in printed
+    frame = pd.read_csv(out)
+    side = json.loads(out.with_suffix(".json").read_text())
+    assert side["source_file"] == str(path)
+    assert side["steps"]["selection"] == "1-9"
+    assert side["rows"]["written"] == len(frame)
+    assert "at most 20 s apart" in side["resampling"]
+    assert (
+        main(["convert", str(path), "--cycler", "biologic", "--out", str(tmp_path / "x.txt")]) == 2
+    )
+
+
+@pytest.fixture(scope="module")
+def canonical_and_raw(tmp_path_factory):
+    """One record as a canonical CSV and as an Arbin export (running counters)."""
+    folder = tmp_path_factory.mktemp("raw")
+    frame = with_voltage(profile_frame(), TRUTH, noise_v=1e-3, seed=4)
+    csv = folder / "cell.csv"
+    frame.to_csv(csv, index=False)
+    raw = write_arbin(from_frame(frame), folder / "cell_arbin.csv", restart_step=None)
+    return frame, csv, raw
+
+
+def test_raw_export_reproduces_the_canonical_record(canonical_and_raw):
+    frame, _, raw = canonical_and_raw
+    got, _ = cycler.convert(raw, "arbin")
+    np.testing.assert_allclose(got["current_a"], frame["current_a"], atol=1e-8)
+    np.testing.assert_allclose(got["voltage_v"], frame["voltage_v"], atol=1e-9)
+
+
+def test_diagnose_reader_and_ocv_take_a_raw_export_directly(canonical_and_raw, tmp_path):
+    """The one reader behind diagnose, --validate and simulate, and --ocv, given --cycler."""
+    from avoa_pipeline.gap import diagnose
+    from avoa_pipeline.model import ocv
+
+    _, csv, raw = canonical_and_raw
+    a = diagnose.read_record(csv)
+    b = diagnose.read_record(raw, cycler="arbin")
+    pd.testing.assert_frame_equal(a, b, atol=1e-8, check_exact=False)
+    # a canonical CSV given with --cycler is read as it is
+    assert cycler.read_any(csv, "arbin") == (None, None)
+    # --ocv: a slow test as a raw Basytec export
+    slow = with_voltage(_slow(), {**TRUTH, "soc0": 1.0})
+    slow.to_csv(tmp_path / "slow.csv", index=False)
+    raw_slow = write_basytec(from_frame(slow), tmp_path / "slow.txt")
+    a, b = ocv.read(tmp_path / "slow.csv"), ocv.read(raw_slow, cycler="basytec")
+    np.testing.assert_allclose(a.values, b.values, atol=1e-9)
+    assert a.capacity_ah == pytest.approx(b.capacity_ah, rel=1e-9)
+
+
+def _slow(rate_c=0.05, capacity=2.57, share=0.9):
+    """A C/20 discharge of ``share`` of the capacity from full, a rest, the charge back."""
+    i = rate_c * capacity
+    n = int(share * 3600 / rate_c)
+    cur = np.concatenate([np.zeros(60), np.full(n, i), np.zeros(600), np.full(n, -i)])
+    t = np.arange(cur.size, dtype=float)
+    return pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": np.zeros_like(t)})
+
+
+def test_diagnose_and_simulate_take_a_raw_export_like_its_canonical_csv(canonical_and_raw,
+                                                                        tmp_path):  # fmt: skip
+    _, csv, raw = canonical_and_raw
+    reports, preds = [], []
+    for data, extra in ((csv, []), (raw, ["--cycler", "arbin"])):
+        out = tmp_path / data.stem
+        assert main(["diagnose", str(data), "--out", str(out), *extra]) == 0
+        reports.append(json.loads((out / "diagnosis.json").read_text()))
+        pred = tmp_path / f"pred_{data.stem}.csv"
+        model = str(tmp_path / csv.stem / "model.json")  # the canonical run's model for both
+        assert main(["simulate", model, str(data), "--out", str(pred), *extra]) == 0
+        preds.append(pd.read_csv(pred))
+    a, b = reports
+    assert a["verdict"]["effect"] == b["verdict"]["effect"]
+    assert a["selected"]["name"] == b["selected"]["name"]
+    assert a["base"]["rmse_mv"] == pytest.approx(b["base"]["rmse_mv"], rel=1e-3)
+    np.testing.assert_allclose(preds[0]["model_v"], preds[1]["model_v"], atol=1e-8)
