@@ -238,6 +238,8 @@ def cmd_convert(args) -> None:
         + ("confirmed" if check["confirmed"] else "not confirmable (no current step)")
         + f"; wrote {args.out}, {side}"
     )
+    for note in info["warnings"]:
+        print(f"warning: {note}")
 
 
 def cmd_diagnose(args) -> None:

@@ -76,7 +76,9 @@ def simulate(lag_tau: float | None = None, protocol=PROTOCOL) -> Truth:
     for k in range(n):
         v1[k + 1] = a * v1[k] + R1 * (1 - a) * i[k]
         filt[k + 1] = b * filt[k] + (1 - b) * i[k]
-    i_at = np.append(i, i[-1])  # the current flowing at a grid point (the step just begun)
+    # the current at a grid point: the one flowing just before it (a step's last row is logged
+    # before the next step switches on, as the channel logs it)
+    i_at = np.concatenate([[i[0]], i])
     vg = 3.4 + 0.6 * soc + R0 * i_at + v1
     # rows: each step's first 10 ms, then every second, then its exact end
     rows, steps = [], []

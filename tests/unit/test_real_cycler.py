@@ -4,6 +4,7 @@ adds, rests, steps, and one-line errors that write nothing."""
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -285,3 +286,41 @@ def test_diagnose_and_simulate_take_a_raw_export_like_its_canonical_csv(canonica
     assert a["selected"]["name"] == b["selected"]["name"]
     assert a["base"]["rmse_mv"] == pytest.approx(b["base"]["rmse_mv"], rel=1e-3)
     np.testing.assert_allclose(preds[0]["model_v"], preds[1]["model_v"], atol=1e-8)
+
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "pyprobe"
+
+
+def test_pyprobes_own_arbin_export():
+    """A genuine Arbin export (time stamps with a leading tab, an ACR-like charge and discharge
+    at the step start): the step up to 2.65 A charge confirms the sign, the counters give the
+    interval means, charge equals the counters'."""
+    frame, info = cycler.convert(DATA / "sample_data_arbin.csv", "arbin")
+    assert len(frame) == 13
+    assert info["sign"]["voltage_check"]["confirmed"]
+    assert info["sign"]["voltage_check"]["median_step_resistance_ohm"] == pytest.approx(
+        (3.594547 - 3.534586) / 2.647604
+    )
+    # the interval from row 12 to 13: (0.000400839 - 2.01404e-5) Ah in 0.5161 s, charging
+    want = -(0.000400839 - 2.01404e-5) * 3600.0 / (301.214 - 300.6979)
+    assert frame["current_a"].iloc[11] == pytest.approx(want)
+    assert info["charge"]["discharged_ah_output"] == pytest.approx(
+        info["charge"]["discharged_ah_counters"], abs=1e-15
+    )
+    assert info["warnings"] == []
+
+
+def test_pyprobes_own_maccor_export_warns_of_its_coarse_counter(capsys):
+    """Maccor's 3-decimal Capacity steps by 8 mAh and stalls for two rows while 28.8 A flows:
+    the counters' current is 28.8, 28.8, 28.8, 0, 0 A. The conversion says so; the channel
+    is the user's alternative."""
+    raw = DATA / "sample_data_maccor.csv"
+    frame, info = cycler.convert(raw, "maccor")
+    np.testing.assert_allclose(-frame["current_a"][11:16], [28.8, 28.8, 28.8, 0.0, 0.0], atol=1e-9)
+    assert len(info["warnings"]) == 1
+    assert "--current-from channel" in info["warnings"][0]
+    held, held_info = cycler.convert(raw, "maccor", current_from="channel")
+    np.testing.assert_allclose(-held["current_a"][11:], [28.844, 28.799, 28.798, 28.798, 28.798,
+                                                         28.798])  # fmt: skip
+    assert held_info["warnings"] == []
+    assert held_info["sign"]["voltage_check"]["confirmed"]

@@ -57,11 +57,18 @@ _TRIM_SD = float(stats.truncnorm(-_Z_TRIM, _Z_TRIM).std())
 # input
 
 
-def check(frame: pd.DataFrame, source: str, capacity_ah: float | None = None,
-          soc0: float | None = None, current_sign: str = "discharge-positive",
-          min_samples: int = MIN_SAMPLES) -> pd.DataFrame:  # fmt: skip
-    """Checks beyond the CSV reader's: length, units, options, the current's sign. One-line
-    DataError/UserError."""
+def check(
+    frame: pd.DataFrame,
+    source: str,
+    capacity_ah: float | None = None,
+    soc0: float | None = None,
+    current_sign: str = "discharge-positive",
+    min_samples: int = MIN_SAMPLES,
+    sign_confirmed: bool = False,
+) -> pd.DataFrame:
+    """Checks beyond the CSV reader's: length, units, options, the current's sign (unless
+    ``sign_confirmed``: a converted export, whose sign ``real.cycler`` confirmed against the
+    current channel's steps). One-line DataError/UserError."""
     if not isinstance(frame, pd.DataFrame):
         raise DataError(f"{source}: not a table ({type(frame).__name__})")
     for col in ("time_s", "current_a", "voltage_v"):
@@ -108,7 +115,7 @@ def check(frame: pd.DataFrame, source: str, capacity_ah: float | None = None,
             f"{source}: column 'voltage_v': values {v.min():g}..{v.max():g} outside "
             f"{lo:g}..{hi:g} V of one cell (mV given?)"
         )
-    return apply_current_sign(df, source, current_sign)
+    return df if sign_confirmed else apply_current_sign(df, source, current_sign)
 
 
 def read_record(
@@ -124,7 +131,7 @@ def read_record(
 
     frame, _ = read_any(path, cycler)
     if frame is not None:
-        return check(frame, str(path), min_samples=min_samples)
+        return check(frame, str(path), min_samples=min_samples, sign_confirmed=True)
     df = read_measurement(path, min_samples=2)
     return check(df, str(path), current_sign=current_sign, min_samples=min_samples)
 

@@ -44,6 +44,7 @@ import contextlib
 import importlib
 import json
 import math
+import sys
 import tempfile
 import warnings
 from dataclasses import dataclass
@@ -544,7 +545,7 @@ def convert(
     tk = t[idx]
 
     current_cp = np.append(interval, i_ch[idx[-1]])  # the last row: its channel reading
-    out = pd.DataFrame({"time_s": tk - tk[0], "current_a": -current_cp, "voltage_v": v[idx]})
+    out = pd.DataFrame({"time_s": tk - tk[0], "current_a": 0.0 - current_cp, "voltage_v": v[idx]})
     if "temperature" in arrays:
         out["temperature_c"] = arrays["temperature"][idx]
 
@@ -570,14 +571,28 @@ def convert(
     if i99_out <= 0:
         raise DataError(f"{path}: column {name['current']!r}: no current flows")
 
-    # the sign, from the voltage's response at current steps
-    r, n = step_resistance_of(out)
+    # the sign, from the voltage's response at current steps of the channel: its reading is
+    # the current at the voltage's instant (interval means of a coarse or stalled counter
+    # step where the voltage does not)
+    r, n = step_resistance_of(out.assign(current_a=-i_ch[idx]))
     if n and not r > 0:
         raise DataError(
             f"{path}: column {name['current']!r}: the voltage falls when the {cycler.label} "
             f"current rises (median step dV/dI {1e3 * r:.1f} mOhm over {n} steps): the export "
             f"is not {CONVENTION} as {cycler.label} writes it"
         )
+
+    notes = []
+    if use_counters and agreement and "rms_difference_steady_a" in agreement:
+        rms, scale = agreement["rms_difference_steady_a"], agreement["current_scale_a"]
+        if rms > REST_FRACTION * scale:
+            q_ah = ", ".join(f"{x:.3g}" for x in counter_info["resolution_ah"])
+            notes.append(
+                f"{path}: the charge counters and column {name['current']!r} differ by "
+                f"{rms:.3g} A RMS on steady intervals, over {REST_FRACTION:.0%} of the "
+                f"99th-percentile |I| (the line between rest and load); the counters step by "
+                f"{q_ah} Ah. Export them with more digits, or use --current-from channel"
+            )
 
     kept = np.zeros(t.size, dtype=bool)
     kept[np.flatnonzero(rows)] = True
@@ -622,6 +637,7 @@ def convert(
             "kept": [s for s in table if s["kept"]],
             "dropped": [s for s in table if not s["kept"]],
         },
+        "warnings": notes,
         "resampling": (
             "none: the cycler's own samples; voltage and temperature never interpolated"
             if rest_dt is None
@@ -641,11 +657,12 @@ def _agreement(path, q, t, i_ch, step, rows, columns, step_fraction) -> dict:
     channel = 0.5 * (ik[:-1] + ik[1:])  # the channel's trapezoid mean over the interval
     same = sk[:-1] == sk[1:]
     steady = same & np.r_[False, same[:-1]] & np.r_[same[1:], False]
-    big = np.abs(channel) >= step_fraction * max(float(np.quantile(np.abs(ik), 0.99)), 1e-12)
+    i99 = max(float(np.quantile(np.abs(ik), 0.99)), 1e-12)
+    big = np.abs(channel) >= step_fraction * i99
     sel = steady & big
     counter_cols = ", ".join(repr(c["column"]) for c in columns["counters"]["columns"])
     current_col = columns["current"]["column"]
-    out = {"steady_intervals": int(sel.sum())}
+    out = {"steady_intervals": int(sel.sum()), "current_scale_a": i99}
     if sel.sum():
         ratio = np.median(np.abs(counted[sel]) / np.abs(channel[sel]))
         if not (1.0 / UNIT_FACTOR_LIMIT <= ratio <= UNIT_FACTOR_LIMIT):
@@ -719,4 +736,7 @@ def read_any(path: str | Path, cycler_name: str | None) -> tuple[pd.DataFrame | 
     """A raw export's record when a cycler is named and the file is not canonical; else None."""
     if cycler_name is None or is_canonical(path):
         return None, None
-    return convert(path, cycler_name)
+    frame, info = convert(path, cycler_name)
+    for note in info["warnings"]:
+        print(f"warning: {note}", file=sys.stderr)
+    return frame, info
