@@ -132,112 +132,64 @@ def _per_step(counter: np.ndarray, truth: Truth) -> np.ndarray:
     return counter - start_value
 
 
-def write_arbin(
-    truth: Truth,
-    path: Path,
-    current_unit: str = "A",
-    restart_step: int = 6,
-    extra_columns: dict | None = None,
-) -> Path:
+def _stamp(truth: Truth, k: int, fmt: str) -> str:
+    return (START + timedelta(seconds=float(truth.t[k]))).strftime(fmt)
+
+
+def _kind(current: float, rest: str, charge: str, discharge: str) -> str:
+    return rest if current == 0 else (charge if current > 0 else discharge)
+
+
+def _write(path: Path, head: list[str], rows: list[list], sep: str = ",",
+           encoding: str = "utf-8") -> Path:  # fmt: skip
+    lines = [*head, *(sep.join(map(str, row)) for row in rows)]
+    path.write_text("\n".join(lines) + "\n", encoding=encoding)
+    return path
+
+
+def write_arbin(truth: Truth, path: Path, current_unit: str = "A", restart_step: int | None = 6,
+                extra_columns: dict | None = None) -> Path:  # fmt: skip
     scale = {"A": 1.0, "mA": 1e3}[current_unit]
     restart = np.flatnonzero(truth.step == restart_step)[:1] if restart_step else []
     chg = _restart(truth.charged, restart)
     dch = _restart(truth.discharged, restart)
-    lines = []
-    cols = [
-        "Data Point",
-        "Date Time",
-        "Test Time (s)",
-        "Step Time (s)",
-        "Cycle Index",
-        "Step Index",
-        f"Current ({current_unit})",
-        "Voltage (V)",
-        "Charge Capacity (Ah)",
-        "Discharge Capacity (Ah)",
-        "Aux_Temperature_1 (C)",
-    ]
-    cols += list(extra_columns or {})
-    lines.append(",".join(cols))
-    for k in range(truth.t.size):
-        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%m/%d/%Y %H:%M:%S.%f")
-        row = [
-            k + 1,
-            stamp[:-3],
-            f"{truth.t[k]:.4f}",
-            "0",
-            1,
-            int(truth.step[k]),
-            f"{truth.channel[k] * scale:.9g}",
-            f"{truth.voltage[k]:.9g}",
-            f"{chg[k]:.12g}",
-            f"{dch[k]:.12g}",
-            f"{truth.temperature[k]:.5f}",
-        ]
-        row += [str(v[k]) for v in (extra_columns or {}).values()]
-        lines.append(",".join(map(str, row)))
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    extra = extra_columns or {}
+    cols = ["Data Point", "Date Time", "Test Time (s)", "Step Time (s)", "Cycle Index",
+            "Step Index", f"Current ({current_unit})", "Voltage (V)", "Charge Capacity (Ah)",
+            "Discharge Capacity (Ah)", "Aux_Temperature_1 (C)", *extra]  # fmt: skip
+    rows = [[k + 1, _stamp(truth, k, "%m/%d/%Y %H:%M:%S.%f")[:-3], f"{truth.t[k]:.4f}", "0", 1,
+             int(truth.step[k]), f"{truth.channel[k] * scale:.9g}", f"{truth.voltage[k]:.9g}",
+             f"{chg[k]:.12g}", f"{dch[k]:.12g}", f"{truth.temperature[k]:.5f}",
+             *(v[k] for v in extra.values())]
+            for k in range(truth.t.size)]  # fmt: skip
+    return _write(path, [",".join(cols)], rows)
 
 
 def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None) -> Path:
     capacity = _per_step(truth.charged + truth.discharged, truth)
-    lines = [
-        "Today's Date ,28-Nov-23",
-        "Date of Test:,13-May-24 11:19:51 AM",
-        "Rec,Cycle C,Step,Test Time (sec),Step Time (sec),Capacity,Energy,Current,Voltage,"
-        "DPT Time,Temp 1",
-    ]
-    for k in range(truth.t.size):
-        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%d-%b-%y %I:%M:%S %p")
-        row = [
-            k + 1,
-            1,
-            int(truth.step[k]),
-            f"{truth.t[k]:.4f}",
-            "0",
-            f"{capacity[k]:.12g}",
-            0,
-            f"{truth.channel[k]:.9g}",
-            f"{truth.voltage[k]:.9g}",
-            stamp,
-            f"{truth.temperature[k]:.4f}",
-        ]
-        lines.append(",".join(map(str, row)))
-        if duplicate_row == k:  # the logger writes an instant twice; the later row is kept
-            lines.append(",".join(map(str, row)))
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    head = ["Today's Date ,28-Nov-23", "Date of Test:,13-May-24 11:19:51 AM",
+            "Rec,Cycle C,Step,Test Time (sec),Step Time (sec),Capacity,Energy,Current,Voltage,"
+            "DPT Time,Temp 1"]  # fmt: skip
+    rows = [[k + 1, 1, int(truth.step[k]), f"{truth.t[k]:.4f}", "0", f"{capacity[k]:.12g}", 0,
+             f"{truth.channel[k]:.9g}", f"{truth.voltage[k]:.9g}",
+             _stamp(truth, k, "%d-%b-%y %I:%M:%S %p"), f"{truth.temperature[k]:.4f}"]
+            for k in range(truth.t.size)]  # fmt: skip
+    if duplicate_row is not None:  # the logger writes an instant twice; the later row is kept
+        rows.insert(duplicate_row + 1, rows[duplicate_row])
+    return _write(path, head, rows)
 
 
 def write_neware(truth: Truth, path: Path) -> Path:
     chg = _per_step(truth.charged, truth) * 1e3
     dch = _per_step(truth.discharged, truth) * 1e3
-    lines = [
-        "DataPoint,Cycle Index,Step Index,Step Type,Time,Current(mA),Voltage(V),"
-        "Chg. Cap.(mAh),DChg. Cap.(mAh),Date,T1(℃)"
-    ]
-    for k in range(truth.t.size):
-        stamp = (START + timedelta(seconds=float(truth.t[k]))).strftime("%Y-%m-%d %H:%M:%S.%f")
-        kind = (
-            "Rest" if truth.current[k] == 0 else ("CC Chg" if truth.current[k] > 0 else "CC DChg")
-        )
-        row = [
-            k + 1,
-            1,
-            int(truth.step[k]),
-            kind,
-            "00:00:00",
-            f"{truth.channel[k] * 1e3:.9g}",
-            f"{truth.voltage[k]:.9g}",
-            f"{chg[k]:.12g}",
-            f"{dch[k]:.12g}",
-            stamp[:-3],
-            f"{truth.temperature[k]:.3f}",
-        ]
-        lines.append(",".join(map(str, row)))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    head = ["DataPoint,Cycle Index,Step Index,Step Type,Time,Current(mA),Voltage(V),"
+            "Chg. Cap.(mAh),DChg. Cap.(mAh),Date,T1(℃)"]  # fmt: skip
+    rows = [[k + 1, 1, int(truth.step[k]), _kind(truth.current[k], "Rest", "CC Chg", "CC DChg"),
+             "00:00:00", f"{truth.channel[k] * 1e3:.9g}", f"{truth.voltage[k]:.9g}",
+             f"{chg[k]:.12g}", f"{dch[k]:.12g}", _stamp(truth, k, "%Y-%m-%d %H:%M:%S.%f")[:-3],
+             f"{truth.temperature[k]:.3f}"]
+            for k in range(truth.t.size)]  # fmt: skip
+    return _write(path, head, rows)
 
 
 def write_biologic(truth: Truth, path: Path) -> Path:
@@ -251,61 +203,27 @@ def write_biologic(truth: Truth, path: Path) -> Path:
             last = direction[k]
     chg = _restart(truth.charged, np.array(changes, dtype=int)) * 1e3
     dch = _restart(truth.discharged, np.array(changes, dtype=int)) * 1e3
-    head = [
-        "EC-Lab ASCII FILE",
-        "Nb header lines : 4",
-        "Acquisition started on : 05/13/2024 11:19:51.000",
-    ]
-    cols = (
-        "mode\tox/red\ttime/s\tEcell/V\tI/mA\tNs\tQ charge/mA.h\tQ discharge/mA.h\tTemperature/°C"
-    )
-    lines = [*head, cols]
-    for k in range(truth.t.size):
-        row = [
-            1,
-            int(truth.current[k] > 0),
-            f"{truth.t[k]:.6E}",
-            f"{truth.voltage[k]:.9E}",
-            f"{truth.channel[k] * 1e3:.9E}",
-            int(truth.step[k]) - 1,
-            f"{chg[k]:.12E}",
-            f"{dch[k]:.12E}",
-            f"{truth.temperature[k]:.6E}",
-        ]
-        lines.append("\t".join(map(str, row)))
-    path.write_text("\n".join(lines) + "\n", encoding="iso-8859-1")
-    return path
+    head = ["EC-Lab ASCII FILE", "Nb header lines : 4",
+            "Acquisition started on : 05/13/2024 11:19:51.000",
+            "mode\tox/red\ttime/s\tEcell/V\tI/mA\tNs\tQ charge/mA.h\tQ discharge/mA.h\t"
+            "Temperature/°C"]  # fmt: skip
+    rows = [[1, int(truth.current[k] > 0), f"{truth.t[k]:.6E}", f"{truth.voltage[k]:.9E}",
+             f"{truth.channel[k] * 1e3:.9E}", int(truth.step[k]) - 1, f"{chg[k]:.12E}",
+             f"{dch[k]:.12E}", f"{truth.temperature[k]:.6E}"]
+            for k in range(truth.t.size)]  # fmt: skip
+    return _write(path, head, rows, "\t", "iso-8859-1")
 
 
 def write_basytec(truth: Truth, path: Path) -> Path:
-    head = [
-        "~Resultfile from Basytec Battery Test System",
-        "~Name of Test: fixture",
-        "~Start of Test: 13.05.2024 11:19:51",
-        "~",
-    ]
-    cols = "~Time[s]\tDataSet\tLine\tCommand\tU[V]\tI[A]\tAh[Ah]\tT1[°C]"
-    lines = [*head, cols]
+    head = ["~Resultfile from Basytec Battery Test System", "~Name of Test: fixture",
+            "~Start of Test: 13.05.2024 11:19:51", "~",
+            "~Time[s]\tDataSet\tLine\tCommand\tU[V]\tI[A]\tAh[Ah]\tT1[°C]"]  # fmt: skip
     net = truth.charged - truth.discharged
-    for k in range(truth.t.size):
-        kind = (
-            "Pause"
-            if truth.current[k] == 0
-            else ("Charge" if truth.current[k] > 0 else "Discharge")
-        )
-        row = [
-            f"{truth.t[k]:.6f}",
-            k + 1,
-            int(truth.step[k]),
-            kind,
-            f"{truth.voltage[k]:.9g}",
-            f"{truth.channel[k]:.9g}",
-            f"{net[k]:.12g}",
-            f"{truth.temperature[k]:.4f}",
-        ]
-        lines.append("\t".join(map(str, row)))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    rows = [[f"{truth.t[k]:.6f}", k + 1, int(truth.step[k]),
+             _kind(truth.current[k], "Pause", "Charge", "Discharge"), f"{truth.voltage[k]:.9g}",
+             f"{truth.channel[k]:.9g}", f"{net[k]:.12g}", f"{truth.temperature[k]:.4f}"]
+            for k in range(truth.t.size)]  # fmt: skip
+    return _write(path, head, rows, "\t")
 
 
 WRITERS = {
