@@ -165,14 +165,18 @@ def write_arbin(truth: Truth, path: Path, current_unit: str = "A", restart_step:
     return _write(path, [",".join(cols)], rows)
 
 
-def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None) -> Path:
+def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None,
+                 unsigned: bool = False) -> Path:  # fmt: skip
+    """``unsigned``: the current as |I| with a mode column ``MD`` (C, D, R) saying which."""
     capacity = _per_step(truth.charged + truth.discharged, truth)
     head = ["Today's Date ,28-Nov-23", "Date of Test:,13-May-24 11:19:51 AM",
             "Rec,Cycle C,Step,Test Time (sec),Step Time (sec),Capacity,Energy,Current,Voltage,"
-            "DPT Time,Temp 1"]  # fmt: skip
+            "DPT Time,Temp 1,MD"]  # fmt: skip
+    current = np.abs(truth.channel) if unsigned else truth.channel
     rows = [[k + 1, 1, int(truth.step[k]), f"{truth.t[k]:.4f}", "0", f"{capacity[k]:.12g}", 0,
-             f"{truth.channel[k]:.9g}", f"{truth.voltage[k]:.9g}",
-             _stamp(truth, k, "%d-%b-%y %I:%M:%S %p"), f"{truth.temperature[k]:.4f}"]
+             f"{current[k]:.9g}", f"{truth.voltage[k]:.9g}",
+             _stamp(truth, k, "%d-%b-%y %I:%M:%S %p"), f"{truth.temperature[k]:.4f}",
+             _kind(truth.current[k], "R", "C", "D")]
             for k in range(truth.t.size)]  # fmt: skip
     if duplicate_row is not None:  # the logger writes an instant twice; the later row is kept
         rows.insert(duplicate_row + 1, rows[duplicate_row])

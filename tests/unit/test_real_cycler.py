@@ -107,6 +107,17 @@ def test_rests_are_thinned_from_existing_samples_with_charge_kept(tmp_path):
     assert set(np.round(full["time_s"][load], 6)) <= set(np.round(thin["time_s"], 6))
 
 
+def test_maccor_unsigned_current_is_signed_by_its_mode_column(tmp_path):
+    path, truth = export("maccor", tmp_path, unsigned=True)
+    frame, info = cycler.convert(path, "maccor")
+    np.testing.assert_allclose(frame["current_a"][:-1], truth.interval_mean_discharge(), atol=1e-6)
+    assert "'MD'" in info["columns"]["current"]["signed_by"]
+    (tmp_path / "signed").mkdir()
+    signed, signed_info = cycler.convert(export("maccor", tmp_path / "signed")[0], "maccor")
+    assert "not needed" in signed_info["columns"]["current"]["signed_by"]
+    pd.testing.assert_frame_equal(frame, signed)
+
+
 def test_repeated_time_keeps_the_later_row(tmp_path):
     path, truth = export("maccor", tmp_path, duplicate_row=50)
     frame, info = cycler.convert(path, "maccor")

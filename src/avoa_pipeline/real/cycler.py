@@ -85,6 +85,7 @@ class Cycler:
     counters: tuple[Counters, ...]  # alternatives, the first whose columns are all present
     temperature: tuple[str, ...]
     extensions: tuple[str, ...]
+    mode: tuple[str, ...] = ()  # a charge/discharge mode column that signs an unsigned current
 
     @property
     def label(self) -> str:
@@ -115,6 +116,7 @@ CYCLERS = {
             (Counters("step", ("Capacity",)),),
             ("Temp 1",),
             (".csv", ".txt"),
+            ("MD",),
         ),
         Cycler(
             "neware",
@@ -306,7 +308,8 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
         if all(found):
             counters = (option, found)
             break
-    frame = _import(path, cycler, cls, used, counters)
+    mode = _find(path, cycler, "mode", cycler.mode, columns, False) if cycler.mode else None
+    frame = _import(path, cycler, cls, used, counters, mode)
     arrays = {
         "time": frame["time"],
         "step": frame["step"],
@@ -316,6 +319,8 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
     if "temperature" in frame:
         arrays["temperature"] = frame["temperature"]
     info = {q: {"column": c[0], "unit": c[1]} for q, c in used.items() if c is not None}
+    if mode is not None:
+        arrays["current"], info["current"]["signed_by"] = _signed(path, frame, used, mode[0])
     if counters is not None:
         option, found = counters
         arrays["counters"] = [frame[f"counter{j}"] for j in range(len(found))]
@@ -326,13 +331,30 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
     return arrays, info
 
 
-def _import(path, cycler: Cycler, cls, used: dict, counters) -> dict[str, np.ndarray]:
-    """PyProBE's frame of the export, with the raw counters added as extra importers."""
+def _signed(path, frame: dict, used: dict, mode_column: str) -> tuple[np.ndarray, str]:
+    """Maccor's current signed by its mode column where the export writes it unsigned (``D``
+    discharge, ``C`` charge, anything else a rest or a pause): charge positive."""
+    current, mode = frame["current"], np.char.strip(frame["mode"].astype(str))
+    if (current < 0).any():
+        return current, f"the current itself (column {mode_column!r} not needed)"
+    discharge = np.char.startswith(np.char.upper(mode), "D")
+    if not discharge.any():
+        return current, f"the current itself (column {mode_column!r} has no discharge)"
+    return np.where(discharge, -np.abs(current), np.abs(current)), (
+        f"column {mode_column!r} (the export's {used['current'][0]!r} is unsigned): D = discharge"
+    )
+
+
+def _import(path, cycler: Cycler, cls, used: dict, counters, mode=None) -> dict[str, np.ndarray]:
+    """PyProBE's frame of the export, with the raw counters (and a mode column) added as extra
+    importers."""
     import polars as pl
 
     column_maps = _pyprobe("pyprobe.cyclers.column_maps")
 
     extra = []
+    if mode is not None:
+        extra.append(column_maps.CastAndRenameMap("mode", mode[0], pl.Utf8))
     if counters is not None:
         option, found = counters
         for j, ((column, unit), pattern) in enumerate(zip(found, option.columns, strict=True)):
@@ -368,6 +390,7 @@ def _import(path, cycler: Cycler, cls, used: dict, counters) -> dict[str, np.nda
     if counters is not None:
         for j in range(len(counters[1])):
             out[f"counter{j}"] = df[f"counter{j}"].cast(pl.Float64, strict=False).to_numpy()
+    modes = df["mode"].fill_null("").to_numpy() if mode is not None else None
     if "temperature" in out and not np.isfinite(out["temperature"]).any():
         del out["temperature"]  # a temperature column the channel never filled
     for key, values in out.items():
@@ -378,6 +401,8 @@ def _import(path, cycler: Cycler, cls, used: dict, counters) -> dict[str, np.nda
             raise DataError(
                 f"{path}: column {column!r} data row {row + 1}: missing or not a number"
             )
+    if modes is not None:
+        out["mode"] = modes
     return out
 
 
