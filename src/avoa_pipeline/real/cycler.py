@@ -451,21 +451,21 @@ def _events(step: np.ndarray) -> np.ndarray:
 
 
 def _steps_table(t, step, events, current, kept: np.ndarray) -> list[dict]:
-    rows = []
-    for e in range(int(events[-1]) + 1):
-        idx = np.flatnonzero(events == e)
-        a, b = int(idx[0]), int(idx[-1])
-        rows.append(
-            {
-                "step": int(step[a]),
-                "start_s": float(t[a] - t[0]),
-                "duration_s": float(t[b] - t[a]),
-                "samples": int(idx.size),
-                "mean_channel_current_a": float(np.mean(current[idx])),
-                "kept": bool(kept[a]),
-            }
-        )
-    return rows
+    """One row per step occurrence (events are runs of consecutive rows)."""
+    starts = np.r_[0, np.flatnonzero(np.diff(events)) + 1]
+    ends = np.r_[starts[1:], events.size] - 1
+    means = np.add.reduceat(current, starts) / (ends - starts + 1)
+    return [
+        {
+            "step": int(step[a]),
+            "start_s": float(t[a] - t[0]),
+            "duration_s": float(t[b] - t[a]),
+            "samples": int(b - a + 1),
+            "mean_channel_current_a": float(m),
+            "kept": bool(kept[a]),
+        }
+        for a, b, m in zip(starts, ends, means, strict=True)
+    ]
 
 
 def _step_range(path, step: np.ndarray, steps: tuple[int, int] | None, column: str) -> np.ndarray:
@@ -490,10 +490,10 @@ def _thin_rests(t: np.ndarray, events: np.ndarray, rest_event: np.ndarray, rest_
     at most ``rest_dt`` apart; a step's first and last rows always."""
     keep = np.ones(t.size, dtype=bool)
     growth = 10.0 ** (1.0 / REST_POINTS_PER_DECADE) - 1.0
-    for e in np.flatnonzero(rest_event):
-        idx = np.flatnonzero(events == e)
-        start, last_kept = t[idx[0]], t[idx[0]]
-        for k in idx[1:-1]:
+    for e in np.flatnonzero(rest_event):  # events are non-decreasing: each a run of rows
+        a, b = np.searchsorted(events, e, "left"), np.searchsorted(events, e, "right")
+        start, last_kept = t[a], t[a]
+        for k in range(a + 1, b - 1):
             if t[k] - last_kept >= min(rest_dt, growth * (t[k] - start)):
                 last_kept = t[k]
             else:
