@@ -40,6 +40,7 @@ def main() -> None:
     t0 = time.perf_counter()  # imports, paid once per command: pyprobe and the checks
     cycler._reader(cycler.CYCLERS["arbin"])
     from avoa_pipeline.gap import diagnose  # noqa: F401
+
     print(f"imports: {time.perf_counter() - t0:.2f} s")
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.sizes:
