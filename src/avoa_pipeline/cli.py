@@ -18,9 +18,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 from .errors import UserError
-from .names import ALGORITHMS, CURRENT_SIGNS
+from .names import ALGORITHMS, CURRENT_FROM, CURRENT_SIGNS, CYCLERS
 
-CYCLERS = ("arbin", "maccor", "neware", "biologic", "basytec")  # real/cycler.py reads them
 CYCLER_HELP = (
     "the data files (and --ocv, --validate) are this cycler's raw exports; a file already in the "
     "canonical columns is read as it is"
@@ -109,8 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     c.add_argument(
         "--current-from",
-        choices=("counters", "channel"),
-        default="counters",
+        choices=CURRENT_FROM,
+        default=CURRENT_FROM[0],
         help="interval means from the charge counters (default, where the export has "
         "them) or the held current channel",
     )

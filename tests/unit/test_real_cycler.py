@@ -335,3 +335,9 @@ def test_pyprobes_own_maccor_export_warns_of_its_coarse_counter(capsys):
                                                          28.798])  # fmt: skip
     assert held_info["warnings"] == []
     assert held_info["sign"]["voltage_check"]["confirmed"]
+
+
+def test_the_cli_names_the_cyclers_read_here():
+    from avoa_pipeline import names
+
+    assert tuple(cycler.CYCLERS) == names.CYCLERS

@@ -94,28 +94,44 @@ def check(
         raise UserError(f"--capacity-ah must be a positive number of Ah, got {capacity_ah}")
     if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
         raise UserError(f"--soc0 must lie in [0, 1], got {soc0}")
-    i = np.abs(df["current_a"].to_numpy())
-    v = df["voltage_v"].to_numpy()
+    check_scale(df["current_a"], df["voltage_v"], source, capacity_ah)
+    return df if sign_confirmed else apply_current_sign(df, source, current_sign)
+
+
+def check_scale(
+    current,
+    voltage,
+    source: str,
+    capacity_ah: float | None = None,
+    current_column: str = "current_a",
+    voltage_column: str = "voltage_v",
+) -> None:
+    """One cell's scale: a 99th-percentile |I| within MAX_CURRENT_A (and MAX_C_RATE of a given
+    capacity) and above zero, voltages within VOLTAGE_RANGE_V. DataError naming the column (a
+    raw export's own, for ``real.cycler``)."""
+    i = np.abs(np.asarray(current, dtype=float))
+    v = np.asarray(voltage, dtype=float)
     i99 = float(np.quantile(i, 0.99))
     if i99 > MAX_CURRENT_A:
         raise DataError(
-            f"{source}: column 'current_a': 99th-percentile |I| {i99:g} > {MAX_CURRENT_A:g} A; "
-            "looks like mA (need A)"
+            f"{source}: column {current_column!r}: 99th-percentile |I| {i99:g} > "
+            f"{MAX_CURRENT_A:g} A; looks like mA (need A)"
         )
     if capacity_ah is not None and i99 > MAX_C_RATE * capacity_ah:
         raise DataError(
-            f"{source}: column 'current_a': 99th-percentile |I| {i99:g} A is over "
+            f"{source}: column {current_column!r}: 99th-percentile |I| {i99:g} A is over "
             f"{MAX_C_RATE:g} C for {capacity_ah:g} Ah; looks like mA (need A)"
         )
     if i99 <= 0:
-        raise DataError(f"{source}: column 'current_a': no current flows; nothing to identify")
+        raise DataError(
+            f"{source}: column {current_column!r}: no current flows; nothing to identify"
+        )
     lo, hi = VOLTAGE_RANGE_V
     if v.min() < lo or v.max() > hi:
         raise DataError(
-            f"{source}: column 'voltage_v': values {v.min():g}..{v.max():g} outside "
+            f"{source}: column {voltage_column!r}: values {v.min():g}..{v.max():g} outside "
             f"{lo:g}..{hi:g} V of one cell (mV given?)"
         )
-    return df if sign_confirmed else apply_current_sign(df, source, current_sign)
 
 
 def read_record(

@@ -55,6 +55,7 @@ import pandas as pd
 
 from ..errors import DataError, UserError
 from ..io import atomic_path, sha256
+from ..names import CURRENT_FROM
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)
 UNIT_FACTOR_LIMIT = math.sqrt(1000.0)  # counters' vs channel's current; a unit slip is ≥ 1000×
@@ -156,7 +157,6 @@ CYCLERS = {
         ),
     )
 }
-CURRENT_FROM = ("counters", "channel")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -511,7 +511,7 @@ def convert(
 ) -> tuple[pd.DataFrame, dict]:
     """The canonical record of a raw export (time_s, current_a discharge-positive, voltage_v
     [, temperature_c]) and its sidecar dict. One-line DataError/UserError on bad input."""
-    from ..gap.diagnose import MAX_CURRENT_A, STEP_FRACTION, VOLTAGE_RANGE_V, step_resistance_of
+    from ..gap.diagnose import STEP_FRACTION, check_scale, step_resistance_of
     from ..model.ecm import REST_FRACTION
 
     if current_from not in CURRENT_FROM:
@@ -575,26 +575,15 @@ def convert(
         out["temperature_c"] = arrays["temperature"][idx]
 
     # the counters against the channel: units, sign, lag
-    agreement = None
+    sign_agreement, agreement = None, None
     if have_counters:
-        agreement = _agreement(path, q, t, i_ch, step, unique & keep_steps, columns, STEP_FRACTION)
+        sign_agreement, agreement = _agreement(
+            path, q, t, i_ch, step, unique & keep_steps, columns, STEP_FRACTION
+        )
 
-    # units and scale
-    vmin, vmax = float(out["voltage_v"].min()), float(out["voltage_v"].max())
-    lo, hi = VOLTAGE_RANGE_V
-    if vmin < lo or vmax > hi:
-        raise DataError(
-            f"{path}: column {name['voltage']!r}: values {vmin:g}..{vmax:g} V outside "
-            f"{lo:g}..{hi:g} V of one cell (wrong unit?)"
-        )
-    i99_out = float(np.quantile(np.abs(out["current_a"]), 0.99))
-    if i99_out > MAX_CURRENT_A:
-        raise DataError(
-            f"{path}: column {name['current']!r}: 99th-percentile |I| {i99_out:g} A "
-            f"> {MAX_CURRENT_A:g} A (wrong unit?)"
-        )
-    if i99_out <= 0:
-        raise DataError(f"{path}: column {name['current']!r}: no current flows")
+    # the scale of one cell, the diagnosis's own limits, named by the raw columns
+    check_scale(out["current_a"], out["voltage_v"], str(path), current_column=name["current"],
+                voltage_column=name["voltage"])  # fmt: skip
 
     # the sign, from the voltage's response at current steps of the channel: its reading is
     # the current at the voltage's instant (interval means of a coarse or stalled counter
@@ -637,7 +626,7 @@ def convert(
                 "steps": n,
                 "confirmed": bool(n and r > 0),
             },
-            "counters_vs_channel": agreement and agreement.pop("sign"),
+            "counters_vs_channel": sign_agreement,
         },
         "current": {
             "source": "charge counters" if use_counters else "current channel (held)",
@@ -673,9 +662,10 @@ def convert(
     return out, info
 
 
-def _agreement(path, q, t, i_ch, step, rows, columns, step_fraction) -> dict:
+def _agreement(path, q, t, i_ch, step, rows, columns, step_fraction) -> tuple[dict | None, dict]:
     """The counters' interval current against the channel's over the rows kept: the units (a
-    factor of √1000 at most), the sign (direction-named counters), the lag at step edges."""
+    factor of √1000 at most), the sign (direction-named counters), the lag at step edges.
+    Returns (sign agreement or None without steady intervals, the rest for the sidecar)."""
     idx = np.flatnonzero(rows)
     tk, qk, ik, sk = t[idx], q[idx], i_ch[idx], step[idx]
     counted = np.diff(qk) * 3600.0 / np.diff(tk)
@@ -698,7 +688,7 @@ def _agreement(path, q, t, i_ch, step, rows, columns, step_fraction) -> dict:
         out["median_ratio"] = float(ratio)
         out["rms_difference_steady_a"] = float(np.sqrt(np.mean((counted - channel)[sel] ** 2)))
         agree = float(np.mean(np.sign(counted[sel]) == np.sign(channel[sel])))
-        out["sign"] = {"share_of_steady_intervals_agreeing": agree}
+        sign = {"share_of_steady_intervals_agreeing": agree}
         if columns["counters"]["kind"] == "pair" and agree < 0.5:
             raise DataError(
                 f"{path}: column {current_col!r}: its sign is opposite to the counters "
@@ -706,13 +696,13 @@ def _agreement(path, q, t, i_ch, step, rows, columns, step_fraction) -> dict:
                 f"{CONVENTION}"
             )
     else:
-        out["sign"] = None
+        sign = None
     edges = ~same
     if edges.any():
         held = ik[:-1][edges]
         out["rms_difference_step_edges_a"] = float(np.sqrt(np.mean((counted[edges] - held) ** 2)))
         out["step_edge_intervals"] = int(edges.sum())
-    return out
+    return sign, out
 
 
 def _pyprobe_version() -> str:
