@@ -143,7 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--current-sign",
         choices=CURRENT_SIGNS,
         default=CURRENT_SIGNS[0],
-        help="the canonical CSVs' convention (default: positive current = discharge)",
+        help="the canonical CSVs' convention, for every one of them (training, --validate, a "
+        "slow test as --ocv; default: positive current = discharge)",
     )
     d.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
 
@@ -219,8 +220,16 @@ def cmd_recovery(args) -> None:
 
 
 def cmd_convert(args) -> None:
+    from pathlib import Path
+
+    from .io import check_output
     from .real import cycler
 
+    out = Path(args.out)
+    if out.suffix.lower() != ".csv":
+        raise UserError(f"--out must be a .csv path, got {str(out)!r}")
+    check_output(out, inputs=[args.raw])
+    check_output(out.with_suffix(".json"), inputs=[args.raw], what="--out's sidecar")
     frame, info = cycler.convert(
         args.raw,
         args.cycler,
@@ -234,41 +243,33 @@ def cmd_convert(args) -> None:
     print(
         f"{args.raw}: {len(frame)} samples over {frame['time_s'].iloc[-1]:.0f} s, current from "
         f"the {info['current']['source']}, net discharge {charge:.4f} Ah, sign "
-        + ("confirmed" if check["confirmed"] else "not confirmable (no current step)")
+        + ("confirmed" if check["confirmed"] else "not confirmable (see the warning)")
         + f"; wrote {args.out}, {side}"
     )
     for note in info["warnings"]:
-        print(f"warning: {note}")
+        print(f"warning: {note}", file=sys.stderr)
 
 
 def cmd_diagnose(args) -> None:
     import json
     from pathlib import Path
 
+    from . import inputs
     from .gap import diagnose, figure
-    from .io import atomic_path
-    from .model import ocv
+    from .io import atomic_path, check_output
 
-    if args.soc0 is not None and len(args.data) > 1:
-        raise UserError("--soc0 gives one record's initial SOC; leave it out with several records")
-    # every input is read and checked before any fit, so bad input costs no time
-    frames = [diagnose.read_record(p, args.current_sign, cycler=args.cycler) for p in args.data]
-    table = ocv.read(args.ocv, cycler=args.cycler) if args.ocv else None
-    tests = {
-        str(p): diagnose.read_record(p, args.current_sign, min_samples=2, cycler=args.cycler)
-        for p in args.validate
-    }
-    report, arrays, model = diagnose.run(
-        frames,
-        args.capacity_ah,
-        args.soc0,
-        source=[str(p) for p in args.data],
-        ocv_table=table,
-        validate=tests,
-        current_sign="discharge-positive",
-    )  # the records are already in the canonical sign
-    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     out = Path(args.out)
+    given = [*args.data, *args.validate, *([args.ocv] if args.ocv else [])]
+    # every input and output is checked before any fit, so bad input costs no time
+    for name in ("diagnosis.json", "diagnosis.png", "model.json"):
+        check_output(out / name, inputs=given)
+    check_output(out, inputs=given, folder=True)
+    read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
+                              current_sign=args.current_sign)  # fmt: skip
+    report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
+                                         ocv_table=read.ocv, validate=read.validate,
+                                         warnings=read.warnings)  # fmt: skip
+    text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either
     with (
@@ -279,6 +280,7 @@ def cmd_diagnose(args) -> None:
         figure.render(report, arrays, png)
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
+    inputs.warn(read.warnings)  # once the command succeeded: an error stays one line
     v = report["verdict"]
     print(
         f"{', '.join(args.data)}: verdict {v['effect']}"
@@ -292,17 +294,19 @@ def cmd_simulate(args) -> None:
     import numpy as np
     import pandas as pd
 
-    from .gap import diagnose
-    from .io import atomic_path
+    from . import inputs
+    from .io import atomic_path, check_output
     from .model.fitted import FittedModel
 
-    model = FittedModel.load(args.model)
-    frame = diagnose.read_record(args.data, args.current_sign, min_samples=2, cycler=args.cycler)
+    check_output(args.out, inputs=[args.model, args.data])
     if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
         raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
+    model = FittedModel.load(args.model)
+    rec = inputs.read_record(args.data, cycler=args.cycler, current_sign=args.current_sign)
+    frame = rec.frame
     if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
         raise UserError(f"{args.data}: missing column 'temperature_c' (the model is thermal)")
-    v = model.simulate(frame, soc0=args.soc0)
+    v = model.predict(frame, soc0=args.soc0, source=args.model)
     out = pd.DataFrame(
         {
             "time_s": frame["time_s"],
@@ -314,6 +318,7 @@ def cmd_simulate(args) -> None:
     with atomic_path(args.out) as tmp:
         out.to_csv(tmp, index=False)
     rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
+    inputs.warn(rec.warnings)
     print(
         f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV; "
         f"wrote {args.out}"

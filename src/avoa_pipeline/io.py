@@ -1,7 +1,8 @@
-"""Reading measurement CSVs and writing outputs atomically.
+"""Files: reading CSVs and JSON, writing outputs atomically, checking output paths first.
 
-Every reader check fails with one line naming the file and the field; writers go through a
-temporary file in the target folder and an atomic rename, so an error never leaves half a file.
+Every reader fails with one line naming the file (what a record's columns must hold is
+``records.py``'s); writers go through a temporary file in the target folder and an atomic rename,
+so an error never leaves half a file; :func:`check_output` is called before any work.
 """
 
 from __future__ import annotations
@@ -11,31 +12,35 @@ import hashlib
 import json
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .errors import DataError
+from .errors import DataError, UserError
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
-
-REQUIRED = ("time_s", "current_a", "voltage_v")
-OPTIONAL = ("temperature_c",)
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path):
     """Yield a temporary path beside ``path``; on success rename it onto ``path``."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:  # a read-only folder, a file on the way: the user's to fix
+        raise UserError(f"{path}: cannot write ({exc.strerror or exc})") from None
     os.close(fd)
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp creates 0600; outputs are ordinary files
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:  # e.g. the target became a folder
+            raise UserError(f"{path}: cannot write ({exc.strerror or exc})") from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -75,53 +80,69 @@ def sha256(path: str | Path) -> str:
 
 
 def read_csv(path: str | Path) -> pd.DataFrame:
-    """A CSV with stripped column names; a missing or unreadable file is a one-line DataError."""
+    """A CSV with stripped column names; a missing, unreadable or mis-delimited file is a one-line
+    DataError (a semicolon-separated file, or decimal commas in a comma-separated one, would
+    otherwise be read as one column or as shifted values)."""
     path = Path(path)
+    if path.is_dir():
+        raise DataError(f"{path}: a folder, not a CSV file")
     try:
-        df = pd.read_csv(path)
+        with open(path, encoding="utf-8", errors="replace") as f:
+            header = f.readline()
+    except OSError:
+        header = ""  # pandas names the problem below
+    if ";" in header and "," not in header:
+        raise DataError(
+            f"{path}: fields separated by ';' (need ',' between fields and '.' in numbers)"
+        )
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            df = pd.read_csv(path, index_col=False)
     except FileNotFoundError:
         raise DataError(f"{path}: no such file") from None
+    except pd.errors.ParserWarning:
+        raise DataError(f"{path}: rows have more fields than the header (decimal commas? need "
+                        "',' between fields and '.' in numbers)") from None  # fmt: skip
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataError(f"{path}: not a readable CSV ({msg})") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
     df.columns = [str(c).strip() for c in df.columns]
     return df
 
 
-def read_measurement(path: str | Path, min_samples: int = 2) -> pd.DataFrame:
-    """Read ``time_s, current_a, voltage_v[, temperature_c]`` and check what a fit relies on."""
+def check_output(path: str | Path, *, inputs=(), folder: bool = False, what: str = "--out"):
+    """Before any work: an output path that can be written and is none of the inputs. ``folder``:
+    the path is a folder the command writes into (it may exist); else a file (it may exist and
+    is replaced, but not by a folder). Nothing is created: the nearest existing folder on the
+    way is probed with a temporary file, removed at once. UserError naming the option."""
     path = Path(path)
-    df = read_csv(path)
-    for col in REQUIRED:
-        if col not in df.columns:
-            raise DataError(f"{path}: missing column {col!r} (need {', '.join(REQUIRED)})")
-    cols = [c for c in (*REQUIRED, *OPTIONAL) if c in df.columns]
-    for col in cols:
-        values = pd.to_numeric(df[col], errors="coerce")
-        bad = values.isna() & df[col].notna()
-        if bad.any():
-            row = int(np.flatnonzero(bad.to_numpy())[0])
-            raise DataError(
-                f"{path}: column {col!r} row {row + 2}: not a number ({df[col].iloc[row]!r})"
-            )
-        if values.isna().any():
-            row = int(np.flatnonzero(values.isna().to_numpy())[0])
-            raise DataError(f"{path}: column {col!r} row {row + 2}: missing value (NaN)")
-        if not np.isfinite(values.to_numpy()).all():
-            row = int(np.flatnonzero(~np.isfinite(values.to_numpy()))[0])
-            raise DataError(f"{path}: column {col!r} row {row + 2}: not finite")
-        df[col] = values.astype(float)
-    df = df[cols]
-    if len(df) < min_samples:
-        raise DataError(f"{path}: {len(df)} samples; need at least {min_samples}")
-    dt = np.diff(df["time_s"].to_numpy())
-    if (dt == 0).any():
-        row = int(np.flatnonzero(dt == 0)[0]) + 1
-        raise DataError(f"{path}: column 'time_s' row {row + 2}: duplicate time")
-    if (dt < 0).any():
-        row = int(np.flatnonzero(dt < 0)[0]) + 1
-        raise DataError(f"{path}: column 'time_s' row {row + 2}: time goes backwards")
-    return df
+    for p in inputs:
+        if p is not None and _same(path, Path(p)):
+            raise UserError(f"{what} {path}: is an input of this command; it would be overwritten")
+    if path.exists() and path.is_dir() != folder:
+        kind = "a folder" if path.is_dir() else "a file"
+        raise UserError(f"{what} {path}: is {kind}; need {'a folder' if folder else 'a file'}")
+    probe = path if folder and path.is_dir() else path.parent
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise UserError(f"{what} {path}: {probe} is a file, not a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".avoa-probe.", dir=probe)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise UserError(f"{what} {path}: cannot write in {probe} ({exc.strerror or exc})") from None
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
 
 
 def uniform_step(path, time_s: np.ndarray, rtol: float = 1e-6) -> float:
@@ -131,20 +152,3 @@ def uniform_step(path, time_s: np.ndarray, rtol: float = 1e-6) -> float:
     if np.max(np.abs(dt - ts)) > rtol * max(ts, 1.0):
         raise DataError(f"{path}: column 'time_s': not uniformly sampled (resample first)")
     return ts
-
-
-def step_resistance(time_s, current_a, voltage_v, min_step_a: float,
-                    max_dt_s: float = np.inf) -> tuple[float, int]:  # fmt: skip
-    """The current's sign, read from the voltage: median −ΔV/ΔI (Ω) over the current steps of at
-    least ``min_step_a`` between samples at most ``max_dt_s`` apart, and their number; (nan, 0)
-    without one. With positive current = discharge a step up in current pulls the voltage down
-    (ohmic drop, and over a longer step the falling OCV too), so a record in the pipeline's sign
-    gives a positive resistance and one written charge-positive a negative one. The one check
-    behind every importer and the diagnosis."""
-    di = np.diff(np.asarray(current_a, dtype=float))
-    dv = np.diff(np.asarray(voltage_v, dtype=float))
-    dt = np.diff(np.asarray(time_s, dtype=float))
-    steps = (np.abs(di) >= min_step_a) & (dt <= max_dt_s) & (min_step_a > 0)
-    if not steps.any():
-        return float("nan"), 0
-    return float(np.median(-dv[steps] / di[steps])), int(steps.sum())

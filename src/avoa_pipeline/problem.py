@@ -17,9 +17,10 @@ import numpy as np
 from . import config as config_mod
 from . import synthetic
 from .errors import DataError
-from .io import read_measurement, uniform_step
+from .io import read_csv, uniform_step
 from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
+from .records import validate
 
 
 @dataclass
@@ -90,7 +91,7 @@ def build(
         ds = synthetic.generate(cfg, scenario, case, noise=noise)
         t, i, v, meta = ds.time_s, ds.current_a, ds.voltage_v, ds.meta
     else:
-        df = read_measurement(data, min_samples=3)
+        df = validate(read_csv(data), str(data), min_samples=3)
         t, i, v = (df[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
         uniform_step(data, t)
         side = synthetic.sidecar(data)

@@ -95,6 +95,89 @@ def simulate(lag_tau: float | None = None, protocol=PROTOCOL) -> Truth:
     return Truth(tg[k], step, cur, channel.copy(), vg[k], charged[k], discharged[k], temp)
 
 
+def ocv_knee(soc):
+    """An OCV with the shape of a real cell's: a gentle slope over the middle, a steep knee at
+    empty (9 V per unit SOC at 0 against 0.7 mid-range) and a rise towards full."""
+    s = np.asarray(soc, dtype=float)
+    return 3.45 + 0.7 * s - 0.35 * np.exp(-s / 0.04) + 0.05 * np.exp((s - 1.0) / 0.03)
+
+
+def simulate_logged(protocol, *, dt_load: float = 1.0, dt_rest: float = 60.0,
+                    grid: float = 0.1, lag_tau: float | None = None, edge_rows: bool = True,
+                    soc0: float = 0.95, capacity_ah: float = CAPACITY_AH, r0: float = R0,
+                    noise_v: float = 0.0, seed: int = 0, ocv=ocv_knee) -> Truth:  # fmt: skip
+    """A cell (``ocv`` + R0 + one RC, charge positive) logged the way cyclers log long tests:
+    rows every ``dt_load`` s under current and every ``dt_rest`` s at rest (coarse rests),
+    each step's first row at its start; with ``edge_rows`` also a row at each step's exact end
+    (its voltage under the step's current, the next step not yet on); without, the step ends
+    between two rows and the interval after the last load row straddles the edge (a late-logged
+    rest). ``lag_tau`` filters the current channel (first order, s); ``noise_v`` adds Gaussian
+    voltage noise, quantised to 1 mV as a logger's channel. Simulated on a ``grid``-s grid with
+    the current piecewise constant on it (vectorised)."""
+    from scipy.signal import lfilter
+
+    durations = np.array([d for d, _ in protocol], dtype=float)
+    ends = np.cumsum(durations)
+    n = round(ends[-1] / grid)
+    tg = grid * np.arange(n + 1)
+    seg = np.searchsorted(np.round(ends / grid), np.arange(n), side="right")
+    i = np.array([c for _, c in protocol], dtype=float)[seg]
+    charged = np.r_[0.0, np.cumsum(np.clip(i, 0, None) * grid)] / 3600.0
+    discharged = np.r_[0.0, np.cumsum(np.clip(-i, 0, None) * grid)] / 3600.0
+    soc = soc0 + (charged - discharged) / capacity_ah
+    a = np.exp(-grid / TAU1)
+    v1 = np.r_[0.0, lfilter([R1 * (1 - a)], [1, -a], i)]
+    i_at = np.r_[i[0], i]  # the current flowing just before each grid point
+    vg = ocv(soc) + r0 * i_at + v1
+    if noise_v:
+        rng = np.random.default_rng(seed)
+        vg = np.round((vg + noise_v * rng.standard_normal(vg.size)) / 1e-3) * 1e-3
+    channel = i_at
+    if lag_tau:
+        b = np.exp(-grid / lag_tau)
+        channel = np.r_[0.0, lfilter([1 - b], [1, -b], i)]
+    rows, steps = [], []
+    starts = np.r_[0.0, ends[:-1]]
+    for j, (s, e) in enumerate(zip(starts, ends, strict=True)):
+        every = dt_rest if protocol[j][1] == 0 else dt_load
+        ts = np.arange(s, e - 0.5 * grid, every)
+        if edge_rows:
+            ts = np.r_[ts, e]
+        rows.append(np.round(ts / grid).astype(int))
+        steps.append(np.full(ts.size, j + 1))
+    k = np.unique(np.concatenate(rows))  # a step's end row and the next one's start: one row
+    step_of = np.concatenate(steps)[np.unique(np.concatenate(rows), return_index=True)[1]]
+    cur = np.array([c for _, c in protocol])[step_of - 1]
+    temp = 25.0 + 0.1 * np.sin(tg[k] / 50.0)
+    return Truth(tg[k], step_of, cur, channel[k].copy(), vg[k], charged[k], discharged[k], temp)
+
+
+def canonical(truth: Truth):
+    """What ``convert`` writes for an export of ``truth``: time from 0, each row's current the
+    exact mean over the interval to the next row (discharge positive; the last row: the channel),
+    the logged voltage."""
+    import pandas as pd
+
+    cur = np.r_[truth.interval_mean_discharge(), -truth.channel[-1]]
+    return pd.DataFrame(
+        {
+            "time_s": truth.t - truth.t[0],
+            "current_a": cur,
+            "voltage_v": truth.voltage,
+            "temperature_c": truth.temperature,
+        }
+    )
+
+
+def gitt_protocol(
+    pulses: int = 20, current_a: float = -0.5, pulse_s: float = 720.0, rest_s: float = 14400.0
+) -> list[tuple[float, float]]:
+    """GITT: a rest, then pulses (charge positive: negative = discharge) each followed by a
+    long rest."""
+    return [(600.0, 0.0), *[(d, c) for _ in range(pulses)
+                            for d, c in ((pulse_s, current_a), (rest_s, 0.0))]]  # fmt: skip
+
+
 def from_frame(frame) -> Truth:
     """The log of a canonical record (discharge positive, each row's current held until the
     next row): a new step at every change of current, starting at its first row. No row marks
@@ -163,6 +246,56 @@ def write_arbin(truth: Truth, path: Path, current_unit: str = "A", restart_step:
              *(v[k] for v in extra.values())]
             for k in range(truth.t.size)]  # fmt: skip
     return _write(path, [",".join(cols)], rows)
+
+
+CLASSIC_ARBIN_COLUMNS = (
+    "Data_Point", "Test_Time(s)", "Date_Time", "Step_Time(s)", "Step_Index", "Cycle_Index",
+    "Current(A)", "Voltage(V)", "Charge_Capacity(Ah)", "Discharge_Capacity(Ah)",
+    "Charge_Energy(Wh)", "Discharge_Energy(Wh)", "dV/dt(V/s)", "Internal_Resistance(Ohm)",
+    "Aux_Temperature_1(C)",
+)  # fmt: skip
+
+
+def _arbin_classic_rows(truth: Truth, restart_step: int | None) -> list[list]:
+    restart = np.flatnonzero(truth.step == restart_step)[:1] if restart_step else []
+    chg = _restart(truth.charged, restart)
+    dch = _restart(truth.discharged, restart)
+    starts = np.r_[0, _step_starts(truth.step)]
+    step_t0 = truth.t[starts][np.searchsorted(starts, np.arange(truth.t.size), "right") - 1]
+    return [[k + 1, float(f"{truth.t[k]:.4f}"), _stamp(truth, k, "%Y/%m/%d %H:%M:%S"),
+             float(f"{truth.t[k] - step_t0[k]:.4f}"), int(truth.step[k]), 1,
+             float(f"{truth.channel[k]:.9g}"), float(f"{truth.voltage[k]:.9g}"),
+             float(f"{chg[k]:.12g}"), float(f"{dch[k]:.12g}"), 0.0, 0.0, 0.0, 0.0,
+             float(f"{truth.temperature[k]:.5f}")]
+            for k in range(truth.t.size)]  # fmt: skip
+
+
+def write_arbin_classic(truth: Truth, path: Path, restart_step: int | None = 6) -> Path:
+    """Arbin MITS Pro's classic CSV export (``Test_Time(s)``, ``Current(A)``, ...): the layout
+    of most public Arbin datasets."""
+    return _write(path, [",".join(CLASSIC_ARBIN_COLUMNS)], _arbin_classic_rows(truth, restart_step))
+
+
+def write_arbin_classic_xlsx(truth: Truth, path: Path, restart_step: int | None = 6) -> Path:
+    """The same as MITS Pro's workbook: a ``Global_Info`` sheet first, the rows in a
+    ``Channel_<n>-<m>`` sheet, statistics after."""
+    from openpyxl import Workbook
+
+    wb = Workbook()
+    info = wb.active
+    info.title = "Global_Info"
+    info.append(["TEST REPORT"])
+    info.append(["Channel", "Start DateTime", "Schedule File Name"])
+    info.append([1, START.strftime("%m/%d/%Y %H:%M:%S"), "fixture.sdx"])
+    data = wb.create_sheet("Channel_1-006")
+    data.append(list(CLASSIC_ARBIN_COLUMNS))
+    for row in _arbin_classic_rows(truth, restart_step):
+        data.append(row)
+    stats = wb.create_sheet("Statistics_1-006")
+    stats.append(["Cycle_Index", "Test_Time(s)"])
+    stats.append([1, float(truth.t[-1])])
+    wb.save(path)
+    return Path(path)
 
 
 def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None,

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from test_ecm import TRUTH, profile_frame, with_voltage
 
-from avoa_pipeline import selection
+from avoa_pipeline import inputs, records, selection
 from avoa_pipeline.cli import main
 from avoa_pipeline.gap import diagnose, diagnoses, figure
 from avoa_pipeline.model import ecm
@@ -175,7 +175,7 @@ def test_noise_floor_ignores_smooth_misfit():
 
 def test_frame_input_accepts_no_temperature():
     frame = _good().drop(columns="temperature_c")
-    checked = diagnose.check(frame, "f")
+    checked = records.check(frame, "f").frame
     assert list(checked.columns) == ["time_s", "current_a", "voltage_v"]
     assert isinstance(checked, pd.DataFrame)
 
@@ -222,14 +222,15 @@ def test_charge_positive_record_is_refused_with_the_fix(tmp_path, capsys):
     assert "current_a" in err
     assert "--current-sign charge-positive" in err
     assert not out.exists()
-    checked = diagnose.check(flipped, "f", current_sign="charge-positive")
-    np.testing.assert_array_equal(checked["current_a"], _good()["current_a"])
+    checked = inputs.read_record(path, current_sign="charge-positive").frame
+    np.testing.assert_allclose(checked["current_a"], _good()["current_a"])
 
 
-def _slow_test(rate_c=0.05, capacity=2.57, charge_ah=None):
-    """A discharge at ``rate_c`` from full to empty, a rest, a charge back (of ``charge_ah``)."""
+def _slow_test(rate_c=0.05, capacity=2.57, charge_ah=None, share=1.0):
+    """A discharge at ``rate_c`` from full of ``share`` of the capacity, a rest, a charge back
+    (of ``charge_ah``)."""
     i = rate_c * capacity
-    n_d = int(3600 / rate_c)
+    n_d = int(share * 3600 / rate_c)
     n_c = int(3600 * (charge_ah or capacity) / i)
     cur = np.concatenate([np.zeros(60), np.full(n_d, i), np.zeros(600), np.full(n_c, -i)])
     t = np.arange(cur.size, dtype=float)
@@ -241,24 +242,25 @@ def _slow_test(rate_c=0.05, capacity=2.57, charge_ah=None):
 def test_ocv_from_a_slow_test_recovers_the_cells_curve(tmp_path):
     """Both branches of a C/20 test, averaged: the OCV within the ohmic and RC drop that the
     averaging cancels to first order; the capacity from the discharge branch."""
-    from avoa_pipeline.model import ocv
-
-    path = _csv(tmp_path, _slow_test(), "c20.csv")
-    table = ocv.read(path)
+    # the test stops at 3 % SOC (the paper's rational OCV falls to 0 V at empty): the table's
+    # SOC 0-1 spans 97 % of the cell
+    path = _csv(tmp_path, _slow_test(share=0.97, charge_ah=0.97 * 2.57), "c20.csv")
+    table = inputs.read_ocv(path)
     assert "mean of the discharge" in table.how
-    assert table.capacity_ah == pytest.approx(2.57, rel=1e-3)
+    assert table.capacity_ah == pytest.approx(0.97 * 2.57, rel=1e-3)
+    assert table.notes == ()  # it ends in the knee of the curve
     P = ecm.to_physical(ecm.vector(TRUTH))[0]
     soc = np.linspace(0.1, 0.9, 9)
-    true = ecm.ocv_values(P, soc, ecm.Knots(0, 0.2), None)
+    true = ecm.ocv_values(P, 1.0 - 0.97 * (1.0 - soc), ecm.Knots(0, 0.2), None)
     assert np.max(np.abs(table(soc) - true)) < 2e-3
     # a charge cut short: its branch spans another SOC range, so the discharge goes alone
-    short = ocv.read(_csv(tmp_path, _slow_test(charge_ah=2.0), "c20s.csv"))
+    short = inputs.read_ocv(_csv(tmp_path, _slow_test(share=0.97, charge_ah=2.0), "c20s.csv"))
     assert short.how.startswith("discharge branch alone")
 
 
 def test_bad_ocv_and_validation_inputs_are_one_line_errors(tmp_path, capsys):
     good = _csv(tmp_path, _good())
-    fast = _csv(tmp_path, _slow_test(rate_c=1.0), "fast.csv")
+    fast = _csv(tmp_path, _slow_test(rate_c=1.0, share=0.8, charge_ah=0.8 * 2.57), "fast.csv")
     other = _csv(tmp_path, _good().drop(columns="temperature_c"), "other.csv")
     neither = tmp_path / "neither.csv"
     neither.write_text("a,b\n1,2\n3,4\n")

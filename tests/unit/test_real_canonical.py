@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import records
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.real import canonical
 
@@ -55,7 +56,7 @@ def test_check_source_changed_file(tmp_path):
 def test_validate_orders_columns_and_drops_extras():
     df = _frame()[["voltage_v", "temperature_c", "time_s", "current_a"]]
     df["extra"] = 1
-    out = canonical.validate(df, "src")
+    out = records.validate(df, "src", first_row=0, required=records.COLUMNS)
     assert tuple(out.columns) == canonical.COLUMNS
     assert all(out[c].dtype == float for c in out.columns)
 
@@ -63,7 +64,7 @@ def test_validate_orders_columns_and_drops_extras():
 @pytest.mark.parametrize("col", canonical.COLUMNS)
 def test_validate_missing_column(col):
     with pytest.raises(DataError, match=rf"^src: missing column '{col}'"):
-        canonical.validate(_frame().drop(columns=col), "src")
+        records.validate(_frame().drop(columns=col), "src", required=records.COLUMNS)
 
 
 @pytest.mark.parametrize(
@@ -78,17 +79,17 @@ def test_validate_bad_value(col, value, what):
     df = _frame().astype(object)
     df.loc[3, col] = value
     with pytest.raises(DataError, match=rf"^src: column '{col}' row 3: {what}"):
-        canonical.validate(df, "src")
+        records.validate(df, "src", first_row=0, required=records.COLUMNS)
 
 
 def test_validate_duplicate_and_backwards_time():
     df = _frame()
     df.loc[2, "time_s"] = 1.0
     with pytest.raises(DataError, match=r"^src: column 'time_s' row 2: duplicate time"):
-        canonical.validate(df, "src")
+        records.validate(df, "src", first_row=0, required=records.COLUMNS)
     df.loc[2, "time_s"] = 0.5
     with pytest.raises(DataError, match=r"^src: column 'time_s' row 2: time goes backwards"):
-        canonical.validate(df, "src")
+        records.validate(df, "src", first_row=0, required=records.COLUMNS)
 
 
 def test_write_read_round_trip(tmp_path):

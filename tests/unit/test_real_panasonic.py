@@ -15,8 +15,8 @@ import pytest
 import scipy.io
 from scipy.interpolate import PPoly
 
+from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.io import step_resistance
 from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, ise, simulate
 from avoa_pipeline.real import canonical, panasonic
 from avoa_pipeline.real import drive_cycles as dc
@@ -76,9 +76,10 @@ def test_import_drive_cycle(real, tmp_path):
     assert frame["current_a"].min() > -0.05
     assert frame["current_a"].max() > 10.0
     # and the voltage falls when the (positive = discharge) current rises
-    r, n = step_resistance(frame.time_s, frame.current_a, frame.voltage_v, 1.0)
-    assert n > 100
-    assert r > 0
+    ev = records.frame_sign(frame)
+    assert ev.steps > 100
+    assert ev.verdict == "discharge-positive"
+    assert ev.resistance_ohm > 0
     # charge: exactly the piecewise-constant signal's, within 0.1 % of the tester's counter
     discharged = frame["current_a"].sum() / 3600.0
     assert abs(discharged - side["discharged_ah"]) < 1e-9 * discharged
@@ -179,7 +180,8 @@ def test_flipped_sign_is_refused(real, tmp_path):
 def test_unedited_copy_imports(real, tmp_path):
     local = _copy_with(real, tmp_path, lambda meas: None)
     side = panasonic.import_record(local, ["copy.mat"], "drive_cycle:us06", 0.0, tmp_path / "a.csv")
-    assert side["sign_check"]["copy.mat"]["median_step_dv_di_ohm"] > 0
+    assert side["sign_check"]["copy.mat"]["verdict"] == "discharge-positive"
+    assert side["sign_check"]["copy.mat"]["step_resistance_ohm"] > 0
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.real import arrhenius, canonical, cells_cli, samsung
+from avoa_pipeline.real import arrhenius, canonical, samsung
+from avoa_pipeline.real.__main__ import main as real_main
 
 KEY20 = "samsung_30q_hppc/DNN01_HPPC_1C_20amb_processed_scrubbed.csv"
 
@@ -182,9 +183,7 @@ def test_pulse_table_on_the_real_record(real_cfg, imported):
 
 
 def test_cli_error_is_one_line_and_exit_2(capsys, tmp_path):
-    code = cells_cli.main(
-        ["samsung-import", "--temperature", "99degC", "--out", str(tmp_path / "x")]
-    )
+    code = real_main(["samsung-import", "--temperature", "99degC", "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1

@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 
 from avoa_pipeline import aggregate
+from avoa_pipeline.errors import UserError
 from avoa_pipeline.model.battery import CASES, PARAM_NAMES
 from avoa_pipeline.optimizers import ALGORITHMS, PAPER_LABELS
 from avoa_pipeline.report import tables
@@ -331,7 +332,7 @@ def test_write_table_writes_three_files(tmp_path):
 def test_write_table_writes_nothing_on_error(tmp_path):
     df = pd.DataFrame({"a": [1.0]})
     (tmp_path / "t.tex").mkdir()  # the last file cannot be put in place
-    with pytest.raises(IsADirectoryError):
+    with pytest.raises(UserError, match=r"t\.tex: cannot write"):
         tables.write_table(df, tmp_path / "t", "caption")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.tex"]  # no csv, md, or temp file
     with pytest.raises(TypeError):

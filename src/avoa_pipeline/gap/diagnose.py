@@ -17,36 +17,23 @@ and their reasons: docs/gap-diagnosis.md).
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .. import __version__, selection
+from .. import __version__, records, selection
 from ..errors import DataError, UserError
-from ..io import read_measurement, step_resistance
 from ..model import ecm, fitting
 from ..model.ecm import Config, Knots, Record
 from ..model.fitted import FittedModel
-from ..names import CURRENT_SIGNS
+from ..records import REST_FRACTION, STEP_FRACTION, Checked
 
 MIN_SAMPLES = 2000
 """Shorter records cannot be split into the held-out blocks long enough to hold a relaxation."""
-MAX_CURRENT_A = 100.0
-"""|I| (99th percentile) above this is taken for milliamperes: the pipeline models single cells."""
-MAX_C_RATE = 50.0
-"""With a given capacity, a 99th-percentile current above 50 C is taken for milliamperes."""
-VOLTAGE_RANGE_V = (0.5, 6.0)
-"""Cell voltages outside this are taken for a wrong unit (mV) or a pack."""
 REGION_MIN_SHARE = 0.02
 TIME_WINDOWS = 20
 UNEXPLAINED_RATIO = 1.2  # base RMSE / noise floor above which a `none` verdict says a gap remains
-STEP_FRACTION = 0.1  # a current step: |ΔI| above this fraction of the 99th-percentile |I|
-REST_FRACTION = ecm.REST_FRACTION  # at rest: |I| below this fraction of the 99th-percentile |I|
-SIGN_MAX_DT_S = 60.0
-"""Steps for the sign check lie between samples at most this far apart: over longer logging gaps
-the OCV drifts and the step says less about the ohmic response."""
 
 # trimmed standard deviation of a normal (1 % per tail) relative to the untrimmed one
 _Z_TRIM = stats.norm.ppf(0.99)
@@ -54,127 +41,69 @@ _TRIM_SD = float(stats.truncnorm(-_Z_TRIM, _Z_TRIM).std())
 
 
 # ----------------------------------------------------------------------------------------------
-# input
+# input: checked records (``inputs.py`` reads files; a frame given here is checked once, here)
 
 
-def check(
-    frame: pd.DataFrame,
-    source: str,
-    capacity_ah: float | None = None,
-    soc0: float | None = None,
-    current_sign: str = "discharge-positive",
-    min_samples: int = MIN_SAMPLES,
-    sign_confirmed: bool = False,
-) -> pd.DataFrame:
-    """Checks beyond the CSV reader's: length, units, options, the current's sign (unless
-    ``sign_confirmed``: a converted export, whose sign ``real.cycler`` confirmed against the
-    current channel's steps). One-line DataError/UserError."""
-    if not isinstance(frame, pd.DataFrame):
-        raise DataError(f"{source}: not a table ({type(frame).__name__})")
-    for col in ("time_s", "current_a", "voltage_v"):
-        if col not in frame.columns:
-            raise DataError(f"{source}: missing column {col!r} (need time_s, current_a, voltage_v)")
-    cols = [c for c in ("time_s", "current_a", "voltage_v", "temperature_c") if c in frame.columns]
-    out = {}
-    for col in cols:
-        values = pd.to_numeric(frame[col], errors="coerce").to_numpy(dtype=float)
-        bad = ~np.isfinite(values)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise DataError(f"{source}: column {col!r} row {k + 2}: missing or not a finite number")
-        out[col] = values
-    df = pd.DataFrame(out, columns=cols)
-    if len(df) < min_samples:
-        raise DataError(f"{source}: {len(df)} samples; the diagnosis needs at least {min_samples}")
-    dt = np.diff(df["time_s"].to_numpy())
-    if (dt <= 0).any():
-        k = int(np.flatnonzero(dt <= 0)[0]) + 1
-        raise DataError(f"{source}: column 'time_s' row {k + 2}: time not strictly increasing")
-    if capacity_ah is not None and not (np.isfinite(capacity_ah) and capacity_ah > 0):
-        raise UserError(f"--capacity-ah must be a positive number of Ah, got {capacity_ah}")
-    if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
-        raise UserError(f"--soc0 must lie in [0, 1], got {soc0}")
-    check_scale(df["current_a"], df["voltage_v"], source, capacity_ah)
-    return df if sign_confirmed else apply_current_sign(df, source, current_sign)
+def _checked(items, source) -> list[Checked]:
+    """Checked records of records or frames (a dict: name → record or frame)."""
+    if isinstance(items, dict):
+        items, source = list(items.values()), list(items)
+    items = [items] if isinstance(items, pd.DataFrame | Checked) else list(items)
+    names = [source] if isinstance(source, str) else list(source)
+    if len(names) != len(items):
+        names = [f"{names[0]}[{j}]" for j in range(len(items))]
+    return [x if isinstance(x, Checked) else records.check(x, s)
+            for x, s in zip(items, names, strict=True)]  # fmt: skip
 
 
-def check_scale(
-    current,
-    voltage,
-    source: str,
-    capacity_ah: float | None = None,
-    current_column: str = "current_a",
-    voltage_column: str = "voltage_v",
-) -> None:
-    """One cell's scale: a 99th-percentile |I| within MAX_CURRENT_A (and MAX_C_RATE of a given
-    capacity) and above zero, voltages within VOLTAGE_RANGE_V. DataError naming the column (a
-    raw export's own, for ``real.cycler``)."""
-    i = np.abs(np.asarray(current, dtype=float))
-    v = np.asarray(voltage, dtype=float)
-    i99 = float(np.quantile(i, 0.99))
-    if i99 > MAX_CURRENT_A:
-        raise DataError(
-            f"{source}: column {current_column!r}: 99th-percentile |I| {i99:g} > "
-            f"{MAX_CURRENT_A:g} A; looks like mA (need A)"
-        )
-    if capacity_ah is not None and i99 > MAX_C_RATE * capacity_ah:
-        raise DataError(
-            f"{source}: column {current_column!r}: 99th-percentile |I| {i99:g} A is over "
-            f"{MAX_C_RATE:g} C for {capacity_ah:g} Ah; looks like mA (need A)"
-        )
-    if i99 <= 0:
-        raise DataError(
-            f"{source}: column {current_column!r}: no current flows; nothing to identify"
-        )
-    lo, hi = VOLTAGE_RANGE_V
-    if v.min() < lo or v.max() > hi:
-        raise DataError(
-            f"{source}: column {voltage_column!r}: values {v.min():g}..{v.max():g} outside "
-            f"{lo:g}..{hi:g} V of one cell (mV given?)"
-        )
+def check_options(train: list[Checked], validate: list[Checked], capacity_ah, soc0,
+                  ocv_table) -> None:  # fmt: skip
+    """What the diagnosis needs of its checked inputs together, before any fit: long enough
+    training records, the same columns everywhere, options in range, a capacity and an OCV that
+    the records allow (``records.check_capacity``). One-line DataError/UserError."""
+    if not train:
+        raise UserError("no training record")
+    for c in train:
+        if c.n < MIN_SAMPLES:
+            raise DataError(f"{c.source}: {c.n} samples; the diagnosis needs at least "
+                            f"{MIN_SAMPLES}")  # fmt: skip
+    cols = set(train[0].frame.columns)
+    for c in (*train[1:], *validate):
+        if set(c.frame.columns) != cols:
+            raise DataError(f"{c.source}: columns {', '.join(c.frame.columns)} differ from the "
+                            f"training record's {', '.join(train[0].frame.columns)}")  # fmt: skip
+    if soc0 is not None:
+        if len(train) > 1:
+            raise UserError("--soc0 gives one record's initial SOC; with several training "
+                            "records leave it out (each record's is fitted)")  # fmt: skip
+        if not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
+            raise UserError(f"--soc0 must lie in [0, 1], got {soc0}")
+    every = [*train, *validate]
+    swing = max(records.charge_swing_ah(c.frame["time_s"], c.frame["current_a"]) for c in every)
+    scale = max(records.current_scale(c.frame["current_a"]) for c in train)
+    if capacity_ah is not None:
+        records.check_capacity(capacity_ah, swing, scale, "--capacity-ah")
+    q_ocv = getattr(ocv_table, "capacity_ah", None)
+    if q_ocv:
+        if swing > records.CAPACITY_MARGIN * q_ocv:
+            raise DataError(f"{ocv_table.source}: the slow branch moves {q_ocv:.4g} Ah, less than "
+                            f"the {swing:.4g} Ah the records move; it does not span the cell "
+                            "(a partial test?)")  # fmt: skip
+        if capacity_ah is not None and q_ocv * records.CAPACITY_MARGIN < capacity_ah:
+            raise DataError(f"{ocv_table.source}: the slow branch moves {q_ocv:.4g} Ah, less than "
+                            f"--capacity-ah {capacity_ah:g} Ah; its SOC 0-1 would cover part of "
+                            "the cell only")  # fmt: skip
 
 
-def read_record(
-    path: str | Path,
-    current_sign: str = "discharge-positive",
-    min_samples: int = MIN_SAMPLES,
-    cycler: str | None = None,
-) -> pd.DataFrame:
-    """The checked record of a CSV (time_s, current_a, voltage_v[, temperature_c]), or of a
-    cycler's raw export when ``cycler`` is named (``real.cycler``; its output is already
-    discharge-positive, so ``current_sign`` applies to canonical CSVs only)."""
-    from ..real.cycler import read_any
-
-    frame, _ = read_any(path, cycler)
-    if frame is not None:
-        return check(frame, str(path), min_samples=min_samples, sign_confirmed=True)
-    df = read_measurement(path, min_samples=2)
-    return check(df, str(path), current_sign=current_sign, min_samples=min_samples)
-
-
-def step_resistance_of(frame: pd.DataFrame) -> tuple[float, int]:
-    """``io.step_resistance`` of a record, over steps of at least STEP_FRACTION of its
-    99th-percentile |I| between samples at most SIGN_MAX_DT_S apart."""
-    i99 = float(np.quantile(np.abs(frame["current_a"].to_numpy()), 0.99))
-    return step_resistance(frame["time_s"], frame["current_a"], frame["voltage_v"],
-                           STEP_FRACTION * i99, SIGN_MAX_DT_S)  # fmt: skip
-
-
-def apply_current_sign(frame: pd.DataFrame, source: str, current_sign: str) -> pd.DataFrame:
-    """The record with positive current = discharge; DataError if the voltage says otherwise."""
-    if current_sign not in CURRENT_SIGNS:
-        raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
-    if current_sign == "charge-positive":
-        frame = frame.assign(current_a=-frame["current_a"])
-    r, n = step_resistance_of(frame)
-    if n and not r > 0:
-        other = CURRENT_SIGNS[1 - CURRENT_SIGNS.index(current_sign)]
-        raise DataError(
-            f"{source}: column 'current_a': the voltage rises with positive current (median "
-            f"step -dV/dI {1e3 * r:.1f} mOhm over {n} steps), so the file is not "
-            f"{current_sign}; rerun with --current-sign {other}"
-        )
-    return frame
+def sanity(base_rmse_v: float, v: np.ndarray, sources) -> None:
+    """Stop when the base model explains the records worse than their own mean voltage does: the
+    inputs then do not describe one cell (a unit, a sign, an OCV of another cell)."""
+    sd = float(np.std(v))
+    if base_rmse_v > sd:
+        raise DataError(f"{', '.join(sources)}: the base model misses the records by "
+                        f"{1e3 * base_rmse_v:.4g} mV RMS, more than their voltage varies "
+                        f"({1e3 * sd:.4g} mV SD): the inputs do not describe one cell (check the "
+                        "units and sign of current_a and voltage_v, and the --ocv)")  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------------
@@ -514,31 +443,24 @@ def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.D
     return rows
 
 
-def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=None,
-        current_sign="discharge-positive"):  # fmt: skip
+def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=(),
+        warnings=()):  # fmt: skip
     """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
 
-    ``frames``: one training record or a list of them (one cell); ``source``: its name or a list
-    of names. ``ocv_table``: the cell's measured OCV (``model.ocv``), or None for the rational
-    curve. ``validate``: {name: frame} of records never used for any choice.
+    ``train``: the cell's checked training records (``records.Checked``, as ``inputs.py`` reads
+    them), one or a list; a DataFrame is checked here (``records.check``) and named by
+    ``source``. ``ocv_table``: the cell's measured OCV (``model.ocv``), or None for the rational
+    curve. ``validate``: checked records never used for any choice. ``warnings``: what the input
+    layer found odd, carried into the report. Every option is checked before the first fit.
     """
     t_start = time.perf_counter()
-    frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
-    sources = [source] if isinstance(source, str) else list(source)
-    if len(sources) != len(frames):
-        sources = [f"{sources[0]}[{j}]" for j in range(len(frames))]
-    if soc0 is not None and len(frames) > 1:
-        raise UserError("--soc0 gives one record's initial SOC; with several training records "
-                        "leave it out (each record's is fitted)")  # fmt: skip
-    frames = [
-        check(f, s, capacity_ah, soc0, current_sign) for f, s in zip(frames, sources, strict=True)
-    ]
-    vframes = {s: check(f, s, None, None, current_sign, min_samples=2)
-               for s, f in (validate or {}).items()}  # fmt: skip
-    for s, f in vframes.items():
-        if set(f.columns) != set(frames[0].columns):
-            raise DataError(f"{s}: columns {', '.join(f.columns)} differ from the training "
-                            f"record's {', '.join(frames[0].columns)}")  # fmt: skip
+    train = _checked(train, source)
+    validate = _checked(validate, "<validate>") if validate is not None and len(validate) else []
+    check_options(train, validate, capacity_ah, soc0, ocv_table)
+    frames = [c.frame for c in train]
+    sources = [c.source for c in train]
+    vframes = {c.source: c.frame for c in validate}
+    notes = list(dict.fromkeys([*warnings, *(w for c in (*train, *validate) for w in c.warnings)]))
     tref = reference_temperature(frames)
     recs = [Record.from_frame(f, tref_k=tref, source=s) for f, s in zip(frames, sources,
                                                                         strict=True)]  # fmt: skip
@@ -549,6 +471,7 @@ def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, va
     st_b = ctx.structure((), Knots(0.0, 0.2))
     base = ctx.fit(st_b, fitting.base_starts(recs, Config(table=table), capacity_ah, soc0))
     st_b.knots = fitting.knots_for(recs, base.X)
+    sanity(float(np.sqrt(base.rss / ctx.n)), ctx.v, sources)
 
     # 3a. candidates' fits (before the CV, so that the base can be re-polished)
     effects = [e for e in ecm.EFFECTS if selection.applicable(recs, e, (), table)[0]]
@@ -649,10 +572,13 @@ def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, va
                 "source": r.source,
                 "n_samples": r.n,
                 "starts_at_rest": ecm.starts_at_rest(r),
-                "step_resistance_ohm": step_resistance_of(f)[0],
+                "step_resistance_ohm": c.sign.resistance_ohm,
+                "sign": c.sign.as_dict(),
+                "read_as": c.origin.get("read_as", "frame"),
             }
-            for r, f in zip(recs, frames, strict=True)
+            for r, c in zip(recs, train, strict=True)
         ],
+        "warnings": notes,
         "ocv": {"kind": "rational (eq. 5), Vnom and beta free"}
         if table is None
         else {
@@ -720,10 +646,11 @@ def run(frames, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, va
     return _jsonable(report), arrays, model
 
 
-def diagnose(frame, capacity_ah: float | None = None, soc0: float | None = None,
+def diagnose(train, capacity_ah: float | None = None, soc0: float | None = None,
              source="<data>", **kw) -> dict:  # fmt: skip
-    """The diagnosis (the dict written to diagnosis.json); DataError on bad input."""
-    return run(frame, capacity_ah, soc0, source, **kw)[0]
+    """The diagnosis (the dict written to diagnosis.json) of checked records or frames (as
+    :func:`run`); DataError on bad input."""
+    return run(train, capacity_ah, soc0, source, **kw)[0]
 
 
 def _jsonable(obj):

@@ -45,11 +45,12 @@ SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
 
 def diagnose_file(csv_path, out_json, log=None) -> None:
     """Diagnose one CSV as a user would (CSV content only) and write the diagnosis JSON."""
-    from .diagnose import diagnose, read_record
+    from ..inputs import read_record
+    from .diagnose import diagnose
 
-    frame = read_record(csv_path)
+    record = read_record(csv_path)
     start = time.perf_counter()
-    result = diagnose(frame, source=str(csv_path))
+    result = diagnose(record)
     wall = time.perf_counter() - start
     write_json({**result, "wall_s": wall, "source": str(csv_path)}, out_json)
     verdict = result["verdict"]

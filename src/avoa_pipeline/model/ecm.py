@@ -53,6 +53,8 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
+from ..records import REST_FRACTION, current_scale
+
 FARADAY = 96485.33212
 GAS_R = 8.314462618
 T_DEFAULT_K = 298.15
@@ -117,6 +119,37 @@ PARAMS: dict[str, Param] = {
     **{n: Param(f"ocv_shape_{n}_v", "lin", 0.0, "ocv_shape") for n in SHAPE_NAMES},
 }
 NAMES = tuple(PARAMS)
+
+LIMITS: dict[str, tuple[float, float]] = {
+    "vnom": (1.5, 5.0),
+    "lc": (-2.0, 0.9999),  # β: OCV rising with SOC
+    "lq": (1e-3, 1e4),  # 1 mAh to records.MAX_CURRENT_A / records.MIN_C_RATE
+    "soc0": (0.0, 1.0),
+    "r0": (0.0, 2.0),
+    "r1": (0.0, 2.0),
+    "ltau1": (0.05, 2e4),  # 50 ms (a logger's fastest useful step) to 5.6 h
+    "r2": (0.0, 2.0),
+    "ltau2": (0.05, 2e4),
+    "r3": (0.0, 2.0),
+    "ltau3": (0.05, 2e4),
+    "klow": (0.0, 50.0),  # the rise near empty: up to 50× at SOC 0
+    "lsig": (0.005, 0.5),  # over an SOC width of 0.5-50 %
+    "kd": (0.0, 300.0),  # surface-SOC lag: 30 % of SOC at 1 mA at most
+    "ltaud": (0.05, 2e4),
+    "hm": (0.0, 0.3),
+    "lgamma": (0.1, 1e4),
+    "h0": (-1.0, 1.0),
+    "bvg": (0.0, 1e5),  # 1/i0: an exchange current of 10 µA at least
+    "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
+    "th1": (0.0, 12000.0),
+    "ioff": (-10.0, 10.0),  # a tenth of records.MAX_CURRENT_A
+    "voff": (-0.3, 0.3),
+    "eta": (0.7, 1.0),
+    **{n: (-0.5, 0.5) for n in SHAPE_NAMES},
+}
+"""The library's physical range of every parameter (report units), whatever the records: a
+fit's bounds (``fitting.bounds_for``) lie inside it, and a loaded ``model.json`` is judged
+against it, not against bounds read from the same file."""
 IDX = {n: k for k, n in enumerate(NAMES)}
 NX = len(NAMES)
 NEUTRAL = np.array([PARAMS[n].neutral for n in NAMES])
@@ -234,6 +267,7 @@ class OcvTable:
     capacity_ah: float | None = None  # the slow test's capacity, if it came from one
     source: str = ""
     how: str = ""  # how it was made (which branches, why)
+    notes: tuple[str, ...] = ()  # what is odd about it (warnings for the user)
 
     @classmethod
     def from_points(cls, soc, ocv_v, capacity_ah=None, source="", how="") -> OcvTable:
@@ -371,7 +405,7 @@ class Record:
         return np.concatenate([[0.0], np.cumsum(self.i[:-1] * self.dt[:-1])]) / 3600.0
 
     def imax(self) -> float:
-        return max(float(np.quantile(np.abs(self.i), 0.99)), 1e-6)
+        return max(current_scale(self.i), 1e-6)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -586,10 +620,6 @@ def paper_rows(P_paper: np.ndarray, qdis_ah: float, soc0: float, fade_factors=No
 
 # ----------------------------------------------------------------------------------------------
 # the one initial-SOC rule
-
-REST_FRACTION = 0.02
-"""At rest: |I| at most this fraction of the record's 99th-percentile |I| (the logger's offset and
-a cycler's trickle are far below it; any load pulse is far above)."""
 
 
 def starts_at_rest(rec: Record) -> bool:

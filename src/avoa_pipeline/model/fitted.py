@@ -15,6 +15,7 @@ import pandas as pd
 
 from .. import __version__
 from ..errors import DataError
+from ..records import VOLTAGE_RANGE_V
 from . import ecm
 from . import ocv as ocv_mod
 from .ecm import IDX, Config, Knots, Record
@@ -64,6 +65,19 @@ class FittedModel:
         res = ecm.simulate_rows(rec, x, self.knots, self.config.table, self.config.load_ohm,
                                 traces=traces)  # fmt: skip
         return (res[0][:, 0], res[1]) if traces else res[:, 0]
+
+    def predict(self, frame: pd.DataFrame, soc0: float | None = None,
+                source: str = "model.json") -> np.ndarray:  # fmt: skip
+        """:meth:`simulate`, refused (DataError naming ``source``) where the model's voltage
+        leaves one cell's range (``records.VOLTAGE_RANGE_V``): parameters that pass every bound
+        one by one may still not describe a cell together."""
+        v = self.simulate(frame, soc0=soc0)
+        lo, hi = VOLTAGE_RANGE_V
+        if not (np.all(np.isfinite(v)) and v.min() >= lo and v.max() <= hi):
+            raise DataError(f"{source}: the model predicts {np.nanmin(v):.4g}..{np.nanmax(v):.4g}"
+                            f" V, outside one cell's {lo:g}..{hi:g} V: its parameters do not "
+                            "describe a cell")  # fmt: skip
+        return v
 
     # ------------------------------------------------------------------------------------------
 
@@ -131,6 +145,10 @@ class FittedModel:
             if not lo - tol <= value <= hi + tol:
                 raise DataError(f"{source}: field 'parameters.{rep}': {value:g} outside the "
                                 f"bounds it was fitted in [{lo:g}, {hi:g}]")  # fmt: skip
+            plo, phi = ecm.LIMITS[n]
+            if not plo - 1e-9 * abs(plo) <= value <= phi + 1e-9 * abs(phi):
+                raise DataError(f"{source}: field 'parameters.{rep}': {value:g} outside the "
+                                f"library's physical range [{plo:g}, {phi:g}]")  # fmt: skip
             x[IDX[n]] = ecm.internal_value(rep, value)[1]
             bounds[n] = tuple(sorted((ecm.internal_value(rep, lo)[1],
                                       ecm.internal_value(rep, hi)[1])))  # fmt: skip

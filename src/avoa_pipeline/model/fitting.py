@@ -47,42 +47,38 @@ def _stats(recs: list[Record]) -> dict:
     }
 
 
+def internal_limits(name: str) -> tuple[float, float]:
+    """The library's physical range of a parameter (``ecm.LIMITS``) in internal coordinates."""
+    lo, hi = ecm.LIMITS[name]
+    t = ecm.PARAMS[name].transform
+    if t == "log10":
+        return float(np.log10(lo)), float(np.log10(hi))
+    if t == "log10_1m":  # rounded: 1 − 0.9999 is not 1e-4 in binary
+        return round(float(np.log10(1.0 - hi)), 12), float(np.log10(1.0 - lo))
+    return lo, hi
+
+
 def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
-    """Wide, physically plausible bounds (internal coordinates) for a cell's records."""
+    """Wide, physically plausible bounds (internal coordinates) for a cell's records: the
+    library's physical range (``ecm.LIMITS``), narrowed where the records say more."""
     s = _stats(recs)
     imax = s["imax"]
     tau_lo = np.log10(max(s["dt"], 0.05))  # a time constant below the step is an R0
     tau_hi = np.log10(max(min(2e4, 2.0 * s["duration"]), 10.0 * s["dt"]))
     q_lo = max(0.01, 0.8 * s["swing"])  # no record spans more than 125 % of the capacity
-    return {
-        "vnom": (1.5, 5.0),
-        "lc": (-4.0, np.log10(3.0)),  # β ∈ [−2, 0.9999]: OCV rising with SOC
+    out = {n: internal_limits(n) for n in ecm.NAMES}
+    out.update({
         "lq": (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo))),
-        "soc0": (0.0, 1.0),
-        "r0": (0.0, 2.0),
-        "r1": (0.0, 2.0),
         "ltau1": (tau_lo, tau_hi),
-        "r2": (0.0, 2.0),
         "ltau2": (tau_lo, tau_hi),
-        "r3": (0.0, 2.0),
         "ltau3": (tau_lo, tau_hi),
-        # the rise near empty: up to 50× at SOC 0, over an SOC width of 0.5-50 %
-        "klow": (0.0, 50.0),
-        "lsig": (np.log10(0.005), np.log10(0.5)),
         # surface-SOC lag: at most 30 % of SOC at the record's largest current
         "kd": (0.0, 0.3 / imax),
         "ltaud": (tau_lo, tau_hi),
-        "hm": (0.0, 0.3),
-        "lgamma": (-1.0, 4.0),
-        "h0": (-1.0, 1.0),
         "bvg": (0.0, 100.0 / imax),
-        "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
-        "th1": (0.0, 12000.0),
         "ioff": (-0.1 * imax, 0.1 * imax),
-        "voff": (-0.3, 0.3),
-        "eta": (0.7, 1.0),
-        **{n: (-0.5, 0.5) for n in ecm.SHAPE_NAMES},
-    }
+    })  # fmt: skip
+    return out
 
 
 def priors_for(recs: list[Record]) -> dict[str, tuple[float, float]]:

@@ -1,10 +1,15 @@
-"""A measured OCV for the model library: from a slow test of the cell, or from a table.
+"""A measured OCV for the model library: from a slow test of the cell, or from a table. Files are
+read by the input layer (``inputs.read_ocv``); this module turns a checked record or a table's
+columns into an :class:`~avoa_pipeline.model.ecm.OcvTable`.
 
-**Slow test** (canonical columns ``time_s, current_a, voltage_v``; current positive = discharge).
-The longest discharge run and the longest charge run (|I| above the rest threshold) are the two
-branches. A branch counts only if it is slow: its median |I| at most C/10 of its own charge
-(``SLOW_C_RATE``); a test with no slow branch is refused. SOC along a branch is coulomb-counted
-over that branch's own charge: discharge s = 1 − q_out/Q_dis (full to empty), charge s = q_in/Q_ch.
+**Slow test** (a checked record: time_s, current_a discharge positive, voltage_v). Every run of
+each sign (current beyond the rest line of ``records.REST_FRACTION``) is considered; a run is
+*slow* if its median |I| is at most C/10 of its own charge (``SLOW_C_RATE``), and of each sign the
+slow run that moves the most charge (the widest SOC range) is the branch. Real pseudo-OCV tests
+start with a fast cycle (a C/2 discharge and a CC-CV charge) before the slow branches; those runs
+are found and passed over. A test with no slow run is refused, naming the runs it has. SOC along
+a branch is coulomb-counted over that branch's own charge: discharge s = 1 − q_out/Q_dis (full to
+empty), charge s = q_in/Q_ch.
 
 **Combining the branches.** The usual pseudo-OCV is the mean of the two branches at equal SOC: the
 ohmic drop and most of the hysteresis enter them with opposite signs and cancel. That needs both
@@ -14,19 +19,24 @@ did not (a charge cut short, a different protocol) and are not averaged; the dis
 used alone (the model's fitted offset then absorbs its IR drop). The choice and the reason go into
 the table's ``how``.
 
-**Table** (columns ``soc, ocv_v``): used as it is (SOC in [0, 1]; the OCV must rise with SOC,
-up to noise, and is made strictly increasing for the inverse lookup).
+**Checks.** The curve must rise with SOC (``_check_rises``: the OCV of every lithium-ion
+chemistry does; a slow test whose current sign is wrong gives a falling one). A branch that shows
+no steep end-of-discharge knee may stop short of empty, so that its SOC 0-1 covers part of the
+cell only: a note (``OcvTable.notes``), not an error.
+
+**Table** (columns ``soc, ocv_v``): SOC in [0, 1] over at least ``MIN_TABLE_SPAN``, volts within
+one cell's range, rising with SOC; then made strictly increasing for the inverse lookup.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+import dataclasses
 
 import numpy as np
 import pandas as pd
 
 from ..errors import DataError
-from ..io import read_csv
+from ..records import REST_FRACTION, VOLTAGE_RANGE_V, current_scale, runs_of
 from .ecm import OcvTable
 
 SLOW_C_RATE = 0.1
@@ -36,32 +46,70 @@ smaller still)."""
 BRANCH_CHARGE_TOLERANCE = 0.02
 """The branches are averaged only if their charges agree within 2 % (slow-rate coulombic
 efficiency is above 99 %, so a larger difference means they did not span the same SOC range)."""
-REST_FRACTION = 0.02
-"""|I| at most this fraction of the record's 99th-percentile |I| counts as rest."""
 GRID = 401
 MIN_BRANCH_SAMPLES = 20
+MIN_TABLE_SPAN = 0.5
+"""A table must span at least half of the SOC range: the model holds the OCV at a table's end
+value beyond it, and a fit with a free capacity would squeeze a record into a narrower table."""
+FALL_TOLERANCE_V = 0.01
+"""How far the curve may fall below its running maximum (noise and relaxation wiggles of a slow
+branch stay within a few mV); beyond that it does not rise with SOC."""
+KNEE_SPAN = 0.05
+KNEE_RATIO = 3.0
+"""At empty the OCV of every lithium-ion chemistry falls steeply: over the last 5 % of a branch's
+charge at least three times faster than over its middle (10-90 %; ratios of 5-30 are usual)."""
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
-    return list(zip(edges[::2], edges[1::2], strict=True))
+def _branches(t, cur, volt):
+    """Every run of each sign: (name, first row, end row, charge Ah, median |I| A)."""
+    dt = np.diff(t, append=t[-1] + np.median(np.diff(t)))  # zero-order hold: I[k] for dt[k]
+    line = REST_FRACTION * max(current_scale(cur), 1e-12)
+    out = []
+    for name, sign in (("discharge", 1.0), ("charge", -1.0)):
+        for a, b in runs_of(sign * cur > line):
+            q = float(np.sum(np.abs(cur[a:b]) * dt[a:b])) / 3600.0
+            out.append((name, a, b, q, float(np.median(np.abs(cur[a:b])))))
+    return out, dt
 
 
-def _branch(t, cur, volt, sign: int):
-    """(SOC, V, charge Ah, median |I|) of the longest run of current with ``sign``, or None."""
-    thr = REST_FRACTION * max(float(np.quantile(np.abs(cur), 0.99)), 1e-12)
-    runs = _runs(sign * cur > thr)
-    if not runs:
-        return None
-    a, b = max(runs, key=lambda r: r[1] - r[0])
-    if b - a < MIN_BRANCH_SAMPLES:
-        return None
-    dt = np.diff(t, append=t[-1] + np.median(np.diff(t)))[a:b]  # zero-order hold: I[k] for dt[k]
-    q = np.r_[0.0, np.cumsum(np.abs(cur[a:b]) * dt)] / 3600.0  # charge moved before each sample
+def _curve(t, cur, volt, dt, a, b, sign):
+    q = np.r_[0.0, np.cumsum(np.abs(cur[a:b]) * dt[a:b])] / 3600.0  # charge before each sample
     total = float(q[-1])
-    q = q[:-1]
-    soc = 1.0 - q / total if sign > 0 else q / total
-    return soc, volt[a:b], total, float(np.median(np.abs(cur[a:b])))
+    soc = 1.0 - q[:-1] / total if sign > 0 else q[:-1] / total
+    order = np.argsort(soc, kind="stable")
+    grid = np.linspace(0.0, 1.0, GRID)
+    return np.interp(grid, soc[order], volt[a:b][order])
+
+
+def _check_rises(soc, v, source: str, what: str) -> None:
+    """The OCV rises with SOC: overall, and nowhere falling more than FALL_TOLERANCE_V below its
+    running maximum."""
+    order = np.argsort(soc, kind="stable")
+    v = np.asarray(v, dtype=float)[order]
+    drop = float(np.max(np.maximum.accumulate(v) - v))
+    if not v[-1] > v[0] or drop > FALL_TOLERANCE_V:
+        raise DataError(
+            f"{source}: {what}: the voltage does not rise with SOC ({v[0]:.4g} V at the "
+            f"lowest SOC, {v[-1]:.4g} V at the highest, falling by up to "
+            f"{1e3 * drop:.0f} mV); an OCV rises with SOC (current sign?)"
+        )
+
+
+def _knee(curve: np.ndarray) -> float:
+    """The end-of-discharge slope over KNEE_SPAN against the mid-range slope."""
+    grid = np.linspace(0.0, 1.0, GRID)
+    end = (np.interp(KNEE_SPAN, grid, curve) - curve[0]) / KNEE_SPAN
+    mid = (np.interp(0.9, grid, curve) - np.interp(0.1, grid, curve)) / 0.8
+    return float(end / mid) if mid > 0 else np.inf
+
+
+def _describe(runs) -> str:
+    shown = sorted(runs, key=lambda r: -r[3])[:4]
+    return "; ".join(
+        f"{n} {q:.4g} Ah at {i:.3g} A (C/{q / i:.2g} of its own charge)"
+        for n, _, _, q, i in shown
+        if i > 0
+    )
 
 
 def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
@@ -69,81 +117,87 @@ def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
     t = frame["time_s"].to_numpy(dtype=float)
     cur = frame["current_a"].to_numpy(dtype=float)
     volt = frame["voltage_v"].to_numpy(dtype=float)
+    runs, dt = _branches(t, cur, volt)
     branches = {}
-    for name, sign in (("discharge", 1), ("charge", -1)):
-        br = _branch(t, cur, volt, sign)
-        if br is None:
-            continue
-        soc, v, q, i_med = br
-        if i_med > SLOW_C_RATE * q:
-            continue
-        branches[name] = (soc, v, q, i_med)
+    for name, a, b, q, i_med in runs:
+        slow = b - a >= MIN_BRANCH_SAMPLES and q > 0 and i_med <= SLOW_C_RATE * q
+        if slow and (name not in branches or q > branches[name][3]):
+            branches[name] = (a, b, 1.0 if name == "discharge" else -1.0, q, i_med)
     if not branches:
+        found = _describe(runs) or "no current beyond the rest line"
         raise DataError(
             f"{source}: column 'current_a': no slow branch (a discharge or charge at "
-            f"≤ C/{1 / SLOW_C_RATE:g} of its own charge); not an OCV test"
+            f"≤ C/{1 / SLOW_C_RATE:g} of its own charge); found {found}"
         )
-    grid = np.linspace(0.0, 1.0, GRID)
     curves = {}
-    for name, (soc, v, _, _) in branches.items():
-        order = np.argsort(soc, kind="stable")
-        curves[name] = np.interp(grid, soc[order], v[order])
+    for name, (a, b, sign, _, _) in branches.items():
+        curves[name] = _curve(t, cur, volt, dt, a, b, sign)
+        _check_rises(np.linspace(0, 1, GRID), curves[name], source, f"the {name} branch")
     if len(branches) == 2:
-        qd, qc = branches["discharge"][2], branches["charge"][2]
+        qd, qc = branches["discharge"][3], branches["charge"][3]
         if abs(qc - qd) <= BRANCH_CHARGE_TOLERANCE * qd:
             ocv = 0.5 * (curves["discharge"] + curves["charge"])
-            how = (f"mean of the discharge ({qd:.4g} Ah) and charge ({qc:.4g} Ah) branches at "
-                   "equal SOC")  # fmt: skip
+            how = (
+                f"mean of the discharge ({qd:.4g} Ah) and charge ({qc:.4g} Ah) branches at "
+                "equal SOC"
+            )
         else:
             ocv = curves["discharge"]
-            how = (f"discharge branch alone ({qd:.4g} Ah): the charge branch moved {qc:.4g} Ah, "
-                   f"more than {BRANCH_CHARGE_TOLERANCE:.0%} off, so the two do not span the "
-                   "same SOC range")  # fmt: skip
+            how = (
+                f"discharge branch alone ({qd:.4g} Ah): the charge branch moved {qc:.4g} Ah, "
+                f"more than {BRANCH_CHARGE_TOLERANCE:.0%} off, so the two do not span the "
+                "same SOC range"
+            )
     else:
         (name,) = branches
         ocv = curves[name]
         how = f"{name} branch alone (the test has no other slow branch)"
-    cap = branches.get("discharge", branches.get("charge"))[2]
-    how += "; " + ", ".join(f"{n}: {b[2]:.4g} Ah at median {b[3]:.3g} A"
-                            for n, b in branches.items())  # fmt: skip
-    return OcvTable.from_points(grid, ocv, capacity_ah=cap, source=str(source), how=how)
+    cap = branches.get("discharge", branches.get("charge"))[3]
+    how += "; " + ", ".join(
+        f"{n}: {b[3]:.4g} Ah at median {b[4]:.3g} A" for n, b in branches.items()
+    )
+    passed = [r for r in runs if not any(r[1] == b[0] and r[0] == n for n, b in branches.items())]
+    if passed:
+        how += f"; passed over (not slow or narrower): {_describe(passed)}"
+    notes = []
+    knee = _knee(ocv)
+    if knee < KNEE_RATIO:
+        notes.append(
+            f"{source}: the slow branch shows no end-of-discharge knee (slope over its "
+            f"last {KNEE_SPAN:.0%} of charge {knee:.2g}× the mid-range's, a cell's is "
+            f"≥ {KNEE_RATIO:g}×): it may stop short of empty, and its SOC 0-1 "
+            f"({cap:.4g} Ah) then covers part of the cell only"
+        )
+    table = OcvTable.from_points(
+        np.linspace(0.0, 1.0, GRID), ocv, capacity_ah=cap, source=str(source), how=how
+    )
+    return dataclasses.replace(table, notes=tuple(notes))
 
 
 def from_table(frame: pd.DataFrame, source: str) -> OcvTable:
+    """An OCV table ``soc, ocv_v`` (numbers already) with its checks (module docstring)."""
     soc = frame["soc"].to_numpy(dtype=float)
     v = frame["ocv_v"].to_numpy(dtype=float)
     if soc.size < 2 or not np.all(np.isfinite(soc)) or not np.all(np.isfinite(v)):
         raise DataError(f"{source}: columns 'soc', 'ocv_v': need at least 2 finite rows")
     if soc.min() < 0 or soc.max() > 1:
-        raise DataError(f"{source}: column 'soc': values outside [0, 1]")
-    order = np.argsort(soc)
-    if np.polyfit(soc[order], v[order], 1)[0] <= 0:
-        raise DataError(f"{source}: column 'ocv_v': does not rise with SOC")
+        raise DataError(
+            f"{source}: column 'soc': values {soc.min():g}..{soc.max():g} outside "
+            "[0, 1] (percent given?)"
+        )
+    lo, hi = VOLTAGE_RANGE_V
+    if v.min() < lo or v.max() > hi:
+        raise DataError(
+            f"{source}: column 'ocv_v': values {v.min():g}..{v.max():g} outside "
+            f"{lo:g}..{hi:g} V of one cell (mV given?)"
+        )
+    if np.ptp(soc) < MIN_TABLE_SPAN:
+        raise DataError(
+            f"{source}: column 'soc': the table spans SOC {soc.min():g}..{soc.max():g}"
+            f"; an OCV table must span at least {MIN_TABLE_SPAN:g}"
+        )
+    _check_rises(soc, v, source, "column 'ocv_v'")
     return OcvTable.from_points(soc, v, source=str(source), how="table as given")
-
-
-def read(path: str | Path, cycler: str | None = None) -> OcvTable:
-    """``--ocv``: a table ``soc, ocv_v`` or a slow test in the canonical columns, or a slow test
-    as a cycler's raw export when ``cycler`` is named."""
-    from ..real.cycler import read_any
-
-    path = Path(path)
-    frame, _ = read_any(path, cycler)
-    if frame is not None:
-        return from_slow_test(frame, str(path))
-    raw = read_csv(path)
-    if {"soc", "ocv_v"} <= set(raw.columns):
-        try:
-            frame = raw[["soc", "ocv_v"]].apply(pd.to_numeric, errors="raise")
-        except (ValueError, TypeError):
-            raise DataError(f"{path}: columns 'soc', 'ocv_v': not numbers") from None
-        return from_table(frame, str(path))
-    if {"time_s", "current_a", "voltage_v"} <= set(raw.columns):
-        from ..io import read_measurement
-
-        return from_slow_test(read_measurement(path), str(path))
-    raise DataError(f"{path}: need columns 'soc', 'ocv_v' (a table) or 'time_s', 'current_a', "
-                    "'voltage_v' (a slow test)")  # fmt: skip
 
 
 def to_json(table: OcvTable) -> dict:
@@ -159,6 +213,11 @@ def to_json(table: OcvTable) -> dict:
 
 
 def from_json(d: dict) -> OcvTable:
-    return OcvTable(float(d["soc_lo"]), float(d["soc_step"]),
-                    np.ascontiguousarray(d["ocv_v"], dtype=float), d.get("capacity_ah"),
-                    d.get("source", ""), d.get("how", ""))  # fmt: skip
+    return OcvTable(
+        float(d["soc_lo"]),
+        float(d["soc_step"]),
+        np.ascontiguousarray(d["ocv_v"], dtype=float),
+        d.get("capacity_ah"),
+        d.get("source", ""),
+        d.get("how", ""),
+    )

@@ -15,13 +15,13 @@ import contextlib
 import json
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
+from .. import records
 from ..errors import DataError
 from ..io import atomic_path, read_csv, read_json, sha256
 
-COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
+COLUMNS = records.COLUMNS
 
 # What a reader needs to use a record without opening the source: identity, conditions, provenance.
 SIDECAR_KEYS = (
@@ -55,47 +55,6 @@ def check_source(path: str | Path, sha256_expected: str, *, key: str | None = No
     return path
 
 
-def validate(frame: pd.DataFrame, source: str, *, first_row: int = 0) -> pd.DataFrame:
-    """Check a record and return it as float columns :data:`COLUMNS`, in that order.
-
-    Every column present and numeric, every value finite, time strictly increasing.
-    ``first_row`` is the row number given to the frame's first sample in messages (2 for a CSV
-    line number behind a header).
-    """
-    if not isinstance(frame, pd.DataFrame):
-        raise DataError(f"{source}: not a table ({type(frame).__name__})")
-    for col in COLUMNS:
-        if col not in frame.columns:
-            raise DataError(f"{source}: missing column {col!r} (need {', '.join(COLUMNS)})")
-    if len(frame) < 2:
-        raise DataError(f"{source}: {len(frame)} samples; need at least 2")
-    out = {}
-    for col in COLUMNS:
-        raw = frame[col]
-        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
-        not_number = np.isnan(values) & raw.notna().to_numpy()
-        if not_number.any():
-            i = int(np.flatnonzero(not_number)[0])
-            raise DataError(
-                f"{source}: column {col!r} row {i + first_row}: not a number ({raw.iloc[i]!r})"
-            )
-        if np.isnan(values).any():
-            i = int(np.flatnonzero(np.isnan(values))[0])
-            raise DataError(f"{source}: column {col!r} row {i + first_row}: missing value (NaN)")
-        if not np.isfinite(values).all():
-            i = int(np.flatnonzero(~np.isfinite(values))[0])
-            raise DataError(f"{source}: column {col!r} row {i + first_row}: not finite")
-        out[col] = values
-    dt = np.diff(out["time_s"])
-    if (dt == 0).any():
-        i = int(np.flatnonzero(dt == 0)[0]) + 1
-        raise DataError(f"{source}: column 'time_s' row {i + first_row}: duplicate time")
-    if (dt < 0).any():
-        i = int(np.flatnonzero(dt < 0)[0]) + 1
-        raise DataError(f"{source}: column 'time_s' row {i + first_row}: time goes backwards")
-    return pd.DataFrame(out, columns=list(COLUMNS))
-
-
 def _check_sidecar(sidecar: dict, source: str) -> str:
     if not isinstance(sidecar, dict):
         raise DataError(f"{source}: sidecar is not a mapping ({type(sidecar).__name__})")
@@ -120,7 +79,7 @@ def write(frame: pd.DataFrame, sidecar: dict, out_csv: str | Path) -> None:
     """
     out_csv = Path(out_csv)
     source = str(sidecar.get("source_file", out_csv)) if isinstance(sidecar, dict) else str(out_csv)
-    clean = validate(frame, source)
+    clean = records.validate(frame, source, first_row=0, required=COLUMNS)
     text = _check_sidecar(sidecar, source)
     # Nested: the JSON is renamed when the inner block ends, the CSV when the outer one does; an
     # exception in either write leaves both temporaries unrenamed and deleted.
@@ -143,7 +102,7 @@ def read(path_csv: str | Path) -> tuple[pd.DataFrame, dict]:
     """Read a canonical record and its sidecar; the same checks as :func:`write`."""
     path_csv = Path(path_csv)
     frame = read_csv(path_csv)
-    frame = validate(frame, str(path_csv), first_row=2)
+    frame = records.validate(frame, str(path_csv), first_row=2, required=COLUMNS)
     json_path = sidecar_path(path_csv)
     sidecar = read_json(json_path, f"sidecar of {path_csv.name}")
     _check_sidecar(sidecar, str(json_path))

@@ -9,7 +9,6 @@ and exit 2, and leave no output file (every writer is atomic).
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -155,14 +154,3 @@ def run_command(cfg, args) -> None:
         arrhenius(cfg, dict(args.hppc), args.out_rc, args.out_arrhenius)
     else:
         fade(cfg, args.record, args.out_states, args.out_fits)
-
-
-def main(argv=None) -> int:
-    """The same as ``python -m avoa_pipeline.real`` (one command line for all real data)."""
-    from .__main__ import main as real_main
-
-    return real_main(argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,6 +2,9 @@
 
 **Reading is PyProBE's.** ``pyprobe-data`` (Imperial College London, BSD-3-Clause) reads the five
 cyclers' exports into one column set, with their header lines, time columns and unit prefixes.
+A cycler may have several column layouts (Arbin: the newer ``Test Time (s)`` one PyProBE maps,
+and MITS Pro's classic ``Test_Time(s)`` one that most public Arbin datasets use); the others come
+in through PyProBE's own extra column importers, and a workbook's data sheet is found by name.
 It was chosen over cellpy (its current release pins pandas < 3, which this environment has
 passed) and battery-data-toolkit (no Neware or Basytec reader). This module uses its cycler
 classes and their column maps, and adds the raw charge counters as extra column importers (its
@@ -22,9 +25,10 @@ answer (docs/cyclers.md):
   (PyProBE's own ``Capacity [Ah]`` clips such a drop to zero and loses that charge.) Without
   counters, or with ``current_from="channel"``, each sample of the channel is held.
 - *Sign*: every supported cycler writes charge as positive; the output has discharge positive.
-  The convention is confirmed against the voltage's response at current steps
-  (``gap.diagnose.step_resistance_of``, the check behind every importer), and for cyclers with
-  direction-named counters the channel's sign against theirs. A contradiction is an error.
+  The convention is confirmed against the voltage's answer to the current channel
+  (``records.sign_evidence``, the one sign check of the package), and for cyclers with
+  direction-named counters the channel's sign against theirs. A contradiction is an error, a
+  record whose voltage cannot tell a warning.
 - *Units*: PyProBE converts prefixes (mA, mV, mAh, mA.h, ...). The counters' current and the
   channel's must agree within a factor of √1000: unit mistakes are factors of 1000 (a prefix) or
   3600 (A·s for Ah); lag and counter resolution are far below that.
@@ -44,7 +48,6 @@ import contextlib
 import importlib
 import json
 import math
-import sys
 import tempfile
 import warnings
 from dataclasses import dataclass
@@ -53,6 +56,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import records
 from ..errors import DataError, UserError
 from ..io import atomic_path, sha256
 from ..names import CURRENT_FROM
@@ -76,21 +80,35 @@ class Counters:
 
 
 @dataclass(frozen=True)
-class Cycler:
+class Layout:
+    """One way a cycler's software names its columns, as PyProBE column patterns (one ``*`` = the
+    unit); the first present of each tuple is used. A cycler's first layout is the one PyProBE's
+    reader maps itself; the others come in as extra column importers."""
+
     name: str
-    reader: str  # module:class of pyprobe
-    time: tuple[str, ...]  # column patterns, the first present is used
+    time: tuple[str, ...]
     current: tuple[str, ...]
     voltage: tuple[str, ...]
     step: tuple[str, ...]
     counters: tuple[Counters, ...]  # alternatives, the first whose columns are all present
     temperature: tuple[str, ...]
-    extensions: tuple[str, ...]
     mode: tuple[str, ...] = ()  # a charge/discharge mode column that signs an unsigned current
+
+
+@dataclass(frozen=True)
+class Cycler:
+    name: str
+    reader: str  # module:class of pyprobe
+    layouts: tuple[Layout, ...]
+    extensions: tuple[str, ...]
 
     @property
     def label(self) -> str:
         return {"biologic": "BioLogic"}.get(self.name, self.name.capitalize())
+
+    @property
+    def article(self) -> str:
+        return "an" if self.label[0] in "AEIOU" else "a"
 
 
 CYCLERS = {
@@ -99,60 +117,97 @@ CYCLERS = {
         Cycler(
             "arbin",
             "pyprobe.cyclers.arbin:Arbin",
-            ("Test Time (*)",),
-            ("Current (*)",),
-            ("Voltage (*)",),
-            ("Step Index",),
-            (Counters("pair", ("Charge Capacity (*)", "Discharge Capacity (*)")),),
-            ("Aux_Temperature_1 (*)",),
+            (
+                Layout(
+                    "MITS Pro, newer export",
+                    ("Test Time (*)",),
+                    ("Current (*)",),
+                    ("Voltage (*)",),
+                    ("Step Index",),
+                    (Counters("pair", ("Charge Capacity (*)", "Discharge Capacity (*)")),),
+                    ("Aux_Temperature_1 (*)",),
+                ),
+                Layout(
+                    "MITS Pro, classic export",
+                    ("Test_Time(*)",),
+                    ("Current(*)",),
+                    ("Voltage(*)",),
+                    ("Step_Index",),
+                    (Counters("pair", ("Charge_Capacity(*)", "Discharge_Capacity(*)")),),
+                    ("Aux_Temperature_1(*)", "Temperature(*)"),
+                ),
+            ),
             (".csv", ".xlsx"),
         ),
         Cycler(
             "maccor",
             "pyprobe.cyclers.maccor:Maccor",
-            ("Test Time (sec)",),
-            ("Current",),
-            ("Voltage",),
-            ("Step",),
-            (Counters("step", ("Capacity",)),),
-            ("Temp 1",),
+            (
+                Layout(
+                    "Maccor export",
+                    ("Test Time (sec)",),
+                    ("Current",),
+                    ("Voltage",),
+                    ("Step",),
+                    (Counters("step", ("Capacity",)),),
+                    ("Temp 1",),
+                    ("MD",),
+                ),
+            ),
             (".csv", ".txt"),
-            ("MD",),
         ),
         Cycler(
             "neware",
             "pyprobe.cyclers.neware:Neware",
-            ("Date", "Total Time"),
-            ("Current(*)",),
-            ("Voltage(*)",),
-            ("Step Index",),
             (
-                Counters("pair", ("Chg. Cap.(*)", "DChg. Cap.(*)")),
-                Counters("step", ("Capacity(*)",)),
+                Layout(
+                    "Neware export",
+                    ("Date", "Total Time"),
+                    ("Current(*)",),
+                    ("Voltage(*)",),
+                    ("Step Index",),
+                    (
+                        Counters("pair", ("Chg. Cap.(*)", "DChg. Cap.(*)")),
+                        Counters("step", ("Capacity(*)",)),
+                    ),
+                    ("T1(*)",),
+                ),
             ),
-            ("T1(*)",),
             (".csv", ".xlsx"),
         ),
         Cycler(
             "biologic",
             "pyprobe.cyclers.biologic:Biologic",
-            ("time/*",),
-            ("I/*", "<I>/*"),
-            ("Ecell/*", "Ewe/*"),
-            ("Ns",),
-            (Counters("pair", ("Q charge/*", "Q discharge/*")), Counters("signed", ("(Q-Qo)/*",))),
-            ("Temperature/*",),
+            (
+                Layout(
+                    "EC-Lab text export",
+                    ("time/*",),
+                    ("I/*", "<I>/*"),
+                    ("Ecell/*", "Ewe/*"),
+                    ("Ns",),
+                    (
+                        Counters("pair", ("Q charge/*", "Q discharge/*")),
+                        Counters("signed", ("(Q-Qo)/*",)),
+                    ),
+                    ("Temperature/*",),
+                ),
+            ),
             (".txt", ".mpt", ".csv"),
         ),
         Cycler(
             "basytec",
             "pyprobe.cyclers.basytec:Basytec",
-            ("~Time[*]",),
-            ("I[*]",),
-            ("U[*]",),
-            ("Line",),
-            (Counters("signed", ("Ah[*]",)),),
-            ("T1[*]",),
+            (
+                Layout(
+                    "Basytec result file",
+                    ("~Time[*]",),
+                    ("I[*]",),
+                    ("U[*]",),
+                    ("Line",),
+                    (Counters("signed", ("Ah[*]",)),),
+                    ("T1[*]",),
+                ),
+            ),
             (".txt", ".csv"),
         ),
     )
@@ -175,16 +230,10 @@ def _matches(pattern: str, columns: list[str]) -> list[tuple[str, str]]:
     ]
 
 
-def _find(
-    path,
-    cycler: Cycler,
-    what: str,
-    patterns: tuple[str, ...],
-    columns: list[str],
-    required: bool = True,
-) -> tuple[str, str] | None:
-    """The one column of a quantity: DataError if missing (required), in two units, or in a
-    unit PyProBE does not know."""
+def _find(path, what: str, patterns: tuple[str, ...], columns: list[str],
+          required: bool = True) -> tuple[str, str, str] | None:  # fmt: skip
+    """(column, unit, pattern) of a quantity's one column: DataError if missing (required), in
+    two units, or in a unit PyProBE does not know."""
     valid_units = _pyprobe("pyprobe.units").valid_units
 
     for pattern in patterns:
@@ -201,19 +250,32 @@ def _find(
             names = ", ".join(repr(c) for c, _ in found)
             kind = "mixed units" if len(units) > 1 else "repeated column"
             raise DataError(f"{path}: columns {names}: {kind} for the {what}")
-        return found[0]
+        return (*found[0], pattern)
     if not required:
         return None
     want = " or ".join(repr(p.replace("*", "<unit>")) for p in patterns)
+    raise DataError(f"{path}: no {what} column {want}")
+
+
+def _layout(path, cycler: Cycler, columns: list[str]) -> Layout:
+    """The layout whose time column the export has; DataError naming every layout's."""
+    for layout in cycler.layouts:
+        if any(_matches(p, columns) for p in layout.time):
+            return layout
+    want = " or ".join(
+        f"{' or '.join(repr(p.replace('*', '<unit>')) for p in lay.time)} ({lay.name})"
+        for lay in cycler.layouts
+    )
     hint = _looks_like(path, cycler.name)
     raise DataError(
-        f"{path}: no {what} column {want}; not a {cycler.label} export"
+        f"{path}: no time column {want}; not {cycler.article} {cycler.label} export"
         + (f" (it reads as --cycler {hint})" if hint else "")
     )
 
 
 def _looks_like(path, declared: str) -> str:
-    """The other cycler whose reader finds its time, current, voltage and step columns."""
+    """The other cycler whose reader finds the time, current, voltage and step columns of one of
+    its layouts."""
     for name, other in CYCLERS.items():
         if name == declared or Path(path).suffix.lower() not in other.extensions:
             continue
@@ -222,9 +284,10 @@ def _looks_like(path, declared: str) -> str:
                 columns = list(_reader(other).read_file(str(path)).collect_schema().names())
         except Exception:  # not this one either
             continue
-        quantities = (other.time, other.current, other.voltage, other.step)
-        if all(any(_matches(p, columns) for p in pats) for pats in quantities):
-            return name
+        for lay in other.layouts:
+            quantities = (lay.time, lay.current, lay.voltage, lay.step)
+            if all(any(_matches(p, columns) for p in pats) for pats in quantities):
+                return name
     return ""
 
 
@@ -246,9 +309,35 @@ def _pyprobe(module: str):
             ) from None
 
 
+_READERS: dict = {}
+
+
 def _reader(cycler: Cycler):
-    module, cls = cycler.reader.split(":")
-    return getattr(_pyprobe(module), cls)
+    """PyProBE's reader class of a cycler, extended to read a workbook's data sheet: Arbin's
+    MITS Pro writes ``Global_Info`` first and the rows in ``Channel_<n>-<m>`` sheets, while
+    PyProBE reads the first sheet of an .xlsx (and, in 2.6.1, cannot finish reading one)."""
+    module, name = cycler.reader.split(":")
+    base = getattr(_pyprobe(module), name)
+    if base not in _READERS:
+
+        def read_file(filepath, header_row_index: int = 0):
+            if not str(filepath).lower().endswith(".xlsx"):
+                return base.read_file(filepath, header_row_index)
+            import fastexcel
+            import polars as pl
+
+            sheets = fastexcel.read_excel(str(filepath)).sheet_names
+            data = next((n for n in sheets if n.lower().startswith("channel")), sheets[0])
+            # numbers as numbers (PyProBE reads every cell as text, which keeps 9 digits: a
+            # counter then loses 1e-10 Ah, 0.16 mA over a 10-ms interval), the types inferred
+            # from every row; lazy, as PyProBE's CSV path (its own .xlsx path, in 2.6.1, returns
+            # a DataFrame that its reader then fails to .collect())
+            return pl.read_excel(filepath, sheet_name=data, engine="calamine",
+                                 infer_schema_length=None,
+                                 read_options={"header_row": header_row_index}).lazy()  # fmt: skip
+
+        _READERS[base] = type(name, (base,), {"read_file": staticmethod(read_file)})
+    return _READERS[base]
 
 
 def _first_line(exc: BaseException) -> str:
@@ -282,7 +371,7 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
         raise DataError(f"{path}: no such file")
     if path.suffix.lower() not in cycler.extensions:
         raise DataError(
-            f"{path}: a {cycler.label} export is {' or '.join(cycler.extensions)}, "
+            f"{path}: {cycler.article} {cycler.label} export is {' or '.join(cycler.extensions)}, "
             f"not {path.suffix or 'without extension'!r}"
         )
     cls = _reader(cycler)
@@ -291,25 +380,26 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
             columns = [str(c) for c in cls.read_file(str(path)).collect_schema().names()]
         except Exception as exc:  # any reader failure is a file that is not this cycler's
             raise DataError(
-                f"{path}: not readable as a {cycler.label} export ({_first_line(exc)})"
+                f"{path}: not readable as {cycler.article} {cycler.label} export "
+                f"({_first_line(exc)})"
             ) from None
+    layout = _layout(path, cycler, columns)
     used = {
-        "time": _find(path, cycler, "time", cycler.time, columns),
-        "current": _find(path, cycler, "current", cycler.current, columns),
-        "voltage": _find(path, cycler, "voltage", cycler.voltage, columns),
-        "step": _find(path, cycler, "step", cycler.step, columns),
-        "temperature": _find(path, cycler, "temperature", cycler.temperature, columns, False),
+        "time": _find(path, "time", layout.time, columns),
+        "current": _find(path, "current", layout.current, columns),
+        "voltage": _find(path, "voltage", layout.voltage, columns),
+        "step": _find(path, "step", layout.step, columns),
+        "temperature": _find(path, "temperature", layout.temperature, columns, False),
     }
     counters = None
-    for option in cycler.counters:
-        found = [
-            _find(path, cycler, "charge counter", (p,), columns, False) for p in option.columns
-        ]
+    for option in layout.counters:
+        found = [_find(path, "charge counter", (p,), columns, False) for p in option.columns]
         if all(found):
             counters = (option, found)
             break
-    mode = _find(path, cycler, "mode", cycler.mode, columns, False) if cycler.mode else None
-    frame = _import(path, cycler, cls, used, counters, mode)
+    mode = _find(path, "mode", layout.mode, columns, False) if layout.mode else None
+    own = layout is cycler.layouts[0]  # PyProBE maps its own layout; the others we add
+    frame = _import(path, cls, used, counters, mode, own)
     arrays = {
         "time": frame["time"],
         "step": frame["step"],
@@ -319,6 +409,7 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
     if "temperature" in frame:
         arrays["temperature"] = frame["temperature"]
     info = {q: {"column": c[0], "unit": c[1]} for q, c in used.items() if c is not None}
+    info["layout"] = layout.name
     if mode is not None:
         arrays["current"], info["current"]["signed_by"] = _signed(path, frame, used, mode[0])
     if counters is not None:
@@ -326,7 +417,7 @@ def read_columns(path: str | Path, cycler_name: str) -> tuple[dict[str, np.ndarr
         arrays["counters"] = [frame[f"counter{j}"] for j in range(len(found))]
         info["counters"] = {
             "kind": option.kind,
-            "columns": [{"column": c, "unit": u} for c, u in found],
+            "columns": [{"column": c, "unit": u} for c, u, _ in found],
         }
     return arrays, info
 
@@ -345,19 +436,32 @@ def _signed(path, frame: dict, used: dict, mode_column: str) -> tuple[np.ndarray
     )
 
 
-def _import(path, cycler: Cycler, cls, used: dict, counters, mode=None) -> dict[str, np.ndarray]:
-    """PyProBE's frame of the export, with the raw counters (and a mode column) added as extra
+def _import(path, cls, used: dict, counters, mode=None, own: bool = True) -> dict[str, np.ndarray]:
+    """PyProBE's frame of the export, with the raw counters (and a mode column, and for a layout
+    PyProBE does not know its time, current, voltage, step and temperature) added as extra
     importers."""
     import polars as pl
 
     column_maps = _pyprobe("pyprobe.cyclers.column_maps")
 
     extra = []
+    if not own:
+        extra += [
+            column_maps.ConvertUnitsMap(name, used[q][2])
+            for q, name in (
+                ("time", "Time [s]"),
+                ("current", "Current [A]"),
+                ("voltage", "Voltage [V]"),
+            )
+        ]
+        extra.append(column_maps.CastAndRenameMap("Step", used["step"][0], pl.UInt64))
+        if used["temperature"] is not None:
+            extra.append(column_maps.ConvertTemperatureMap(used["temperature"][2]))
     if mode is not None:
         extra.append(column_maps.CastAndRenameMap("mode", mode[0], pl.Utf8))
     if counters is not None:
-        option, found = counters
-        for j, ((column, unit), pattern) in enumerate(zip(found, option.columns, strict=True)):
+        _, found = counters
+        for j, (column, unit, pattern) in enumerate(found):
             if unit:
                 extra.append(column_maps.ConvertUnitsMap(f"counter{j}", pattern))
             else:  # Maccor: no unit in the header; its exports are in Ah
@@ -511,9 +615,6 @@ def convert(
 ) -> tuple[pd.DataFrame, dict]:
     """The canonical record of a raw export (time_s, current_a discharge-positive, voltage_v
     [, temperature_c]) and its sidecar dict. One-line DataError/UserError on bad input."""
-    from ..gap.diagnose import STEP_FRACTION, check_scale, step_resistance_of
-    from ..model.ecm import REST_FRACTION
-
     if current_from not in CURRENT_FROM:
         raise UserError(f"--current-from must be one of {', '.join(CURRENT_FROM)}")
     if rest_dt is not None and not (np.isfinite(rest_dt) and rest_dt > 0):
@@ -559,7 +660,7 @@ def convert(
         ev = events[idx]
         load = np.zeros(int(ev[-1]) + 1, dtype=bool)
         inside = ev[:-1] == ev[1:]  # an interval into the next step carries that step's current
-        busy = np.abs(interval) > REST_FRACTION * max(i99, 1e-12)
+        busy = np.abs(interval) > records.REST_FRACTION * max(i99, 1e-12)
         np.logical_or.at(load, ev[:-1][inside], busy[inside])
         present = np.zeros_like(load)
         present[ev] = True
@@ -578,32 +679,36 @@ def convert(
     sign_agreement, agreement = None, None
     if have_counters:
         sign_agreement, agreement = _agreement(
-            path, q, t, i_ch, step, unique & keep_steps, columns, STEP_FRACTION
+            path, q, t, i_ch, step, unique & keep_steps, columns, records.STEP_FRACTION
         )
 
-    # the scale of one cell, the diagnosis's own limits, named by the raw columns
-    check_scale(out["current_a"], out["voltage_v"], str(path), current_column=name["current"],
-                voltage_column=name["voltage"])  # fmt: skip
+    # the scale of one cell, the records layer's limits, named by the raw columns
+    records.check_scale(out, str(path), names={"time_s": name["time"], "current_a": name["current"],
+                                               "voltage_v": name["voltage"]})  # fmt: skip
 
-    # the sign, from the voltage's response at current steps of the channel: its reading is
-    # the current at the voltage's instant (interval means of a coarse or stalled counter
-    # step where the voltage does not)
-    r, n = step_resistance_of(out.assign(current_a=-i_ch[idx]))
-    if n and not r > 0:
+    # the sign, from the voltage's answer to the channel: its reading is the current at the
+    # voltage's instant (the interval means of a coarse or stalled counter are checked again
+    # when the written record is read)
+    ev = records.sign_evidence(out["time_s"], -i_ch[idx], out["voltage_v"])
+    if ev.contradicts:
         raise DataError(
             f"{path}: column {name['current']!r}: the voltage falls when the {cycler.label} "
-            f"current rises (median step dV/dI {1e3 * r:.1f} mOhm over {n} steps): the export "
-            f"is not {CONVENTION} as {cycler.label} writes it"
+            f"current rises (negated to discharge positive: {ev.describe()}): "
+            f"the export is not {CONVENTION} as {cycler.label} writes it"
         )
 
     notes = []
+    if ev.verdict == records.CANNOT_TELL:
+        notes.append(f"{path}: column {name['current']!r}: the voltage does not tell the "
+                     f"current's sign ({ev.describe()}); {cycler.label}'s {CONVENTION} "
+                     "convention is taken as it is")  # fmt: skip
     if use_counters and agreement and "rms_difference_steady_a" in agreement:
         rms, scale = agreement["rms_difference_steady_a"], agreement["current_scale_a"]
-        if rms > REST_FRACTION * scale:
+        if rms > records.REST_FRACTION * scale:
             q_ah = ", ".join(f"{x:.3g}" for x in counter_info["resolution_ah"])
             notes.append(
                 f"{path}: the charge counters and column {name['current']!r} differ by "
-                f"{rms:.3g} A RMS on steady intervals, over {REST_FRACTION:.0%} of the "
+                f"{rms:.3g} A RMS on steady intervals, over {records.REST_FRACTION:.0%} of the "
                 f"99th-percentile |I| (the line between rest and load); the counters step by "
                 f"{q_ah} Ah. Export them with more digits, or use --current-from channel"
             )
@@ -621,11 +726,7 @@ def convert(
         "sign": {
             "cycler_convention": CONVENTION,
             "output": "discharge-positive",
-            "voltage_check": {
-                "median_step_resistance_ohm": r if n else None,
-                "steps": n,
-                "confirmed": bool(n and r > 0),
-            },
+            "voltage_check": {**ev.as_dict(), "confirmed": ev.verdict == records.SIGNS[0]},
             "counters_vs_channel": sign_agreement,
         },
         "current": {
@@ -735,23 +836,3 @@ def write(frame: pd.DataFrame, info: dict, out: str | Path) -> Path:
         frame.to_csv(csv_tmp, index=False)
         js_tmp.write_text(json.dumps(info, indent=1, allow_nan=False) + "\n")
     return side
-
-
-def is_canonical(path: str | Path) -> bool:
-    """True if the file's first line holds the canonical columns (or an OCV table's)."""
-    try:
-        with open(path, encoding="utf-8", errors="replace") as f:
-            header = {c.strip() for c in f.readline().split(",")}
-    except OSError:
-        return True  # let the canonical reader name the problem
-    return {"time_s", "current_a", "voltage_v"} <= header or {"soc", "ocv_v"} <= header
-
-
-def read_any(path: str | Path, cycler_name: str | None) -> tuple[pd.DataFrame | None, dict | None]:
-    """A raw export's record when a cycler is named and the file is not canonical; else None."""
-    if cycler_name is None or is_canonical(path):
-        return None, None
-    frame, info = convert(path, cycler_name)
-    for note in info["warnings"]:
-        print(f"warning: {note}", file=sys.stderr)
-    return frame, info

@@ -50,12 +50,14 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
     it with the table's capacity, how it was made and its source."""
     import pandas as pd
 
+    from .. import records
     from ..io import atomic_path, write_json
     from ..model import ocv as ocv_mod
     from . import canonical
 
     frame, side = canonical.read(canonical_csv)
-    table = ocv_mod.from_slow_test(frame, str(canonical_csv))
+    table = ocv_mod.from_slow_test(records.check(frame, str(canonical_csv)).frame,
+                                   str(canonical_csv))  # fmt: skip
     with atomic_path(out_csv) as tmp:
         pd.DataFrame({"soc": table.grid(), "ocv_v": table.values}).to_csv(tmp, index=False)
     meta = {"capacity_ah": table.capacity_ah, "how": table.how, "source": table.source,
@@ -66,14 +68,14 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
 
 def read_ocv(ocv_csv):
     """The C/20 table written by :func:`panasonic_ocv`, read back as an ``ecm.OcvTable``
-    (``model.ocv.read``) with its capacity, how and source from the JSON beside it."""
+    (``inputs.read_ocv``) with its capacity, how and source from the JSON beside it."""
     import dataclasses
     import json
 
     from ..errors import DataError
-    from ..model import ocv as ocv_mod
+    from ..inputs import read_ocv as read_table
 
-    table = ocv_mod.read(ocv_csv)
+    table = read_table(ocv_csv)
     meta_path = Path(ocv_csv).with_suffix(".json")
     try:
         meta = json.loads(meta_path.read_text())
@@ -124,15 +126,13 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
     ``out_dir``/diagnosis.json and model.json, as ``python -m avoa_pipeline diagnose`` writes
     them (its figure left out; docs/real-data.md says why)."""
+    from .. import inputs
     from ..gap import diagnose
     from ..io import write_json
-    from ..model import ocv as ocv_mod
 
-    frames = [diagnose.read_record(p) for p in train_csvs]
-    table = ocv_mod.read(ocv) if ocv else None
-    validate = {str(p): diagnose.read_record(p, min_samples=2) for p in tests.values()}
-    report, _, model = diagnose.run(frames, source=[str(p) for p in train_csvs],
-                                    ocv_table=table, validate=validate)  # fmt: skip
+    read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
+    report, _, model = diagnose.run(read.train, ocv_table=read.ocv, validate=read.validate,
+                                    warnings=read.warnings)  # fmt: skip
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")

@@ -19,7 +19,7 @@ own capacity figure, so a discharge is one slice of the record.
 
 Checks, each a one-line DataError naming the file and field: every source's sha256; columns,
 numbers, finite values and strictly increasing time per record; the current sign against the
-voltage at the load steps (:func:`.samsung.check_current_sign`); the index row k against
+voltage at the load steps (``records.require_sign``); the index row k against
 ``dis_k`` (capacity, record length); discharge k ending before k+1 starts; k = 1..K without gaps.
 """
 
@@ -33,10 +33,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import records
 from ..errors import ConfigError, DataError
 from ..io import read_csv
 from . import canonical
-from .samsung import check_current_sign, data_root, read_numeric_csv
+from .samsung import data_root, read_numeric_csv
 
 SOURCE_COLUMNS = ("voltage", "current", "temperature", "time")
 INDEX_COLUMNS = ("cycle", "amb_temp", "date_time", "time", "capacity")
@@ -153,14 +154,10 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
             }
         )
         # the record's own checks first, so a message names the discharge file, not the merge
-        frame = canonical.validate(frame, str(path), first_row=2)
-        check_current_sign(
-            frame["current_a"].to_numpy(),
-            frame["voltage_v"].to_numpy(),
-            str(path),
-            "current",
-            "negative = discharge (PROVENANCE.md)",
-        )
+        frame = records.validate(frame, str(path), required=records.COLUMNS)
+        records.require_sign(frame["time_s"], frame["current_a"], frame["voltage_v"],
+                             str(path), "column 'current'",
+                             "negative = discharge (PROVENANCE.md)")  # fmt: skip
         if frame["time_s"].iloc[0] <= prev_end:
             raise DataError(
                 f"{index_path}: row {k + 1} field 'date_time': discharge {k} starts before "

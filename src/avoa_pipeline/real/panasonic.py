@@ -4,9 +4,9 @@ What the source needs before it is a canonical record:
 
 - **MATLAB v5 files** with a struct ``meas`` (read with :func:`scipy.io.loadmat`).
 - **Sign**: the tester writes discharge as negative current. Each file's sign is checked against
-  the voltage's response before it is flipped: across every current step the terminal voltage must
-  move with the source current (charging raises it), so the median of ΔV/ΔI over steps must be
-  positive. A file where it is not raises a DataError instead of being silently flipped.
+  the voltage's answer before it is flipped (``records.require_sign``, the package's one sign
+  check): the terminal voltage must move with the source current (charging raises it). A file
+  whose voltage says otherwise raises a DataError instead of being silently flipped.
 - **Repeated rows**: the logger writes some instants twice (step boundaries); the later row of
   each repeated ``Time`` is kept. ``Time`` going backwards is an error.
 - **HPPC pulses and SOC steps in two files**: the pulse file holds the pulses and their rests, the
@@ -48,7 +48,7 @@ import scipy.io
 from scipy.interpolate import PPoly, make_interp_spline
 
 from ..errors import ConfigError, DataError
-from ..io import step_resistance
+from ..records import require_sign
 from . import canonical
 
 FIELDS = ("TimeStamp", "Time", "Current", "Voltage", "Ah", "Battery_Temp_degC")
@@ -66,7 +66,6 @@ class Settings:
     block_gap_s: float = 600.0  # a logging gap this long separates blocks of a file (HPPC merge)
     max_leading_rest_s: float = 600.0
     keep_rest_s: float = 60.0
-    min_step_a: float = 0.1  # current steps used for the sign check
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -144,28 +143,12 @@ def wall_clock(df: pd.DataFrame, path) -> np.ndarray:
 # --- sign -----------------------------------------------------------------------------------
 
 
-SIGN_MAX_DT_S = 600.0
-"""Sign-check steps may span a logging interval of up to 10 min: the SOC-step files log every
-60-300 s, and from rest into a discharge both the ohmic drop and the falling OCV lower the
-voltage, into a charge both raise it."""
-
-
-def check_sign(df: pd.DataFrame, path, min_step_a: float = 0.1) -> dict:
-    """Check that the source's current is negative = discharge; DataError if the voltage says no."""
-    # the source writes discharge as negative: its negation is in the pipeline's sign
-    r, n = step_resistance(df["Time"], -df["Current"], df["Voltage"], min_step_a, SIGN_MAX_DT_S)
-    if n == 0:
-        raise DataError(
-            f"{path}: field 'meas.Current': no step of {min_step_a} A or more to check its sign "
-            "against the voltage"
-        )
-    if not r > 0:
-        raise DataError(
-            f"{path}: field 'meas.Current': sign contradicts the voltage response (median "
-            f"dV/dI over {n} steps is {r * 1000:.1f} mOhm; the source writes discharge as "
-            "negative, so voltage must rise with current)"
-        )
-    return {"median_step_dv_di_ohm": r, "n_steps": n}
+def check_sign(df: pd.DataFrame, path) -> dict:
+    """The source's current (negative = discharge) against the voltage (``records.require_sign``
+    of its negation); DataError if the voltage says otherwise. Returns the evidence."""
+    ev = require_sign(df["Time"], -df["Current"], df["Voltage"], str(path),
+                      "field 'meas.Current'", "negative = discharge")  # fmt: skip
+    return ev.as_dict()
 
 
 # --- merging ----------------------------------------------------------------------------------
@@ -356,7 +339,7 @@ def import_record(
     for key, path in zip(keys, paths, strict=True):
         df = read_mat(path)
         repeated += df.attrs["repeated_rows_dropped"]
-        signs[key] = check_sign(df, path, settings.min_step_a)
+        signs[key] = check_sign(df, path)
         frames.append((df, path))
     if len(frames) == 1:
         df = frames[0][0]

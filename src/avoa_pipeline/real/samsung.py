@@ -5,7 +5,7 @@ Source CSV (PROVENANCE.md of ``samsung_30q_hppc``): columns ``current`` [A, nega
 column**. The sampling is uniform at 1 s (the programmed step lengths come out as whole numbers of
 rows), so ``time_s`` is the row index times ``sample_s`` and the sidecar says so. The current is
 negated (canonical: positive = discharge) and the result is checked against the voltage: where the
-discharge current steps up the voltage must step down (:func:`check_current_sign`), otherwise the
+discharge current steps up the voltage must step down (``records.require_sign``), otherwise the
 declared sign contradicts the data and the import stops. The ``soc`` column is not carried over
 (the canonical form has no SOC); the reference capacity it implies is measured and written to the
 sidecar (≈ 2.85 Ah rather than the nominal 3.0 Ah).
@@ -18,16 +18,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import records
 from ..config import REPO_ROOT
 from ..errors import ConfigError, DataError
-from ..io import read_csv, step_resistance
+from ..io import read_csv
 from . import canonical
 
 SOURCE_COLUMNS = ("current", "voltage", "temperature", "soc")
-
-SIGN_STEP_FRACTION = 0.5
-"""A current step counts for the sign check when it exceeds this fraction of the record's largest
-absolute current: the pulse edges, not sensor noise."""
 
 
 def read_numeric_csv(path: str | Path, columns) -> pd.DataFrame:
@@ -48,29 +45,6 @@ def read_numeric_csv(path: str | Path, columns) -> pd.DataFrame:
     if len(raw) < 2:
         raise DataError(f"{path}: {len(raw)} rows; need at least 2")
     return pd.DataFrame(out)
-
-
-def check_current_sign(
-    current_a: np.ndarray, voltage_v: np.ndarray, source: str, column: str, declared: str
-) -> float:
-    """Median of −ΔV/ΔI over the large current steps; DataError unless it is positive.
-
-    ``current_a`` is already in the canonical sign (positive = discharge): a step up in discharge
-    current must pull the terminal voltage down, so −ΔV/ΔI is a positive resistance. ``column``
-    and ``declared`` (the source's documented convention) only shape the message.
-    """
-    i_max = float(np.max(np.abs(current_a))) if len(current_a) else 0.0
-    r, n = step_resistance(np.arange(len(current_a)), current_a, voltage_v,
-                           SIGN_STEP_FRACTION * i_max)  # fmt: skip
-    if n == 0:
-        raise DataError(f"{source}: column {column!r}: no current step to check its sign against")
-    if not r > 0:
-        raise DataError(
-            f"{source}: column {column!r}: sign contradicts the voltage response (the voltage "
-            f"rises when the discharge current rises; median step -dV/dI = {r * 1e3:.1f} mOhm over "
-            f"{n} steps); expected {declared}"
-        )
-    return r
 
 
 SOC_CAPACITY_TOLERANCE = 0.25
@@ -104,14 +78,9 @@ def to_canonical(raw: pd.DataFrame, source: str, sample_s: float = 1.0) -> pd.Da
             "temperature_c": raw["temperature"].to_numpy(dtype=float),
         }
     )
-    frame = canonical.validate(frame, source, first_row=2)
-    check_current_sign(
-        frame["current_a"].to_numpy(),
-        frame["voltage_v"].to_numpy(),
-        source,
-        "current",
-        "negative = discharge (PROVENANCE.md)",
-    )
+    frame = records.validate(frame, source, required=records.COLUMNS)
+    records.require_sign(frame["time_s"], frame["current_a"], frame["voltage_v"], source,
+                         "column 'current'", "negative = discharge (PROVENANCE.md)")  # fmt: skip
     return frame
 
 

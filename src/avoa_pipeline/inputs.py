@@ -1,0 +1,222 @@
+"""The input layer: every file a command reads becomes a checked record (or an OCV) here, once.
+
+A path is a canonical CSV (``time_s, current_a, voltage_v[, temperature_c]``), or, with a cycler
+named, that cycler's raw export (``real.cycler``, read through PyProBE). Either way its frame goes
+through the records layer's one validator, scale check and sign check (``records.py``) and comes
+out as a :class:`~avoa_pipeline.records.Checked` record in the pipeline's sign. The commands
+(``convert``, ``diagnose`` with ``--ocv`` and ``--validate``, ``simulate``) read through here,
+check their output paths (``io.check_output``) and only then compute; the diagnosis takes checked
+records and checks none again.
+
+What this layer adds to one record's checks is what only the set of inputs shows:
+
+- the declared ``--current-sign`` applies to every canonical file of a command (training,
+  ``--validate``, a slow test given as ``--ocv``); where the voltage of some files contradicts
+  it, the message says whether the flag (all files contradicted) or the file (only some) is to
+  be changed, so it never advises a flag under which another file would fail;
+- the same file given twice (by path or by content) is refused.
+
+Layers (docs/inputs.md draws them): ``errors``, ``names``, ``io`` < ``records`` < ``real.cycler``
+and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports anything above.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import pandas as pd
+
+from . import records
+from .errors import DataError, UserError
+from .io import read_csv, sha256
+from .names import CURRENT_SIGNS
+
+TABLE_COLUMNS = ("soc", "ocv_v")
+
+
+def is_canonical(path: str | Path) -> bool:
+    """True if the file's first line holds the canonical columns (or an OCV table's)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            header = {c.strip() for c in f.readline().split(",")}
+    except OSError:
+        return True  # let the canonical reader name the problem
+    return set(records.REQUIRED) <= header or set(TABLE_COLUMNS) <= header
+
+
+@dataclass(frozen=True)
+class Read:
+    """A file read but not yet judged for its sign (the set of files decides the advice)."""
+
+    path: Path
+    frame: pd.DataFrame  # validated, in the declared sign
+    evidence: records.SignEvidence
+    canonical: bool
+    warnings: tuple[str, ...] = ()
+    origin: dict | None = None
+
+
+def _read(path, cycler: str | None, current_sign: str) -> Read:
+    if current_sign not in CURRENT_SIGNS:
+        raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
+    path = Path(path)
+    if cycler is not None and not is_canonical(path):
+        from .real import cycler as cyc
+
+        frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
+        ev = records.SignEvidence(**_evidence_fields(info["sign"]["voltage_check"]))
+        origin = {"read_as": f"{cycler} export", "conversion": info}
+        return Read(path, frame, ev, False, tuple(info["warnings"]), origin)
+    raw = read_csv(path)
+    frame = records.validate(raw, str(path))
+    if current_sign == CURRENT_SIGNS[1]:
+        frame = frame.assign(current_a=-frame["current_a"])
+    records.check_scale(frame, str(path))
+    side = path.with_suffix(".json")
+    origin = {"read_as": "canonical CSV", "current_sign": current_sign}
+    if side.is_file():
+        origin["sidecar"] = str(side)
+    return Read(path, frame, records.frame_sign(frame), True, (), origin)
+
+
+def _evidence_fields(d: dict) -> dict:
+    return {
+        "verdict": d["verdict"],
+        "z": d["z"],
+        "steps": d["steps"],
+        "events": d["events"],
+        "agreeing": d["agreeing_share"],
+        "resistance_ohm": d["step_resistance_ohm"],
+        "noise_v": 1e-3 * d["noise_mv"],
+    }
+
+
+def _judge(reads: list[Read], current_sign: str) -> list[records.Checked]:
+    """The sign verdicts of a command's files, judged together (module docstring)."""
+    canonical = [r for r in reads if r.canonical]
+    wrong = [r for r in canonical if r.evidence.contradicts]
+    if wrong:
+        r = wrong[0]
+        other = CURRENT_SIGNS[1 - CURRENT_SIGNS.index(current_sign)]
+        if len(wrong) == len(canonical):
+            advice = f"rerun with --current-sign {other}"
+        else:
+            fine = next(x for x in canonical if not x.evidence.contradicts)
+            advice = (
+                f"{fine.path} is {current_sign} as declared, and --current-sign applies to "
+                "every file: negate this file's current_a"
+            )
+        raise DataError(
+            records.sign_contradiction(str(r.path), "column 'current_a'", current_sign, r.evidence)
+            + f"; {advice}"
+        )
+    out = []
+    for r in reads:
+        notes = list(r.warnings)
+        if r.canonical and r.evidence.verdict == records.CANNOT_TELL:
+            notes.append(records.sign_unclear(str(r.path), "column 'current_a'", r.evidence))
+        out.append(records.Checked(r.frame, str(r.path), r.evidence, tuple(notes), r.origin or {}))
+    return out
+
+
+def _no_duplicates(paths) -> None:
+    seen: dict[str, Path] = {}
+    for p in paths:
+        p = Path(p)
+        if not p.is_file():
+            continue  # the reader names a missing file
+        key = sha256(p)
+        if key in seen:
+            same = "the same file" if seen[key].resolve() == p.resolve() else "identical content"
+            raise UserError(
+                f"{p}: {same} as {seen[key]}; each record may be given once "
+                "(training, --validate, --ocv)"
+            )
+        seen[key] = p
+
+
+def read_record(
+    path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]
+) -> records.Checked:
+    """One checked record of a path (a canonical CSV, or ``cycler``'s raw export)."""
+    (checked,) = _judge([_read(path, cycler, current_sign)], current_sign)
+    return checked
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Every input of a diagnosis, checked: training and validation records and the OCV."""
+
+    train: list[records.Checked]
+    validate: list[records.Checked]
+    ocv: object | None  # model.ecm.OcvTable
+    warnings: tuple[str, ...]
+
+    def paths(self) -> list[str]:
+        return [r.source for r in (*self.train, *self.validate)]
+
+
+def read_inputs(
+    train, validate=(), ocv=None, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]
+) -> Inputs:
+    """The diagnosis's inputs, each read and checked once, judged together (module docstring).
+    ``ocv``: a table ``soc, ocv_v``, or a slow test (canonical or raw, as the records)."""
+    _no_duplicates([*train, *validate, *([ocv] if ocv else [])])
+    reads = [_read(p, cycler, current_sign) for p in (*train, *validate)]
+    table, ocv_read = None, None
+    if ocv is not None:
+        table, ocv_read = _read_ocv(ocv, cycler, current_sign)
+    checked = _judge(reads + ([ocv_read] if ocv_read else []), current_sign)
+    n_train = len(train)
+    notes = [w for c in checked for w in c.warnings]
+    if ocv_read is not None:
+        from .model import ocv as ocv_mod
+
+        table = ocv_mod.from_slow_test(checked[-1].frame, str(ocv))
+        checked = checked[:-1]
+    if table is not None:
+        notes += list(table.notes)
+    return Inputs(checked[:n_train], checked[n_train:], table, tuple(notes))
+
+
+def _read_ocv(path, cycler, current_sign):
+    """(an OCV table, None) for a table, (None, the slow test's Read) for a slow test."""
+    from .model import ocv as ocv_mod
+
+    path = Path(path)
+    if cycler is None or is_canonical(path):
+        raw = read_csv(path)
+        if set(TABLE_COLUMNS) <= set(raw.columns):
+            frame = raw[list(TABLE_COLUMNS)]
+            for col in TABLE_COLUMNS:
+                values = pd.to_numeric(frame[col], errors="coerce")
+                if values.isna().any():
+                    row = int(values.isna().to_numpy().argmax())
+                    raise DataError(f"{path}: column {col!r} row {row + 2}: not a number")
+            return ocv_mod.from_table(frame.apply(pd.to_numeric), str(path)), None
+        if not set(records.REQUIRED) <= set(raw.columns):
+            raise DataError(
+                f"{path}: need columns 'soc', 'ocv_v' (an OCV table) or 'time_s', "
+                "'current_a', 'voltage_v' (a slow test)"
+            )
+    return None, _read(path, cycler, current_sign)
+
+
+def read_ocv(path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]):
+    """``--ocv`` alone: an OCV table of a table or a slow test (its record checked)."""
+    table, read = _read_ocv(path, cycler, current_sign)
+    if table is not None:
+        return table
+    from .model import ocv as ocv_mod
+
+    (checked,) = _judge([read], current_sign)
+    table = ocv_mod.from_slow_test(checked.frame, str(path))
+    return replace(table, notes=(*checked.warnings, *table.notes))
+
+
+def warn(notes) -> None:
+    """Warnings on stderr, one line each."""
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)

@@ -1,0 +1,507 @@
+"""Measured records of one cell, and every check of one, each defined once.
+
+A *record* is one cell's time series in the canonical columns: ``time_s`` (s, strictly
+increasing), ``current_a`` (A, positive = discharge; row k's value is the current over
+[t_k, t_k+1), the zero-order hold of the model library), ``voltage_v`` (V, the terminal voltage
+at t_k) and optionally ``temperature_c`` (°C). Every reader hands its frame to this module: the
+canonical CSVs and raw cycler exports of the input layer (``inputs.py``), the real-data
+importers (Panasonic, Samsung, NASA) and the synthetic generators. It is the bottom of the
+package for records: it imports no model code, and the model library takes its rest line from
+here.
+
+What is defined here, once:
+
+- :data:`COLUMNS`, :func:`validate` (columns present, numbers, finite, time strictly increasing);
+- :func:`current_scale` (the 99th-percentile |I|) and the fractions of it that make a rest
+  (:data:`REST_FRACTION`) and a current step (:data:`STEP_FRACTION`);
+- :func:`check_scale`: the units of time, current and voltage, and a capacity against a record
+  (:func:`check_capacity`), each with the physical reason beside its limit;
+- :func:`sign_evidence`: the current's sign read from the voltage, on all the evidence a record
+  holds, with "cannot tell" where it is weak (docs/inputs.md, "The sign check").
+
+Why hand-written: the checks are physics of a cell (how its voltage answers a current step),
+which no record library states; the column conventions follow PyProBE's and pandas'.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .errors import DataError, UserError
+
+COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
+REQUIRED = COLUMNS[:3]
+
+REST_FRACTION = 0.02
+"""At rest: |I| at most this fraction of the record's 99th-percentile |I| (a logger's offset and a
+cycler's trickle are far below it; any load pulse is far above)."""
+STEP_FRACTION = 0.1
+"""A current step: a change of |ΔI| above this fraction of the 99th-percentile |I| (the pulse
+edges and load changes of a test, not the ripple of a controlled current)."""
+
+MAX_CURRENT_A = 100.0
+"""|I| (99th percentile) above this is taken for milliamperes: the pipeline models single cells."""
+MAX_C_RATE = 50.0
+"""With a known capacity, a 99th-percentile current above 50 C is taken for milliamperes (no
+lithium-ion cell is tested above that)."""
+MIN_C_RATE = 0.01
+"""No cell test runs its largest currents below C/100 (a slow OCV test runs at C/20-C/50): a cell
+therefore holds at most 1/MIN_C_RATE = 100 hours of a record's 99th-percentile current. A record
+that moves more charge than that in one stretch has its time in milliseconds; a capacity larger
+than that is in mAh."""
+CAPACITY_MARGIN = 1.1
+"""A record never moves more charge between its fullest and its emptiest instant than the cell
+holds; 10 % covers the counting drift of a cycler over a test and a capacity stated at another
+age or temperature."""
+VOLTAGE_RANGE_V = (0.5, 6.0)
+"""Cell voltages outside this are taken for a wrong unit (mV) or a pack."""
+MIN_TIME_STEP_S = 1e-3
+"""Cyclers and BMS loggers sample at 1 kHz at most: a median step below 1 ms means the time is
+not in seconds (1-s logging written in hours gives 0.28 ms)."""
+MAX_GAP_S = 3600.0
+GAP_STEPS = 100
+"""A logging gap longer than an hour, and than 100 of the record's median steps, hides what the
+cell did (a charge not exported, a test paused): charge is counted within the stretches between
+such gaps only. (The second condition keeps a record whose time is in ms from being all gaps.)"""
+
+OCV_SLOPE_MAX = 5.0
+"""The steepest mean slope of a lithium-ion OCV between two rests, in V per unit SOC (the ends of
+the range; 0.5-1.5 in the middle, 0.01 on an LFP plateau). Rested voltages that change faster with
+the charge counted between them mean a capacity so small that the records' current would exceed
+MAX_C_RATE: the time is not in seconds."""
+
+LOAD_SPAN_S = 60.0
+"""Sign check: the voltage change across a current step is taken over the two logging intervals
+around it; where one of them is under load, it may last at most 60 s. Over a load interval the OCV
+drifts by (dOCV/dSOC)·I·Δt/(3600·Q), and with dOCV/dSOC ≤ 1.5 V and R0·Q ≥ 0.07 Ω·Ah for
+lithium-ion cells the drift stays below a third of the ohmic step R0·ΔI for Δt ≤ 60 s. Rest
+intervals may be any length: relaxation moves the voltage the same way as the step."""
+SIGN_CLIP = 3.0
+"""Sign check: each item's voltage change counts in units of the voltage noise, clipped at ±3: a
+change beyond three noise units is a response, not noise, and no single row (a glitch, a row
+logged late) weighs more than three."""
+SIGN_Z = 3.29
+"""Sign check: a sign is declared when the evidence's z is beyond ±3.29, the two-sided 0.1 %
+point of a normal: chance alone would give so one-sided a pattern in one record of a thousand."""
+VOLTAGE_RESOLUTION_V = 1e-4
+"""The floor of the noise estimate: one step of a lab cycler's voltage channel (0.1 mV)."""
+
+SIGNS = ("discharge-positive", "charge-positive")
+CANNOT_TELL = "cannot tell"
+
+
+# ----------------------------------------------------------------------------------------------
+# columns
+
+
+def validate(
+    frame: pd.DataFrame,
+    source: str,
+    *,
+    first_row: int = 2,
+    min_samples: int = 2,
+    required: tuple[str, ...] = REQUIRED,
+) -> pd.DataFrame:
+    """The record as float columns (:data:`COLUMNS` order, optional ones where present): every
+    ``required`` column present, numbers, finite, at least ``min_samples`` rows, time strictly
+    increasing. ``first_row`` numbers the frame's first sample in messages (2: a CSV line behind
+    its header). One-line DataError naming the source, column and row."""
+    if not isinstance(frame, pd.DataFrame):
+        raise DataError(f"{source}: not a table ({type(frame).__name__})")
+    for col in required:
+        if col not in frame.columns:
+            raise DataError(f"{source}: missing column {col!r} (need {', '.join(required)})")
+    if len(frame) < min_samples:
+        raise DataError(f"{source}: {len(frame)} samples; need at least {min_samples}")
+    out = {}
+    for col in (c for c in COLUMNS if c in frame.columns):
+        raw = frame[col]
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        not_number = np.isnan(values) & raw.notna().to_numpy()
+        if not_number.any():
+            i = int(np.flatnonzero(not_number)[0])
+            raise DataError(
+                f"{source}: column {col!r} row {i + first_row}: not a number ({raw.iloc[i]!r})"
+            )
+        if np.isnan(values).any():
+            i = int(np.flatnonzero(np.isnan(values))[0])
+            raise DataError(f"{source}: column {col!r} row {i + first_row}: missing value (NaN)")
+        if not np.isfinite(values).all():
+            i = int(np.flatnonzero(~np.isfinite(values))[0])
+            raise DataError(f"{source}: column {col!r} row {i + first_row}: not finite")
+        out[col] = values
+    dt = np.diff(out["time_s"])
+    if (dt == 0).any():
+        i = int(np.flatnonzero(dt == 0)[0]) + 1
+        raise DataError(f"{source}: column 'time_s' row {i + first_row}: duplicate time")
+    if (dt < 0).any():
+        i = int(np.flatnonzero(dt < 0)[0]) + 1
+        raise DataError(f"{source}: column 'time_s' row {i + first_row}: time goes backwards")
+    return pd.DataFrame(out)
+
+
+# ----------------------------------------------------------------------------------------------
+# current scale, rests, charge
+
+
+def current_scale(current) -> float:
+    """The record's current scale: its 99th-percentile |I| (A). Rest and step lines are fractions
+    of it; the largest 1 % of samples (a spike, a short pulse) do not set it."""
+    a = np.abs(np.asarray(current, dtype=float))
+    return float(np.quantile(a, 0.99)) if a.size else 0.0
+
+
+def at_rest(current, scale: float | None = None) -> np.ndarray:
+    """Per sample: |I| at most REST_FRACTION of the current scale."""
+    a = np.abs(np.asarray(current, dtype=float))
+    return a <= REST_FRACTION * (current_scale(a) if scale is None else scale)
+
+
+def charge_swing_ah(time_s, current_a) -> float:
+    """The largest charge (Ah) the record moves between its fullest and its emptiest instant,
+    within stretches that no logging gap (MAX_GAP_S, GAP_STEPS) interrupts."""
+    t = np.asarray(time_s, dtype=float)
+    i = np.asarray(current_a, dtype=float)
+    dt = np.diff(t)
+    swing = 0.0
+    gap = max(MAX_GAP_S, GAP_STEPS * float(np.median(dt))) if dt.size else MAX_GAP_S
+    cuts = np.r_[0, np.flatnonzero(dt > gap) + 1, t.size]
+    for a, b in itertools.pairwise(cuts):
+        if b - a < 2:
+            continue
+        q = np.r_[0.0, np.cumsum(i[a : b - 1] * dt[a : b - 1])] / 3600.0
+        swing = max(swing, float(np.ptp(q)))
+    return swing
+
+
+# ----------------------------------------------------------------------------------------------
+# units and scale
+
+
+def check_scale(
+    frame: pd.DataFrame,
+    source: str,
+    capacity_ah: float | None = None,
+    *,
+    names: dict[str, str] | None = None,
+) -> None:
+    """One cell's record in seconds, amperes and volts: DataError naming the column (``names``
+    maps a canonical column to the raw export's own, for messages about a raw file).
+
+    - time: a median step of at least MIN_TIME_STEP_S, and no stretch moving more charge than
+      the cell can hold (CAPACITY_MARGIN × a known capacity, else 1/MIN_C_RATE hours of the
+      record's 99th-percentile current): milliseconds and hours are caught;
+    - current: a 99th-percentile |I| above zero, within MAX_CURRENT_A and, with a known
+      capacity, within MAX_C_RATE;
+    - voltage: within VOLTAGE_RANGE_V.
+    """
+    col = {c: c for c in COLUMNS} | (names or {})
+    t = frame["time_s"].to_numpy(dtype=float)
+    i = frame["current_a"].to_numpy(dtype=float)
+    v = frame["voltage_v"].to_numpy(dtype=float)
+    scale = current_scale(i)
+    if scale > MAX_CURRENT_A:
+        raise DataError(
+            f"{source}: column {col['current_a']!r}: 99th-percentile |I| {scale:g} > "
+            f"{MAX_CURRENT_A:g} A; looks like mA (need A)"
+        )
+    if capacity_ah is not None and scale > MAX_C_RATE * capacity_ah:
+        raise DataError(
+            f"{source}: column {col['current_a']!r}: 99th-percentile |I| {scale:g} A "
+            f"is over {MAX_C_RATE:g} C for {capacity_ah:g} Ah; looks like mA "
+            "(need A)"
+        )
+    if scale <= 0:
+        raise DataError(
+            f"{source}: column {col['current_a']!r}: no current flows; nothing to identify"
+        )
+    lo, hi = VOLTAGE_RANGE_V
+    if v.min() < lo or v.max() > hi:
+        raise DataError(
+            f"{source}: column {col['voltage_v']!r}: values {v.min():g}..{v.max():g} "
+            f"outside {lo:g}..{hi:g} V of one cell (mV given?)"
+        )
+    if t.size > 1:
+        step = float(np.median(np.diff(t)))
+        if step < MIN_TIME_STEP_S:
+            raise DataError(
+                f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
+                f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes "
+                "(need s)?"
+            )
+    _check_rest_slope(t, i, v, scale, source, col["time_s"])
+    swing = charge_swing_ah(t, i)
+    limit = CAPACITY_MARGIN * capacity_ah if capacity_ah is not None else scale / MIN_C_RATE
+    if swing > limit:
+        why = (
+            f"{CAPACITY_MARGIN:g} × the capacity {capacity_ah:g} Ah"
+            if capacity_ah is not None
+            else f"{1 / MIN_C_RATE:g} h of its 99th-percentile current {scale:.3g} A"
+        )
+        raise DataError(
+            f"{source}: column {col['time_s']!r}: the record moves {swing:.4g} Ah in "
+            f"one stretch, more than {why}; is the time in ms (need s)?"
+        )
+
+
+def _check_rest_slope(t, i, v, scale: float, source: str, column: str) -> None:
+    """The time unit from the rests: between consecutive rests (two intervals or more) that the
+    current moved at least 1 % of the record's swing apart, the rested voltage changes by ΔV over
+    the counted charge Δq; their median |ΔV/Δq| (V/Ah) times the capacity is the OCV's slope, at
+    most OCV_SLOPE_MAX, so the capacity is at least slope/OCV_SLOPE_MAX and the current's C-rate
+    at most MAX_C_RATE. Needs three such pairs (a GITT or HPPC test has dozens)."""
+    if t.size < 4:
+        return
+    dt = np.diff(t)
+    q = np.r_[0.0, np.cumsum(i[:-1] * dt)] / 3600.0
+    ends = [b for a, b in runs_of(np.abs(i[:-1]) <= REST_FRACTION * scale) if b - a >= 2]
+    if len(ends) < 4:
+        return
+    qe, ve = q[np.array(ends) - 1], v[np.array(ends) - 1]
+    dq, dv = np.diff(qe), np.diff(ve)
+    moved = np.abs(dq) >= 0.01 * max(float(np.ptp(q)), 1e-12)
+    if moved.sum() < 3:
+        return
+    slope = float(np.median(np.abs(dv[moved] / dq[moved])))
+    if scale * slope / OCV_SLOPE_MAX > MAX_C_RATE:
+        raise DataError(
+            f"{source}: column {column!r}: the rested voltage changes {slope:.3g} V per Ah "
+            f"counted, which makes the current over {MAX_C_RATE:g} C for any cell; is the time "
+            "in hours or minutes (need s)?"
+        )
+
+
+def check_capacity(capacity_ah: float, swing_ah: float, scale_a: float, what: str) -> None:
+    """A capacity (``what`` names where it came from, e.g. ``--capacity-ah``) against the records
+    of the cell: positive; between their 99th-percentile current ÷ MAX_C_RATE and ÷ MIN_C_RATE
+    (a unit slip is a factor of 1000); not below the charge they move (÷ CAPACITY_MARGIN).
+    UserError naming it."""
+    if not (np.isfinite(capacity_ah) and capacity_ah > 0):
+        raise UserError(f"{what} must be a positive number of Ah, got {capacity_ah}")
+    if scale_a > MAX_C_RATE * capacity_ah:
+        raise UserError(
+            f"{what} {capacity_ah:g} Ah makes the records' 99th-percentile current "
+            f"{scale_a:.3g} A over {MAX_C_RATE:g} C; is the current in mA (need A)?"
+        )
+    if scale_a < MIN_C_RATE * capacity_ah:
+        raise UserError(
+            f"{what} {capacity_ah:g} Ah makes the records' 99th-percentile current "
+            f"{scale_a:.3g} A slower than C/{1 / MIN_C_RATE:g}; is the capacity in mAh "
+            "(need Ah)?"
+        )
+    if swing_ah > CAPACITY_MARGIN * capacity_ah:
+        raise UserError(
+            f"{what} {capacity_ah:g} Ah is below the {swing_ah:.4g} Ah the records "
+            "move between their fullest and emptiest instant"
+        )
+
+
+# ----------------------------------------------------------------------------------------------
+# the sign
+
+
+@dataclass(frozen=True)
+class SignEvidence:
+    """What a record's voltage says of its current's sign.
+
+    ``verdict`` is for the current as given: ``discharge-positive`` (the pipeline's sign),
+    ``charge-positive`` or ``cannot tell``. ``z`` > 0 leans to discharge-positive.
+    """
+
+    verdict: str
+    z: float
+    steps: int  # current changes between neighbouring intervals that carry evidence
+    events: int  # rest → load and load → rest transitions
+    agreeing: float | None  # share of the decisive items (beyond SIGN_CLIP) that say discharge
+    resistance_ohm: float | None  # least-squares −ΔV/ΔI over the steps (apparent, for reports)
+    noise_v: float
+
+    @property
+    def contradicts(self) -> bool:
+        return self.verdict == SIGNS[1]
+
+    def as_dict(self) -> dict:
+        return {
+            "verdict": self.verdict,
+            "z": self.z,
+            "steps": self.steps,
+            "events": self.events,
+            "agreeing_share": self.agreeing,
+            "step_resistance_ohm": self.resistance_ohm,
+            "noise_mv": 1e3 * self.noise_v,
+        }
+
+    def describe(self) -> str:
+        """One clause for messages: the evidence in numbers."""
+        share = "" if self.agreeing is None else f", {self.agreeing:.0%} of the clear ones"
+        return (
+            f"z {self.z:+.1f} over {self.steps} current steps and {self.events} rest/load "
+            f"transitions{share} saying discharge-positive"
+        )
+
+
+def runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) of every run of True."""
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def sign_evidence(time_s, current_a, voltage_v) -> SignEvidence:
+    """The current's sign from the voltage's answer to it, on all the evidence of the record.
+
+    With discharge positive the terminal voltage falls when the current rises: the ohmic drop,
+    the polarisation and (under load) the falling OCV all push it the same way. Two kinds of item,
+    each a voltage change e counted positive when it says discharge-positive:
+
+    - *steps*: every change of the interval current between neighbouring rows of at least
+      REST_FRACTION of the scale (ramped and filtered edges count row by row), with the voltage
+      change over the two intervals around the row, V[k+1] − V[k−1]: whether a row's voltage was
+      measured under its own interval's current (bin means) or under the previous one (a step's
+      last row, a late-logged rest whose row carries the interval's mean current), the window
+      holds the whole answer. Load intervals in it may last at most LOAD_SPAN_S (OCV drift).
+    - *events*: each transition between a rest (two intervals or more) and a load run that no
+      step item covers (its load interval longer than LOAD_SPAN_S: a slow test logged coarsely):
+      the rested voltage against the voltage at the run's far end, whatever the logging
+      interval (the OCV drift under load and the relaxation at rest point the same way as the
+      step). One transition is one item: a step and an event of it would share a sample.
+
+    Each item counts e / (σ√2) clipped at ±SIGN_CLIP, σ the logger's voltage noise (robust, from
+    steady intervals; at least VOLTAGE_RESOLUTION_V); z = their sum / √(number of items), about
+    standard normal if the voltage did not answer the current. Beyond ±SIGN_Z the verdict is
+    that sign, else ``cannot tell``.
+    """
+    t = np.asarray(time_s, dtype=float)
+    i = np.asarray(current_a, dtype=float)
+    v = np.asarray(voltage_v, dtype=float)
+    n = t.size
+    if n < 3:
+        return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
+    dt = np.diff(t)
+    ii = i[:-1]  # interval currents
+    scale = current_scale(ii)
+    if scale <= 0:
+        return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
+    line = REST_FRACTION * scale
+    rest = np.abs(ii) <= line
+    # the voltage noise: differences over steady intervals (the current as in the previous one)
+    dv = np.diff(v)
+    steady = np.r_[False, np.abs(np.diff(ii)) <= line]
+    pool = dv[steady] if steady.sum() >= 10 else dv
+    mad = float(np.median(np.abs(pool - np.median(pool)))) if pool.size else 0.0
+    sigma = float(max(1.4826 * mad / np.sqrt(2.0), VOLTAGE_RESOLUTION_V))
+    unit = sigma * np.sqrt(2.0)
+
+    # steps: row k between intervals k−1 and k (k = 1..n−2), window V[k+1] − V[k−1]
+    k = np.arange(1, n - 1)
+    d = ii[k] - ii[k - 1]
+    short = lambda j: rest[j] | (dt[j] <= LOAD_SPAN_S)  # noqa: E731
+    sel = (np.abs(d) >= line) & short(k - 1) & short(k)
+    window = v[k + 1] - v[k - 1]
+    e_steps = -window[sel] * np.sign(d[sel])
+    resistance = None
+    if sel.any():
+        resistance = float(-np.sum(window[sel] * d[sel]) / np.sum(d[sel] ** 2))
+
+    # events: rest (≥ 2 intervals) ↔ load run (≥ 2 intervals of one sign), where no step item
+    # stands at the transition's row already (the two would share a voltage sample)
+    stepped = set(k[sel].tolist())
+    e_events = []
+    rest_runs = [(a, b) for a, b in runs_of(rest) if b - a >= 2]
+    rest_end = {b: a for a, b in rest_runs}  # a rest ending where a run starts
+    rest_start = {a: b for a, b in rest_runs}
+    for sgn in (1.0, -1.0):
+        for a, b in runs_of(~rest & (np.sign(ii) == sgn)):
+            if b - a < 2:
+                continue
+            v_load = v[b - 1]  # under load: intervals b−2 and b−1 both carry the run's current
+            if a in rest_end and a not in stepped:  # V[a−1]: intervals a−2, a−1 both rest
+                e_events.append(-(v_load - v[a - 1]) * sgn)
+            if b in rest_start and b not in stepped:  # the rest's last voltage: most relaxed
+                e_events.append((v[rest_start[b] - 1] - v_load) * sgn)
+    e = np.concatenate([e_steps, np.asarray(e_events, dtype=float)])
+    if e.size == 0:
+        return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, resistance, sigma)
+    score = np.clip(e / unit, -SIGN_CLIP, SIGN_CLIP)
+    z = float(score.sum() / np.sqrt(e.size))
+    clear = np.abs(score) >= SIGN_CLIP
+    agreeing = float(np.mean(score[clear] > 0)) if clear.any() else None
+    verdict = SIGNS[0] if z >= SIGN_Z else SIGNS[1] if z <= -SIGN_Z else CANNOT_TELL
+    return SignEvidence(verdict, z, int(e_steps.size), len(e_events), agreeing, resistance, sigma)
+
+
+def frame_sign(frame: pd.DataFrame) -> SignEvidence:
+    """:func:`sign_evidence` of a canonical frame."""
+    return sign_evidence(frame["time_s"], frame["current_a"], frame["voltage_v"])
+
+
+def sign_contradiction(source: str, where: str, declared: str, ev: SignEvidence) -> str:
+    """The message for a record whose voltage says its current is not ``declared`` (``where``:
+    the current's place in the file, e.g. ``column 'current_a'``)."""
+    return (
+        f"{source}: {where}: sign contradicts the voltage response (it rises with "
+        f"the current read as {declared}: {ev.describe()})"
+    )
+
+
+def require_sign(
+    time_s, current_a, voltage_v, source: str, where: str, declared: str = SIGNS[0]
+) -> SignEvidence:
+    """:func:`sign_evidence` of a current already turned into the pipeline's sign, for a reader
+    that knows its source's convention (``declared``, named in the message): DataError if the
+    voltage contradicts it; a record that cannot tell passes (its evidence says so)."""
+    ev = sign_evidence(time_s, current_a, voltage_v)
+    if ev.contradicts:
+        raise DataError(sign_contradiction(source, where, declared, ev))
+    return ev
+
+
+# ----------------------------------------------------------------------------------------------
+# a checked record
+
+
+@dataclass(frozen=True)
+class Checked:
+    """A record that passed the checks: its canonical frame (discharge positive), its name, the
+    sign evidence, and what is odd about it (warnings for the user and the JSON). ``origin``
+    says how it was read (a canonical CSV, a converted export with its sidecar, a frame)."""
+
+    frame: pd.DataFrame
+    source: str
+    sign: SignEvidence
+    warnings: tuple[str, ...] = ()
+    origin: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.frame)
+
+
+def check(
+    frame: pd.DataFrame,
+    source: str,
+    *,
+    capacity_ah: float | None = None,
+    first_row: int = 2,
+    origin: dict | None = None,
+) -> Checked:
+    """The one check of a frame already in the pipeline's sign: :func:`validate`,
+    :func:`check_scale` and :func:`sign_evidence`; a contradicted sign is a DataError, a sign
+    the record cannot tell a warning."""
+    clean = validate(frame, source, first_row=first_row)
+    check_scale(clean, source, capacity_ah)
+    ev = require_sign(
+        clean["time_s"], clean["current_a"], clean["voltage_v"], source, "column 'current_a'"
+    )
+    notes = () if ev.verdict != CANNOT_TELL else (sign_unclear(source, "column 'current_a'", ev),)
+    return Checked(clean, source, ev, notes, dict(origin or {"read_as": "frame"}))
+
+
+def sign_unclear(source: str, where: str, ev: SignEvidence) -> str:
+    return (
+        f"{source}: {where}: the voltage does not tell the current's sign "
+        f"({ev.describe()}); the declared sign is taken as it is"
+    )
