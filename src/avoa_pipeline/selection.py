@@ -1,19 +1,25 @@
-"""The one way models are chosen: interleaved blocked cross-validation, two held-out tests, BIC,
-a minimum shrink, and a greedy ladder (docs/gap-diagnosis.md, "Choosing a model"). The diagnosis
-and the real-data experiment both call it.
+"""The one way models are chosen, judged the way a model is used: predicting data the fit did not
+see, each predicted record started by the one initial-state rule, every record counting alike;
+two held-out tests, BIC, a minimum shrink, and a greedy ladder (docs/gap-diagnosis.md, "Selection
+judged like prediction" and "The method"). The diagnosis and the real-data experiment both call
+it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
 
-1. **Folds.** Each training record is cut into ``N_FOLDS × BLOCKS_PER_FOLD`` contiguous blocks of
-   equal length; fold j holds blocks j, j + N_FOLDS, ... of *every* record, so each held-out block
-   lies between training data. A model is fitted with a fold's residuals left out (the state is
-   simulated through the whole record; only the held-out samples are scored) and scored there.
-2. **Pays.** A candidate that adds one element to a reference pays when (a) it removes at least
+1. **Held out.** With two or more training records, whole records: each record is predicted from
+   the fit to the others (leave one record out). With one record, ``N_FOLDS × BLOCKS_PER_FOLD``
+   contiguous blocks of equal length; fold j holds blocks j, j + N_FOLDS, ..., so each held-out
+   block lies between training data; a model is fitted with a fold's residuals left out (the
+   state is simulated through the whole record; only the held-out samples are scored).
+2. **Records alike.** Each sample's loss weighs n/(R·n_r): every record's mean squared error
+   counts once, whatever its length (``Context.w``); the fits weigh records alike too
+   (``fitting.Problem``).
+3. **Pays.** A candidate that adds one element to a reference pays when (a) it removes at least
    ``MIN_SHRINK`` of the reference's held-out squared error, (b) by more than noise explains: the
    per-batch mean loss differential passes a batch-means t-test (Diebold–Mariano) or a signed-rank
    test, one-sided, Bonferroni over both tests and the candidates at family level ``ALPHA``, and
    (c) its fit to all training data has ΔBIC < ``BIC_MAX``.
-3. **Winner.** Among those that pay, the largest held-out shrink wins, unless a candidate with
+4. **Winner.** Among those that pay, the largest held-out shrink wins, unless a candidate with
    fewer parameters is within one standard error of it (the one-standard-error rule).
-4. **Ladder.** The winner becomes the reference and the remaining elements are tried on top of
+5. **Ladder.** The winner becomes the reference and the remaining elements are tried on top of
    it, by the same rule, until none pays.
 
 Only training records enter: a record passed for validation is never seen here.
@@ -32,15 +38,18 @@ from .records import REST_FRACTION
 
 N_FOLDS = 5
 BLOCKS_PER_FOLD = 4
-"""Contiguous blocks per fold and record: each record is cut into N_FOLDS × 4 = 20 blocks and fold
-j holds blocks j, j + 5, j + 10, j + 15, so each held-out block lies between training data. With one
-block per fold (a fifth of the record), a record that visits each SOC once makes every model
-extrapolate in SOC, where capacity, SOC0 and the OCV are not identifiable: the held-out error was
-dominated by that, whatever the effect (a 40 mV hysteresis fitted to the noise on the full record
-but lost to ocv_shape held out; and on the Panasonic cell, contiguous fifths chose the model that
-predicted unseen drive cycles worst). The price: a candidate can carry a slow misfit from the
-neighbouring blocks into the held-out one (docs/gap-diagnosis.md)."""
+"""Contiguous blocks per fold (one training record): the record is cut into N_FOLDS × 4 = 20
+blocks and fold j holds blocks j, j + 5, j + 10, j + 15, so each held-out block lies between
+training data. With one block per fold (a fifth of the record), a record that visits each SOC once
+makes every model extrapolate in SOC, where capacity and the OCV are not identifiable: the
+held-out error was dominated by that, whatever the effect (a 40 mV hysteresis fitted to the noise
+on the full record but lost to ocv_shape held out). The price: a candidate can carry a slow misfit
+from the neighbouring blocks into the held-out one (docs/gap-diagnosis.md)."""
 BATCHES_PER_FOLD = 20
+BATCHES_PER_RECORD = 50
+"""Batches of each held-out record (two records or more): the same number per record, so each
+record weighs alike in the t and rank tests; 50 contiguous batches keep each batch long against
+the residual's autocorrelation and give the tests 100 batches or more."""
 ALPHA = 0.05
 BIC_MAX = -10.0
 """ΔBIC below −10: "very strong" evidence on Kass and Raftery's (1995) scale."""
@@ -53,16 +62,23 @@ only below r ≈ 0.23, far under the 1.5 the validation targets."""
 
 @dataclass
 class Layout:
-    """Where each record's samples sit in the concatenated sample axis, and the folds and batches
-    (index arrays into that axis)."""
+    """Where each record's samples sit in the concatenated sample axis, what is held out together
+    (``folds``: index arrays into that axis; whole records with two records or more) and the
+    batches of the tests."""
 
     offsets: np.ndarray  # offsets[r]: first index of record r; offsets[-1]: total
     folds: list[np.ndarray]
     batches: list[np.ndarray]
+    by_record: bool = False
 
     @classmethod
     def of(cls, sizes, k: int = N_FOLDS, per_fold: int = BLOCKS_PER_FOLD) -> Layout:
         offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+        if len(sizes) >= 2:  # leave one record out
+            folds = [np.arange(offsets[r], offsets[r + 1]) for r in range(len(sizes))]
+            batches = [b for f in folds
+                       for b in np.array_split(f, min(BATCHES_PER_RECORD, f.size))]  # fmt: skip
+            return cls(offsets, folds, batches, by_record=True)
         folds = [[] for _ in range(k)]
         batches = []
         for r, n in enumerate(sizes):
@@ -79,15 +95,25 @@ class Layout:
         return [global_idx[(global_idx >= o[r]) & (global_idx < o[r + 1])] - o[r]
                 for r in range(o.size - 1)]  # fmt: skip
 
+    def fold_of(self) -> np.ndarray:
+        """Per sample, the fold (or held-out record) it belongs to (the figure draws them)."""
+        out = np.empty(int(self.offsets[-1]), dtype=int)
+        for j, f in enumerate(self.folds):
+            out[f] = j
+        return out
 
-def loss_test(loss_a: np.ndarray, loss_b: np.ndarray, batches) -> tuple[float, float, float]:
+
+def loss_test(loss_a: np.ndarray, loss_b: np.ndarray, batches,
+              weights: np.ndarray | None = None) -> tuple[float, float, float]:  # fmt: skip
     """Is ``loss_b`` lower than ``loss_a``? Batch-means t (Diebold–Mariano), one-sided p, SE.
 
-    Returns (t, p, se) for the mean per-sample difference a − b; se is that mean's standard error.
+    Returns (t, p, se) for the mean per-sample difference a − b, each batch weighing the sum of
+    its samples' ``weights`` (its size without them); se is that mean's standard error.
     """
     d = loss_a - loss_b
     means = np.array([d[b].mean() for b in batches])
-    sizes = np.array([b.size for b in batches], dtype=float)
+    sizes = np.array([b.size if weights is None else weights[b].sum() for b in batches],
+                     dtype=float)  # fmt: skip
     mean = float(np.sum(means * sizes) / sizes.sum())
     se = float(np.std(means, ddof=1) / np.sqrt(means.size))
     if se == 0:
@@ -136,7 +162,8 @@ class ModelRun:
 
 
 class Context:
-    """The training records, their layout, and the fitting options shared by every candidate."""
+    """The training records, their layout and weights, and the fitting options shared by every
+    candidate."""
 
     def __init__(self, recs: list[Record], table=None, capacity_ah=None, soc0=None):
         self.recs = recs
@@ -146,11 +173,14 @@ class Context:
         self.layout = Layout.of([r.n for r in recs])
         self.v = np.concatenate([r.v for r in recs])
         self.n = self.v.size
+        # each sample weighs n/(R·n_r): every record's mean squared error counts once
+        self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
 
-    def structure(self, effects, knots: Knots) -> fitting.Structure:
-        return fitting.structure(self.recs, Config(tuple(effects), self.table), knots,
-                                 self.fix_q, self.fix_s)  # fmt: skip
+    def structure(self, effects, knots: Knots, recs=None) -> fitting.Structure:
+        return fitting.structure(self.recs if recs is None else recs,
+                                 Config(tuple(effects), self.table), knots, self.fix_q,
+                                 self.fix_s)  # fmt: skip
 
     def simulate(self, st: fitting.Structure, X: np.ndarray) -> np.ndarray:
         return np.concatenate([
@@ -158,40 +188,69 @@ class Context:
             for r, rec in enumerate(self.recs)
         ])  # fmt: skip
 
+    def sse(self, v: np.ndarray) -> float:
+        """The records-alike sum of squared errors of a concatenated model voltage."""
+        return float(np.sum(self.w * (v - self.v) ** 2))
+
     def run(self, st, X) -> ModelRun:
         X = fitting.complete(st, self.recs, X)
         v = self.simulate(st, X)
-        return ModelRun(st, np.array(X), v, float(np.sum((v - self.v) ** 2)))
+        return ModelRun(st, np.array(X), v, self.sse(v))
 
     def fit(self, st, starts) -> ModelRun:
         self.fits += len(starts)
         return self.run(st, fitting.best_of(self.recs, st, starts).X)
 
     def cross_validate(self, mr: ModelRun) -> ModelRun:
+        """Each held-out part predicted from a fit that did not see it, warm-started from the
+        full fit (the optimum of the training objective is what is scored; starting nearby only
+        saves iterations): whole records with two or more, interleaved blocks with one."""
         ho = np.empty(self.n)
         mr.fold_X = []
-        for f in self.layout.folds:
-            held = self.layout.split(f)
-            masks = []
-            for rec, h in zip(self.recs, held, strict=True):
-                m = np.ones(rec.n, dtype=bool)
-                m[h] = False
-                masks.append(m)
-            idxs = fitting.indices(self.recs, masks, fitting.MAX_FIT_POINTS)
-            st = mr.st
-            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC only
-                st = replace(st, knots=fitting.knots_for(self.recs, mr.X, masks))
-            # warm start from the full fit: the optimum of the training objective is what is
-            # scored; starting nearby only saves iterations
-            res = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100)
+        for r, f in enumerate(self.layout.folds):
+            if self.layout.by_record:
+                keep = [j for j in range(len(self.recs)) if j != r]
+                recs = [self.recs[j] for j in keep]
+                st = self.structure(mr.effects, mr.st.knots, recs)
+                if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
+                    st = replace(st, knots=fitting.knots_for(recs, mr.X[keep]))
+                res = fitting.fit_structure(recs, st, mr.X[keep],
+                                            fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
+                                            max_nfev=100)  # fmt: skip
+                X = np.array(mr.X)
+                X[:, st.shared_idx] = res.X[0, st.shared_idx]
+                X = fitting.complete(st, self.recs, X)  # the held-out record starts by the rule
+                rec = self.recs[r]
+                ho[f] = ecm.simulate_rows(rec, X[r], st.knots, st.config.table,
+                                          st.config.load_ohm)[:, 0]  # fmt: skip
+            else:
+                held = self.layout.split(f)
+                masks = []
+                for rec, h in zip(self.recs, held, strict=True):
+                    m = np.ones(rec.n, dtype=bool)
+                    m[h] = False
+                    masks.append(m)
+                idxs = fitting.indices(self.recs, masks, fitting.MAX_FIT_POINTS)
+                st = mr.st
+                if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
+                    st = replace(st, knots=fitting.knots_for(self.recs, mr.X, masks))
+                X = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100).X
+                ho[f] = self.simulate(st, X)[f]
             self.fits += 1
-            ho[f] = self.simulate(st, res.X)[f]
-            mr.fold_X.append(res.X)
+            mr.fold_X.append(X)
         mr.ho = ho
         return mr
 
     def ho_loss(self, mr: ModelRun) -> np.ndarray:
+        """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
         return (mr.ho - self.v) ** 2
+
+    def ho_mse(self, mr: ModelRun, mask: np.ndarray | None = None) -> float:
+        """The records-alike held-out mean squared error (over ``mask`` if given)."""
+        loss = self.w * self.ho_loss(mr)
+        if mask is None:
+            return float(loss.sum() / self.n)
+        return float(loss[mask].sum() / max(self.w[mask].sum(), 1e-300))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -201,7 +260,7 @@ class Context:
 def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> tuple[bool, str]:
     """Whether an element can be a candidate on these records (and why not)."""
     imax = max(r.imax() for r in recs)
-    if effect == "thermal" and not any(r.temperature_varies for r in recs):
+    if effect in ("thermal", "bv_arrhenius") and not any(r.temperature_varies for r in recs):
         if all(r.temp_c is None for r in recs):
             return False, "no temperature_c column"
         return False, f"temperature_c spans less than {ecm.THERMAL_MIN_RANGE_C:g} °C"
@@ -235,7 +294,7 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
     """Held-out comparison of each candidate against ``ref`` (both cross-validated)."""
     n = ctx.n
     loss_ref = ctx.ho_loss(ref)
-    ise_ref = float(loss_ref.sum())
+    ise_ref = float(np.sum(ctx.w * loss_ref))
     bic_ref = bic(ref.rss, n, ref.k)
     m = max(1, len(cands))
     out = []
@@ -250,15 +309,15 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
             row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
         else:
             loss = ctx.ho_loss(c)
-            t, p_mean, _ = loss_test(loss_ref, loss, ctx.layout.batches)
+            t, p_mean, _ = loss_test(loss_ref, loss, ctx.layout.batches, ctx.w)
             wins, p_rank = batch_rank_test(loss_ref, loss, ctx.layout.batches)
-            shrink = 1.0 - float(loss.sum()) / ise_ref
+            shrink = 1.0 - float(np.sum(ctx.w * loss)) / ise_ref
             # two tests, each at ALPHA / (2 m): the mean test sees a gain confined to a few
             # batches (an effect that acts only in pulses), the rank test a gain spread over
             # most batches that one unpredictable block hides from the mean
             p = min(1.0, 2.0 * min(p_mean, p_rank))
             row.update(
-                heldout_rmse_mv=1e3 * float(np.sqrt(loss.mean())), shrink=shrink, t=t,
+                heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
                 p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
                 pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
             )  # fmt: skip
@@ -276,7 +335,9 @@ def choose(ctx: Context, rows: list[dict], cands: dict[str, ModelRun]) -> str | 
     simpler = []
     for r in paying:
         if r["n_params"] < best["n_params"]:
-            t, _, _ = loss_test(ctx.ho_loss(cands[r["effect"]]), loss_best, ctx.layout.batches)
+            t, _, _ = loss_test(
+                ctx.ho_loss(cands[r["effect"]]), loss_best, ctx.layout.batches, ctx.w
+            )
             if t <= 1.0:  # worse than the best by at most one standard error
                 simpler.append(r)
     if simpler:
@@ -285,12 +346,12 @@ def choose(ctx: Context, rows: list[dict], cands: dict[str, ModelRun]) -> str | 
 
 
 def ladder_row(ctx: Context, effect: str, run: ModelRun, prev: ModelRun, base: ModelRun) -> dict:
-    loss = ctx.ho_loss(run)
+    mse = ctx.ho_mse(run)
     return {
         "effect": effect,
-        "heldout_rmse_mv": 1e3 * float(np.sqrt(loss.mean())),
-        "shrink": 1.0 - float(loss.sum() / ctx.ho_loss(prev).sum()),
-        "shrink_vs_base": 1.0 - float(loss.sum() / ctx.ho_loss(base).sum()),
+        "heldout_rmse_mv": 1e3 * float(np.sqrt(mse)),
+        "shrink": 1.0 - mse / ctx.ho_mse(prev),
+        "shrink_vs_base": 1.0 - mse / ctx.ho_mse(base),
         "delta_bic": bic(run.rss, ctx.n, run.k) - bic(prev.rss, ctx.n, prev.k),
         "effects": list(run.effects),
     }
@@ -316,3 +377,60 @@ def climb(ctx: Context, base: ModelRun, first: str, first_run: ModelRun, candida
         final = step[nxt]
         remaining = [e for e in remaining if e != nxt]
     return rows, runs
+
+
+# ----------------------------------------------------------------------------------------------
+# the whole ladder
+
+
+def fit_base(ctx: Context, capacity_ah=None, soc0=None) -> ModelRun:
+    """The base model (the context's OCV, R0, one RC, capacity) fitted to all training records
+    from a handful of starts; its OCV-shape knots set on the SOC range it visits."""
+    st = ctx.structure((), Knots(0.0, 0.2))
+    base = ctx.fit(st, fitting.base_starts(ctx.recs, Config(table=ctx.table), capacity_ah, soc0))
+    st.knots = fitting.knots_for(ctx.recs, base.X)
+    return base
+
+
+@dataclass
+class Ladder:
+    """The whole selection: the first rung (every applicable candidate against the base), the
+    rungs that followed, and what was not tried and why."""
+
+    base: ModelRun
+    candidates: dict[str, ModelRun]  # the first rung's fits
+    rows: list[dict]  # the first rung's comparisons (``judge``)
+    skipped: list[dict]  # {effect, applicable: False, reason}
+    winner: str | None
+    rungs: list[dict]  # one row per rung (``ladder_row``), the winner's first
+    runs: list[ModelRun]  # one fit per rung; the last is the selected model
+
+    @property
+    def selected(self) -> ModelRun:
+        return self.runs[-1] if self.runs else self.base
+
+
+def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
+    """Every applicable element tried on ``base`` (fitted to all training data, then, where its
+    fit can pay, held out), the base re-polished where a candidate found it a better optimum, the
+    winner, and the climb from it. The base and every candidate are cross-validated here."""
+    tried = [e for e in effects if applicable(ctx.recs, e, (), ctx.table)[0]]
+    cands = try_effects(ctx, base, tried, cv=False)
+    # a candidate whose element, set back to neutral, fits better than the base found a better
+    # base optimum: refit the base from there (the base must be at its best, or a candidate
+    # "wins" by better optimisation alone)
+    for e, c in cands.items():
+        rb = ctx.run(base.st, fitting.neutralise(c.X, (e,)))
+        if rb.rss < base.rss * (1 - 1e-9):
+            idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
+            base = ctx.run(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
+    ctx.cross_validate(base)
+    for c in cands.values():
+        ctx.cross_validate(c)
+    rows = judge(ctx, base, cands)
+    winner = choose(ctx, rows, cands)
+    skipped = [{"effect": e, "applicable": False,
+                "reason": applicable(ctx.recs, e, (), ctx.table)[1]}
+               for e in effects if e not in cands]  # fmt: skip
+    rungs, runs = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
+    return Ladder(base, cands, rows, skipped, winner, rungs, runs)

@@ -36,6 +36,10 @@ ACTIVE = {
     "current_offset": {"current_offset_a": 0.02},
     "voltage_offset": {"voltage_offset_v": 0.01},
     "coulombic_efficiency": {"coulombic_efficiency": 0.97},
+    "r0_soc": {"r0_soc_u0": 0.5, "r0_soc_u1": -0.3},
+    "r1_soc": {"r1_soc_u0": 0.5, "r1_soc_u2": 0.4},
+    "r0_charge": {"r0_charge_log_ratio": 0.5},
+    "bv_arrhenius": {"bv_inv_i0_per_a": 2.0, "bv_theta_i0_k": 6000.0},
 }
 # parameters that only matter once their element's main parameter leaves neutral
 DORMANT = {
@@ -110,6 +114,69 @@ def test_element_neutral_is_base_and_active_differs(effect):
     np.testing.assert_array_equal(neutral, base)
     active = simulate(frame, {**TRUTH, **ACTIVE[effect]})
     assert np.sqrt(np.mean((active - base) ** 2)) > 1e-3  # at least 1 mV RMS
+
+
+def test_the_new_elements_act_where_they_should():
+    """R0 by SOC: the drop at a pulse scales with the factor at that SOC; a charge-dependent R0
+    acts on charge only; the Arrhenius exchange current only where the temperature moves."""
+    frame = profile_frame()
+    base = simulate(frame, TRUTH)
+    charge = frame["current_a"].to_numpy() < 0
+    d = simulate(frame, {**TRUTH, **ACTIVE["r0_charge"]}) - base
+    assert np.max(np.abs(d[~charge])) < 1e-12  # discharge and rest untouched, to the sample
+    assert np.all(d[charge] > 0)  # charging: −R0·I with I < 0 and R0 larger: the voltage rises
+    # R0(SOC): multipliers exp(basis · u) at the knots, as the physical row says
+    P = ecm.to_physical(ecm.vector({**TRUTH, **ACTIVE["r0_soc"]}))[0]
+    factors = np.exp(P[ecm.L0 : ecm.L0 + ecm.N_KNOTS])
+    np.testing.assert_allclose(np.log(factors), ecm.SOC_BASIS @ [0.5, -0.3, 0, 0, 0])
+    assert np.mean(np.log(factors)) == pytest.approx(0.0, abs=1e-12)  # no constant part
+    # the Arrhenius factor of 1/i0 is 1 at T_ref: without a temperature column nothing moves
+    flat = frame.drop(columns="temperature_c")
+    bv = {**TRUTH, "bv_inv_i0_per_a": 2.0}
+    np.testing.assert_allclose(simulate(flat, {**bv, "bv_theta_i0_k": 6000.0}),
+                               simulate(flat, bv), rtol=0, atol=1e-12)  # fmt: skip
+
+
+def test_the_opening_state_is_the_opening_rests_mean():
+    """SOC0 is read from the mean of the last OPENING_WINDOW_S of the opening rest, not from one
+    noisy sample; under load from the first sample."""
+    frame = with_voltage(profile_frame(), TRUTH)
+    rng = np.random.default_rng(0)
+    noisy = frame.assign(voltage_v=frame["voltage_v"] + 3e-3 * rng.standard_normal(len(frame)))
+    rec = ecm.Record.from_frame(noisy)
+    rest = noisy.iloc[:300]  # the opening rest; its last 60 s: t from 239 to 299
+    window = rest["time_s"] >= rest["time_s"].iloc[-1] - ecm.OPENING_WINDOW_S
+    assert rec.v_open == pytest.approx(float(rest["voltage_v"][window].mean()), abs=1e-12)
+    P = ecm.to_physical(ecm.vector(TRUTH))[0]
+    s_rule = ecm.soc0_from_voltage(P, rec, ecm.Knots(0, 0.2))
+    s_one = ecm.soc0_from_voltage(P, dataclasses.replace(rec, v_open=np.nan), ecm.Knots(0, 0.2))
+    assert abs(s_rule - TRUTH["soc0"]) < abs(s_one - TRUTH["soc0"])
+    assert abs(s_rule - TRUTH["soc0"]) < 2e-3
+    loaded = ecm.Record.from_frame(frame.iloc[300:])
+    assert loaded.v_open == frame["voltage_v"].iloc[300]
+    assert loaded.i_open == frame["current_a"].iloc[300]
+
+
+def test_the_opening_rule_solves_every_row_as_the_voltage_asks():
+    """The false-position solve agrees with the OCV it inverts, with a table, R0 by SOC and a
+    shaped OCV, to far below a microvolt."""
+    soc = np.linspace(0, 1, 101)
+    table = ecm.OcvTable.from_points(soc, 3.2 + 0.8 * soc - 0.2 * np.exp(-soc / 0.05))
+    frame = profile_frame([(120, 0.0), (600, 1.0), (120, 0.0)], temperature=False)
+    x = ecm.vector({k: v for k, v in TRUTH.items() if k not in ("vnom_v", "beta")})
+    X = np.repeat(x[None, :], 3, axis=0)
+    X[1, ecm.IDX["r0u0"]] = 0.4
+    X[2, ecm.IDX["u0"]] = 0.01
+    knots = ecm.Knots(0.0, 0.2)
+    for target in (0.93, 0.4, 0.05):
+        P = ecm.to_physical(X)
+        P[:, ecm.SOC0] = target
+        v = ecm.simulate_physical(ecm.Record.from_frame(frame), P, knots, table)
+        rec = ecm.Record.from_frame(frame.assign(voltage_v=v[:, 0]))
+        np.testing.assert_allclose(ecm.soc0_rows(P, rec, knots, table)[0], target, atol=1e-9)
+        for r in range(3):
+            rec = ecm.Record.from_frame(frame.assign(voltage_v=v[:, r]))
+            assert ecm.soc0_rows(P[r], rec, knots, table)[0] == pytest.approx(target, abs=1e-9)
 
 
 def test_hysteresis_follows_pletts_sign():
@@ -278,21 +345,43 @@ def test_fitted_model_round_trip_and_prediction(tmp_path):
         FittedModel.from_json(d, "m.json")
 
 
-def test_soc0_rule_in_training_starts_each_record_from_its_first_voltage():
-    """With soc0_rule the fit has no free SOC0: each record at rest starts where the rule puts
-    it (the same rule that starts every prediction), and a known cell is still recovered."""
+def test_training_starts_each_record_by_the_rule_that_starts_every_prediction():
+    """No state of a record is fitted: each record starts where the rule puts it (the rule that
+    starts every prediction), and a known cell is still recovered."""
     from avoa_pipeline.model import fitting
     from avoa_pipeline.model.fitted import fit_model
 
     frame = with_voltage(profile_frame(), {**TRUTH, "soc0": 0.8})
     recs = [ecm.Record.from_frame(frame)]
-    st = fitting.structure(recs, ecm.Config(), soc0_rule=True)
+    st = fitting.structure(recs, ecm.Config(("hysteresis",)))
     assert st.soc0_rule
-    assert "soc0" not in st.per_record
-    assert "soc0" in fitting.structure(recs, ecm.Config()).per_record  # the default: fitted
-    fit = fit_model(frame, ecm.Config(), capacity_ah=2.57, soc0_rule=True)
+    assert not {"soc0", "h0"} & set(st.shared)
+    assert not fitting.structure(recs, ecm.Config(), fix_soc0=True).soc0_rule  # --soc0 given
+    fit = fit_model(frame, ecm.Config(), capacity_ah=2.57)
     assert fit.train_rmse_mv < 1e-2
     P = ecm.to_physical(fit.X[0])[0]
     assert fit.X[0, ecm.IDX["soc0"]] == pytest.approx(
         ecm.soc0_from_voltage(P, recs[0], fit.model.knots), abs=1e-12
     )
+
+
+@pytest.mark.parametrize(
+    ("effect", "keys"),
+    [("r0_charge", ["r0_charge_log_ratio"]), ("r0_soc", ["r0_soc_u0", "r0_soc_u1"]),
+     ("r1_soc", ["r1_soc_u0"])],
+)  # fmt: skip
+def test_fit_recovers_the_new_elements(effect, keys):
+    """Noise-free data of a known cell with the element: the fit (capacity known, the start by
+    the rule) finds the element's parameters."""
+    truth = {**TRUTH, **{k: ACTIVE[effect].get(k, 0.3) for k in keys}}
+    frame = profile_frame()
+    # the knots where the diagnosis puts them: over the SOC range the record visits
+    knots = fitting.knots_for([ecm.Record.from_frame(frame)], ecm.vector(truth)[None, :])
+    v = ecm.simulate_rows(ecm.Record.from_frame(frame), ecm.vector(truth), knots)[:, 0]
+    rec = ecm.Record.from_frame(frame.assign(voltage_v=v))
+    st = fitting.structure([rec], ecm.Config((effect,)), knots, fix_capacity=True)
+    X0 = ecm.vector({**TRUTH, "capacity_ah": TRUTH["capacity_ah"]})[None, :]
+    res = fitting.best_of([rec], st, fitting.effect_starts([rec], X0, effect))
+    got = ecm.report(res.X[0], ecm.Config((effect,)).names())
+    for k in keys:
+        assert got[k] == pytest.approx(truth[k], abs=1e-3), k

@@ -25,8 +25,8 @@ from scipy import stats
 from .. import __version__, records, selection
 from ..errors import DataError, UserError
 from ..model import ecm, fitting
-from ..model.ecm import Config, Knots, Record
-from ..model.fitted import FittedModel
+from ..model.ecm import Record
+from ..model.fitted import FittedModel, fit_model
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
 
 MIN_SAMPLES = 2000
@@ -377,12 +377,11 @@ def reference_temperature(frames: list[pd.DataFrame]) -> float | None:
 
 
 def parameters(ctx: selection.Context, run: selection.ModelRun) -> dict:
-    """Report-named parameters of a run: the cell's, then each record's initial state (flat for
-    one record, as ``per_record`` for several)."""
+    """Report-named parameters of a run: the cell's, then each record's initial SOC as the rule
+    set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
     fm = fitted_model(ctx, run)
     out = fm.parameters()
-    states = [ecm.report(run.X[r], run.st.config.names()) for r in range(len(ctx.recs))]
-    per = [{k: v for k, v in s.items() if k in ("soc0", "hysteresis_h0")} for s in states]
+    per = [{"soc0": float(run.X[r, ecm.IDX["soc0"]])} for r in range(len(ctx.recs))]
     if len(per) == 1:
         out.update(per[0])
     else:
@@ -426,9 +425,23 @@ def training_soc_range(ctx: selection.Context, run: selection.ModelRun) -> tuple
     return lo, hi
 
 
-def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.DataFrame]):
+def floors(
+    ctx, selected: selection.ModelRun, frames: dict[str, pd.DataFrame], capacity_ah=None
+) -> dict[str, dict]:
+    """Per validation record, the selected configuration fitted to that record alone (started by
+    the same rule): what the model family reaches on it when it may see it."""
+    out = {}
+    for source, frame in frames.items():
+        fit = fit_model(frame, selected.st.config, capacity_ah)
+        out[source] = {"rmse_mv": fit.train_rmse_mv, "parameters": fit.model.parameters()}
+    return out
+
+
+def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.DataFrame],
+               floor: dict[str, dict]) -> list[dict]:  # fmt: skip
     """One row per validation record × model of the ladder: errors over the record and inside
-    the SOC range the training data covered. Nothing here feeds back into any choice."""
+    the SOC range the training data covered, and beside each the record's floor (the selected
+    configuration fitted to it). Nothing here feeds back into any choice."""
     rows = []
     for name, run in rungs.items():
         fm = fitted_model(ctx, run)
@@ -436,10 +449,12 @@ def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.D
         for source, frame in frames.items():
             v, tr = fm.simulate(frame, traces=True)
             inside = (tr[0] >= lo) & (tr[0] <= hi)
+            err = _errors(v, frame["voltage_v"].to_numpy(), inside)
             rows.append({"record": source, "model": name, "effects": list(run.effects),
                          "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
-                         "soc0": float(tr[0][0]), "training_soc_range": [lo, hi],
-                         **_errors(v, frame["voltage_v"].to_numpy(), inside)})  # fmt: skip
+                         "soc0": float(tr[0][0]), "training_soc_range": [lo, hi], **err,
+                         "floor_rmse_mv": floor[source]["rmse_mv"],
+                         "above_floor_mv": err["rmse_mv"] - floor[source]["rmse_mv"]})  # fmt: skip
     return rows
 
 
@@ -467,81 +482,54 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     ctx = selection.Context(recs, ocv_table, capacity_ah, soc0)
     table = ocv_table
 
-    # 1. base fit
-    st_b = ctx.structure((), Knots(0.0, 0.2))
-    base = ctx.fit(st_b, fitting.base_starts(recs, Config(table=table), capacity_ah, soc0))
-    st_b.knots = fitting.knots_for(recs, base.X)
+    # 1. base fit, and the sanity gate before anything else is spent on it
+    base = selection.fit_base(ctx, capacity_ah, soc0)
     sanity(float(np.sqrt(base.rss / ctx.n)), ctx.v, sources)
 
-    # 3a. candidates' fits (before the CV, so that the base can be re-polished)
-    effects = [e for e in ecm.EFFECTS if selection.applicable(recs, e, (), table)[0]]
-    cands = selection.try_effects(ctx, base, effects, cv=False)
-    # a candidate whose element, set back to neutral, fits better than the base found a better
-    # base optimum: refit the base from there (the base must be at its best)
-    for e, c in cands.items():
-        rb = ctx.run(st_b, fitting.neutralise(c.X, (e,)))
-        if rb.rss < base.rss * (1 - 1e-9):
-            idx = fitting.indices(recs, None, fitting.MAX_FIT_POINTS)
-            base = ctx.run(st_b, fitting.fit_structure(recs, st_b, rb.X, idx).X)
-    ctx.cross_validate(base)
-    for c in cands.values():
-        ctx.cross_validate(c)
-
-    rec = concat(recs)
-    resid = ctx.v - base.v
-    soc = np.concatenate([ecm.simulate_rows(r, base.X[j], st_b.knots, table, traces=True)[1][0]
-                          for j, r in enumerate(recs)])  # fmt: skip
-    noise_v = noise_floor(rec, resid)
-
-    # 2. where
-    regions, windows = localize(rec, resid, soc, noise_v)
-    gap = gap_region(regions, rec.n)
-
-    # 3b. which
-    rows = selection.judge(ctx, base, cands)
+    # 3. which, and the whole ladder: the one selection method
+    lad = selection.ladder(ctx, base)
+    base, cands, rows, winner, final = lad.base, lad.candidates, lad.rows, lad.winner, lad.selected
     for r in rows:
         r["params"] = parameters(ctx, cands[r["effect"]])
         r["applicable"] = True
-    winner = selection.choose(ctx, rows, cands)
-    skipped = [
-        {"effect": e, "applicable": False, "reason": selection.applicable(recs, e, (), table)[1]}
-        for e in ecm.EFFECTS
-        if e not in cands
-    ]
+
+    # 2. where (the base residual, against the noise floor)
+    rec = concat(recs)
+    resid = ctx.v - base.v
+    soc = np.concatenate([ecm.simulate_rows(r, base.X[j], base.st.knots, table, traces=True)[1][0]
+                          for j, r in enumerate(recs)])  # fmt: skip
+    noise_v = noise_floor(rec, resid)
+    regions, windows = localize(rec, resid, soc, noise_v)
+    gap = gap_region(regions, rec.n)
     sig = signatures(rec, resid, soc, cands, base, ctx.layout.batches)
 
-    # 4. how far, and the ladder
-    masks = {name: m for _, name, m in region_masks(rec, soc)}
-    gap_mask = masks[gap["region"]]
-    loss_b = ctx.ho_loss(base)
+    # 4. how far
+    gap_mask = {name: m for _, name, m in region_masks(rec, soc)}[gap["region"]]
 
-    def heldout_mv(loss, m=None):
-        return 1e3 * float(np.sqrt(loss.mean() if m is None else loss[m].mean()))
+    def heldout_mv(run, m=None):
+        return 1e3 * float(np.sqrt(ctx.ho_mse(run, m)))
 
     verdict = {"effect": "none", "shrink": 0.0}
-    ladder, rungs = [], {"base": base}
-    final = base
+    rungs = {"base": base}
     if winner is not None:
         w = cands[winner]
-        loss_w = ctx.ho_loss(w)
         row = next(r for r in rows if r["effect"] == winner)
+        loss_b, loss_w = ctx.w * ctx.ho_loss(base), ctx.w * ctx.ho_loss(w)
         verdict = {
             "effect": winner,
             "shrink": row["shrink"],
-            "heldout_rmse_before_mv": heldout_mv(loss_b),
-            "heldout_rmse_after_mv": heldout_mv(loss_w),
+            "heldout_rmse_before_mv": heldout_mv(base),
+            "heldout_rmse_after_mv": heldout_mv(w),
             "region": gap["region"],
-            "region_heldout_rmse_before_mv": heldout_mv(loss_b, gap_mask),
-            "region_heldout_rmse_after_mv": heldout_mv(loss_w, gap_mask),
+            "region_heldout_rmse_before_mv": heldout_mv(base, gap_mask),
+            "region_heldout_rmse_after_mv": heldout_mv(w, gap_mask),
             "region_shrink": 1.0 - float(loss_w[gap_mask].sum() / loss_b[gap_mask].sum()),
             "delta_bic": row["delta_bic"],
             "t": row["t"],
         }
-        ladder, runs = selection.climb(ctx, base, winner, w, ecm.EFFECTS)
-        for lr, r in zip(ladder, runs, strict=True):
+        for lr, r in zip(lad.rungs, lad.runs, strict=True):
             lr["parameters"] = parameters(ctx, r)
             rungs["+".join(r.effects)] = r
-        final = runs[-1]
     else:
         best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"],
                    default=None)  # fmt: skip
@@ -554,7 +542,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             if ratio < UNEXPLAINED_RATIO
             else "a misfit beyond the noise floor that no candidate explains on held-out data"
         )
-    remaining = float(np.sqrt(ctx.ho_loss(final).mean())) / noise_v if noise_v > 0 else None
+    remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
     selected_name = "+".join(final.effects) or "base"
     model = fitted_model(ctx, final, provenance={
         "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
@@ -591,11 +579,11 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             "model": (
                 "1-RC, "
                 + ("rational OCV" if table is None else "measured OCV + offset")
-                + ", free capacity and initial SOC"
+                + ", free capacity; each record started by the opening rule"
             ),
             "parameters": parameters(ctx, base),
             "rmse_mv": 1e3 * float(np.sqrt(base.rss / rec.n)),
-            "heldout_rmse_mv": heldout_mv(loss_b),
+            "heldout_rmse_mv": heldout_mv(base),
             "noise_floor_mv": 1e3 * noise_v,
             "rmse_to_noise": float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else None,
             "n_params": base.k,
@@ -605,21 +593,27 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "localization": regions,
         "time_windows": windows,
         "gap_region": gap["region"],
-        "candidates": rows + skipped,
+        "candidates": rows + lad.skipped,
         "verdict": verdict,
-        "ladder": ladder,
+        "ladder": lad.rungs,
         "selected": {
             "name": selected_name,
             "effects": list(final.effects),
-            "heldout_rmse_mv": heldout_mv(ctx.ho_loss(final)),
+            "heldout_rmse_mv": heldout_mv(final),
             "parameters": parameters(ctx, final),
         },
         "final_heldout_rmse_to_noise": remaining,
         "signatures": sig,
         "method": {
-            "folds": selection.N_FOLDS,
-            "blocks_per_fold": selection.BLOCKS_PER_FOLD,
-            "batches_per_fold": selection.BATCHES_PER_FOLD,
+            "held_out": "whole records (leave one out)"
+            if ctx.layout.by_record
+            else "interleaved blocks",
+            "folds": len(ctx.layout.folds),
+            "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
+            "batches": len(ctx.layout.batches),
+            "records_weighted_alike": True,
+            "initial_state": "SOC0 from the opening rest's last "
+            f"{ecm.OPENING_WINDOW_S:g} s (or the first sample under load), h0 = 0",
             "min_shrink": selection.MIN_SHRINK,
             "alpha_family": selection.ALPHA,
             "bic_max": selection.BIC_MAX,
@@ -630,7 +624,9 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "version": __version__,
     }
     if vframes:
-        report["validation"] = validation(ctx, rungs, vframes)
+        floor = floors(ctx, final, vframes, capacity_ah)
+        report["validation"] = validation(ctx, rungs, vframes, floor)
+        report["floors"] = [{"record": k, "model": selected_name, **f} for k, f in floor.items()]
     arrays = {
         "t": rec.t,
         "i": rec.i,
@@ -642,6 +638,8 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "v_verdict": cands[winner].v if winner else None,
         "ho_verdict": cands[winner].ho if winner else None,
         "soc": soc,
+        "fold": ctx.layout.fold_of(),
+        "by_record": ctx.layout.by_record,
     }
     return _jsonable(report), arrays, model
 

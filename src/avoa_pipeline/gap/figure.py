@@ -62,10 +62,13 @@ def render(report: dict, arrays: dict, path: str | Path) -> None:
         ax.plot(th, 1e3 * (arrays["v"] - after_ho)[sl], color="#4c72b0", lw=0.6,
                 label=f"base + {verdict}, held out")  # fmt: skip
     ax.axhspan(-noise, noise, color="0.85", zorder=0, label="± noise floor")
-    n_blocks = report["method"]["folds"] * report["method"].get("blocks_per_fold", 1)
-    for e in np.linspace(th[0], th[-1], n_blocks + 1)[1:-1]:
-        ax.axvline(e, color="0.5", lw=0.5, ls=":")
-    ax.set_xlabel("time (h); dotted: cross-validation blocks")
+    # the folds the selection used: a line wherever the held-out part changes
+    fold = arrays["fold"]
+    t_all = (arrays["t"] - arrays["t"][0]) / 3600.0
+    for k in np.flatnonzero(np.diff(fold)) + 1:
+        ax.axvline(t_all[k], color="0.5", lw=0.5, ls=":")
+    held = "held-out records" if arrays.get("by_record") else "held-out blocks"
+    ax.set_xlabel(f"time (h, records end to end); dotted: {held}")
     ax.set_ylabel("measured − model (mV)")
     ax.legend(loc="upper right", fontsize=8)
 

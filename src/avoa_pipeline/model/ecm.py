@@ -73,11 +73,16 @@ EFFECTS = (
     "current_offset",
     "voltage_offset",
     "coulombic_efficiency",
+    "r0_soc",
+    "r1_soc",
+    "r0_charge",
+    "bv_arrhenius",
 )
 """Elements a model may add to its base, by their one name (config, CLI, JSON, file names)."""
 
-REQUIRES = {"third_rc": "second_rc"}
-"""An element that only makes sense on top of another (a third RC branch after a second)."""
+REQUIRES = {"third_rc": "second_rc", "bv_arrhenius": "butler_volmer"}
+"""An element that only makes sense on top of another (a third RC branch after a second, an
+Arrhenius exchange current after Butler–Volmer)."""
 
 
 @dataclass(frozen=True)
@@ -90,6 +95,8 @@ class Param:
 
 
 SHAPE_NAMES = tuple(f"u{j}" for j in range(N_KNOTS - 2))
+R0S_NAMES = tuple(f"r0u{j}" for j in range(N_KNOTS - 1))
+R1S_NAMES = tuple(f"r1u{j}" for j in range(N_KNOTS - 1))
 
 PARAMS: dict[str, Param] = {
     "vnom": Param("vnom_v", "lin", 0.0, "rational"),
@@ -116,7 +123,12 @@ PARAMS: dict[str, Param] = {
     "ioff": Param("current_offset_a", "lin", 0.0, "current_offset"),
     "voff": Param("voltage_offset_v", "lin", 0.0, "voltage_offset"),
     "eta": Param("coulombic_efficiency", "lin", 1.0, "coulombic_efficiency"),
+    "rho": Param("r0_charge_log_ratio", "lin", 0.0, "r0_charge"),
+    "thbv": Param("bv_theta_i0_k", "lin", 0.0, "bv_arrhenius"),
+    # the vector elements last: their coordinates map onto N_KNOTS values each (VECTORS)
     **{n: Param(f"ocv_shape_{n}_v", "lin", 0.0, "ocv_shape") for n in SHAPE_NAMES},
+    **{n: Param(f"r0_soc_{n[2:]}", "lin", 0.0, "r0_soc") for n in R0S_NAMES},
+    **{n: Param(f"r1_soc_{n[2:]}", "lin", 0.0, "r1_soc") for n in R1S_NAMES},
 }
 NAMES = tuple(PARAMS)
 
@@ -145,7 +157,11 @@ LIMITS: dict[str, tuple[float, float]] = {
     "ioff": (-10.0, 10.0),  # a tenth of records.MAX_CURRENT_A
     "voff": (-0.3, 0.3),
     "eta": (0.7, 1.0),
+    "rho": (-1.5, 1.5),  # R0 while charging 0.22-4.5 times R0 while discharging
+    "thbv": (0.0, 12000.0),  # as the thermal factors
     **{n: (-0.5, 0.5) for n in SHAPE_NAMES},
+    # log-multipliers of R0, R1 at the knots: a factor of e^±3 (0.05-20) at most
+    **{n: (-3.0, 3.0) for n in (*R0S_NAMES, *R1S_NAMES)},
 }
 """The library's physical range of every parameter (report units), whatever the records: a
 fit's bounds (``fitting.bounds_for``) lie inside it, and a loaded ``model.json`` is judged
@@ -155,13 +171,17 @@ NX = len(NAMES)
 NEUTRAL = np.array([PARAMS[n].neutral for n in NAMES])
 BY_REPORT = {p.report: n for n, p in PARAMS.items()}
 
-# physical layout: the internal names without the shape coordinates, then the knot corrections
-N_SCALAR = NX - len(SHAPE_NAMES)
+# physical layout: the scalar names, then N_KNOTS values at the knots for each vector element:
+# the OCV correction (V), the log-multipliers of R0 and of R1
+N_SCALAR = NX - len(SHAPE_NAMES) - len(R0S_NAMES) - len(R1S_NAMES)
 (VNOM, OMB, Q, SOC0, R0, R1, TAU1, R2, TAU2, R3, TAU3, KLOW, SIG, KD, TAUD, HM, GAM, H0, BVG,
- TH0, TH1, IOFF, VOFF, ETA) = range(N_SCALAR)  # fmt: skip
+ TH0, TH1, IOFF, VOFF, ETA, RHO, THBV) = range(N_SCALAR)  # fmt: skip
 D0 = N_SCALAR
-NP = N_SCALAR + N_KNOTS
-PHYS = (*NAMES[:N_SCALAR], *(f"d{j}" for j in range(N_KNOTS)))
+L0 = D0 + N_KNOTS
+L1 = L0 + N_KNOTS
+NP = L1 + N_KNOTS
+PHYS = (*NAMES[:N_SCALAR], *(f"d{j}" for j in range(N_KNOTS)),
+        *(f"l0_{j}" for j in range(N_KNOTS)), *(f"l1_{j}" for j in range(N_KNOTS)))  # fmt: skip
 
 _LOG = np.array([PARAMS[n].transform == "log10" for n in NAMES[:N_SCALAR]])
 _LOG1M = np.array([PARAMS[n].transform == "log10_1m" for n in NAMES[:N_SCALAR]])
@@ -178,21 +198,32 @@ def element_params(element: str, ocv_kind: str = "rational") -> tuple[str, ...]:
     return tuple(n for n, p in PARAMS.items() if p.element == element)
 
 
-def _shape_basis() -> np.ndarray:
-    """(N_KNOTS, N_KNOTS − 2): knot corrections orthogonal to a constant and a linear trend.
-
-    A constant or a tilt of the OCV is already in the base model's reach (Vnom, β, capacity,
-    SOC0, the table's offset); leaving them out of the correction keeps the fit well posed and
-    keeps ocv_shape from mimicking a voltage offset. Columns: discrete orthogonal polynomials of
-    degree 2..5, scaled to a largest entry of 1 (so u is in volts).
-    """
+def _basis(lowest: int) -> np.ndarray:
+    """(N_KNOTS, N_KNOTS − lowest): discrete orthogonal polynomials over the knots of degree
+    ``lowest``..N_KNOTS − 1, scaled to a largest entry of 1."""
     x = np.linspace(-1.0, 1.0, N_KNOTS)
     q, _ = np.linalg.qr(np.vander(x, N_KNOTS, increasing=True))
-    b = q[:, 2:]
+    b = q[:, lowest:]
     return b / np.abs(b).max(axis=0)
 
 
-SHAPE_BASIS = _shape_basis()
+SHAPE_BASIS = _basis(2)
+"""ocv_shape: knot corrections orthogonal to a constant and a linear trend. A constant or a tilt
+of the OCV is already in the base model's reach (Vnom, β, capacity, SOC0, the table's offset);
+leaving them out keeps the fit well posed and keeps ocv_shape from mimicking a voltage offset
+(u in volts)."""
+SOC_BASIS = _basis(1)
+"""r0_soc, r1_soc: log-multipliers at the knots orthogonal to a constant (a constant factor is
+R0's or R1's own); a linear trend over SOC is the element's to give."""
+
+VECTORS = (
+    ("ocv_shape", SHAPE_NAMES, SHAPE_BASIS, D0),
+    ("r0_soc", R0S_NAMES, SOC_BASIS, L0),
+    ("r1_soc", R1S_NAMES, SOC_BASIS, L1),
+)
+"""The elements whose coordinates map onto values at the N_KNOTS SOC knots: (element, internal
+names, basis, first physical column)."""
+_VEC_IDX = [np.array([NAMES.index(n) for n in names]) for _, names, _, _ in VECTORS]
 
 
 def to_physical(X: np.ndarray) -> np.ndarray:
@@ -201,7 +232,8 @@ def to_physical(X: np.ndarray) -> np.ndarray:
     P = np.empty((X.shape[0], NP))
     P[:, :N_SCALAR] = X[:, :N_SCALAR]
     P[:, _POW] = 10.0 ** X[:, _POW]
-    P[:, D0:] = X[:, N_SCALAR:] @ SHAPE_BASIS.T
+    for (_, _, basis, col), idx in zip(VECTORS, _VEC_IDX, strict=True):
+        P[:, col : col + N_KNOTS] = X[:, idx] @ basis.T
     return P
 
 
@@ -235,7 +267,7 @@ def vector(params: dict) -> np.ndarray:
     """Internal vector from report-named values (absent ones neutral)."""
     x = NEUTRAL.copy()
     for key, value in params.items():
-        if key == "tref_k" or key.startswith(("ocv_knot", "ocv_d")):
+        if key == "tref_k" or key.startswith(("ocv_knot", "ocv_d", "r0_knot", "r1_knot")):
             continue
         n, v = internal_value(key, value)
         x[IDX[n]] = v
@@ -338,7 +370,7 @@ def ocv_values(P_row: np.ndarray, soc, knots: Knots, table: OcvTable | None) -> 
     else:
         sc = soc
         v = table(sc)
-    d = P_row[D0:]
+    d = P_row[D0 : D0 + N_KNOTS]
     if np.any(d != 0.0):
         v = v + np.interp(sc, knots.grid(), d)
     return v + P_row[VOFF]
@@ -351,6 +383,24 @@ def ocv_values(P_row: np.ndarray, soc, knots: Knots, table: OcvTable | None) -> 
 THERMAL_MIN_RANGE_C = 2.0
 """The thermal element needs the measured temperature to move at least this much (°C): with
 less, an Arrhenius factor is a constant that R0 and R1 already absorb."""
+
+OPENING_WINDOW_S = 60.0
+"""The initial state is read from the last 60 s of a record's opening rest: at 1 Hz sixty
+samples, so the logger's noise enters √60 times less than through one sample, and the end of the
+rest is its most relaxed part (docs/gap-diagnosis.md, "Selection judged like prediction")."""
+
+
+def opening(t: np.ndarray, i: np.ndarray, v: np.ndarray) -> tuple[float, float, int]:
+    """(voltage, current, samples) that start a record: their means over the last
+    OPENING_WINDOW_S of the opening rest (the leading samples at rest, ``records.REST_FRACTION``),
+    or the first sample if the record starts under load."""
+    line = REST_FRACTION * max(current_scale(i), 1e-6)
+    moving = np.flatnonzero(np.abs(i) > line)
+    end = int(moving[0]) if moving.size else i.size
+    if end == 0:
+        return float(v[0]), float(i[0]), 1
+    first = int(np.searchsorted(t[:end], t[end - 1] - OPENING_WINDOW_S, side="left"))
+    return float(np.mean(v[first:end])), float(np.mean(i[first:end])), end - first
 
 
 @dataclass(frozen=True)
@@ -367,6 +417,8 @@ class Record:
     dinv_t: np.ndarray
     two_rt_f: np.ndarray
     source: str = "<data>"
+    v_open: float = np.nan  # what starts the record (:func:`opening`)
+    i_open: float = 0.0
 
     @property
     def n(self) -> int:
@@ -393,11 +445,13 @@ class Record:
         tk = np.full(t.size, T_DEFAULT_K) if temp is None else temp + 273.15
         if tref_k is None:
             tref_k = float(np.mean(tk))
+        v_open, i_open, _ = opening(t, i, v)
         return cls(
             t=t, i=i, v=v, temp_c=temp, dt=np.ascontiguousarray(dt), uniform=uniform,
             tref_k=float(tref_k), dinv_t=np.ascontiguousarray(1.0 / tk - 1.0 / tref_k),
             two_rt_f=np.ascontiguousarray(2.0 * GAS_R * tk / FARADAY),
             source=str(source if source is not None else frame.attrs.get("source", "<data>")),
+            v_open=v_open, i_open=i_open,
         )  # fmt: skip
 
     def charge_ah(self) -> np.ndarray:
@@ -453,7 +507,11 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
     ioff = P[:, IOFF].copy()
     voff = P[:, VOFF].copy()
     eta = P[:, ETA].copy()
+    rho = P[:, RHO].copy()
+    thbv = P[:, THBV].copy()
     d = P[:, D0 : D0 + nk].copy()
+    l0 = P[:, L0 : L0 + nk].copy()
+    l1 = P[:, L1 : L1 + nk].copy()
     a1 = np.exp(-dt[0] / tau1)
     a2 = np.exp(-dt[0] / tau2)
     a3 = np.exp(-dt[0] / tau3)
@@ -471,6 +529,10 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
     rc3 = np.any(r3 != 0.0)
     low = np.any(klow != 0.0)
     diff = np.any(kd != 0.0)
+    soc_r0 = np.any(l0 != 0.0)
+    soc_r1 = np.any(l1 != 0.0)
+    r0chg = np.any(rho != 0.0)
+    bvarr = np.any(thbv != 0.0)
     load = g_load != 0.0
     for k in range(n):
         dtk = dt[k]
@@ -518,8 +580,19 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
             f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
             f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
             ro = f0 * g * r0[c]
+            g1 = 1.0
+            if soc_r0 or soc_r1:  # log-multipliers at the knots, by the (bulk) SOC
+                x = (s - k_lo) / k_step
+                j = min(max(int(x), 0), nk - 2) if x > 0.0 else 0
+                w = min(max(x - j, 0.0), 1.0)
+                if soc_r0:
+                    ro *= np.exp((1.0 - w) * l0[c, j] + w * l0[c, j + 1])
+                if soc_r1:
+                    g1 = np.exp((1.0 - w) * l1[c, j] + w * l1[c, j + 1])
             e -= v1[c] + v2[c] + v3[c]
             ip = ik0 + ioff[c]
+            if r0chg and ip < 0.0:
+                ro *= np.exp(rho[c])
             if load:  # the load's current follows the terminal voltage: solved exactly
                 v = (e - ro * ip) / (1.0 + ro * g_load)
                 i = ip + v * g_load
@@ -527,7 +600,8 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
                 i = ip
                 v = e - ro * i
                 if bv:
-                    v -= rtf * np.arcsinh(0.5 * bvg[c] * i)
+                    gb = bvg[c] * np.exp(thbv[c] * dinv) if bvarr else bvg[c]
+                    v -= rtf * np.arcsinh(0.5 * gb * i)
             if row >= 0:
                 out[row, c] = v
             if record and c == 0:
@@ -537,7 +611,7 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
                 tr[3, k] = f0
                 tr[4, k] = i
             gi = f1 * g * i
-            v1[c] = a1[c] * v1[c] + r1[c] * (1.0 - a1[c]) * gi
+            v1[c] = a1[c] * v1[c] + r1[c] * g1 * (1.0 - a1[c]) * gi
             if rc2:
                 v2[c] = a2[c] * v2[c] + r2[c] * (1.0 - a2[c]) * gi
             if rc3:
@@ -629,19 +703,29 @@ def starts_at_rest(rec: Record) -> bool:
 def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None = None,
               iterations: int = 60) -> np.ndarray:  # fmt: skip
     """The library's one initial-SOC rule, for every physical row of ``P``: the SOC whose OCV
-    equals the record's first voltage corrected for the ohmic drop,
-    OCV(s0) + M·h0 = V0 + R0·g(s0)·f0·(I0 + b), with no RC voltage (the record is taken to start
-    at rest, or close to it: :func:`starts_at_rest` says which). Solved on [0, 1] (the table's
-    range for a table OCV) by bisection on all rows at once (the two sides cross once: the OCV
-    rises with SOC, the ohmic term falls or stays); clipped to the range's end when the voltage
-    lies beyond it. Closed form for the plain rational curve (:func:`rational_soc0`)."""
+    equals the record's opening voltage corrected for the ohmic drop (:func:`opening`: the mean
+    over the last OPENING_WINDOW_S of the opening rest, or the first sample under load),
+    OCV(s0) + M·h0 = V_open + R0(s0)·f0·(I_open + b), R0(s0) with its SOC factors, no RC
+    voltage. Solved on [0, 1] (the table's range for a table OCV) by the Illinois method
+    (bracketed false position) on all rows at once (the two sides cross once: the OCV rises with
+    SOC, the ohmic term falls or stays); clipped to the range's end when the voltage lies beyond
+    it. Closed form for the plain rational curve (:func:`rational_soc0`)."""
     P = np.atleast_2d(np.asarray(P, dtype=float))
-    i0 = float(rec.i[0]) + P[:, IOFF]
-    f0 = np.exp(P[:, TH0] * rec.dinv_t[0])
-    v0 = float(rec.v[0]) - P[:, HM] * P[:, H0]
-    shaped = np.any(P[:, D0:] != 0.0, axis=1)
-    if table is None and not np.any(P[:, KLOW] != 0) and not shaped.any():
+    v_open = float(rec.v[0]) if np.isnan(rec.v_open) else rec.v_open
+    i0 = rec.i_open + P[:, IOFF]
+    f0 = np.exp(P[:, TH0] * rec.dinv_t[0]) * np.where(i0 < 0.0, np.exp(P[:, RHO]), 1.0)
+    v0 = v_open - P[:, HM] * P[:, H0]
+    shaped = np.any(P[:, D0 : D0 + N_KNOTS] != 0.0, axis=1)
+    socr0 = np.any(P[:, L0 : L0 + N_KNOTS] != 0.0, axis=1)
+    if table is None and not np.any(P[:, KLOW] != 0) and not (shaped | socr0).any():
         return rational_soc0(P[:, VNOM], P[:, OMB], v0 + P[:, R0] * f0 * i0 - P[:, VOFF])
+    rows = np.arange(P.shape[0])
+
+    def at_knots(x, col):  # per row, its knot values at its own SOC (flat beyond the knots)
+        u = np.clip((x - knots.lo) / knots.step, 0.0, N_KNOTS - 1.0)
+        j = np.minimum(u.astype(int), N_KNOTS - 2)
+        w = u - j
+        return (1.0 - w) * P[rows, col + j] + w * P[rows, col + j + 1]
 
     def gap(s):  # OCV − (V0 + ohmic drop), one SOC per row
         g = 1.0 + P[:, KLOW] * np.exp(-np.clip(s, -0.5, 2.0) / P[:, SIG])
@@ -651,20 +735,34 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
         else:
             sc = s
             e = table(sc)
-        for r in np.flatnonzero(shaped):
-            e[r] += np.interp(sc[r], knots.grid(), P[r, D0:])
+        if shaped.any():
+            e = e + at_knots(sc, D0)
+        if socr0.any():
+            g = g * np.exp(at_knots(s, L0))
         return e + P[:, VOFF] - (v0 + P[:, R0] * g * f0 * i0)
 
     lo_s, hi_s = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
-    lo = np.full(P.shape[0], lo_s)
-    hi = np.full(P.shape[0], hi_s)
-    g_lo, g_hi = gap(lo), gap(hi)
-    for _ in range(iterations):  # 2^-60 of the range: below rounding
-        mid = 0.5 * (lo + hi)
-        below = gap(mid) < 0
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    s = 0.5 * (lo + hi)
-    s = np.where(g_lo >= 0, lo_s, s)
+    a, b = np.full(P.shape[0], lo_s), np.full(P.shape[0], hi_s)
+    g_lo, g_hi = gap(a), gap(b)
+    fa, fb = g_lo.copy(), g_hi.copy()
+    inside = (g_lo < 0) & (g_hi > 0)
+    # Illinois (false position, the stale end's value halved): bracketed like bisection,
+    # superlinear; it stops once the voltage gap is below 1e-12 V in every row
+    side = np.zeros(P.shape[0])
+    c = 0.5 * (a + b)
+    for _ in range(iterations):
+        c = (a * fb - b * fa) / np.where(inside, fb - fa, 1.0)
+        c = np.where(inside, c, 0.5 * (a + b))
+        fc = gap(c)
+        if np.all(np.abs(fc[inside]) < 1e-12):
+            break
+        left = fc < 0  # the root lies above c
+        fb = np.where(left & (side == 1), 0.5 * fb, fb)
+        fa = np.where(~left & (side == -1), 0.5 * fa, fa)
+        a, fa = np.where(left, c, a), np.where(left, fc, fa)
+        b, fb = np.where(left, b, c), np.where(left, fb, fc)
+        side = np.where(left, 1, -1)
+    s = np.where(g_lo >= 0, lo_s, c)
     return np.where(g_hi <= 0, hi_s, s)
 
 

@@ -40,11 +40,19 @@ class FittedModel:
     def parameters(self) -> dict[str, float]:
         """Report-named physical values of the cell's parameters (initial states left out)."""
         out = ecm.report(self.x, self.names)
+        P = ecm.to_physical(self.x)[0]
+        grid = self.knots.grid()
         if "ocv_shape" in self.config.effects:
-            d = ecm.to_physical(self.x)[0, ecm.D0 :]
-            for j, s in enumerate(self.knots.grid()):
+            d = P[ecm.D0 : ecm.D0 + ecm.N_KNOTS]
+            for j, s in enumerate(grid):
                 out[f"ocv_knot{j}_soc"] = float(s)
                 out[f"ocv_d{j}_v"] = float(d[j])
+        for element, col, key in (("r0_soc", ecm.L0, "r0"), ("r1_soc", ecm.L1, "r1")):
+            if element in self.config.effects:
+                factors = np.exp(P[col : col + ecm.N_KNOTS])
+                for j, s in enumerate(grid):
+                    out[f"{key}_knot{j}_soc"] = float(s)
+                    out[f"{key}_knot{j}_factor"] = float(factors[j])
         return out
 
     def record(self, frame: pd.DataFrame) -> Record:
@@ -167,19 +175,19 @@ class Fit:
     """A configuration fitted to records: the model, each record's rows, the training RMSE."""
 
     model: FittedModel
-    X: np.ndarray  # per-record internal rows (each record's initial state in its own row)
+    X: np.ndarray  # per-record internal rows (each record's initial state, by the rule, its own)
     train_rmse_mv: float
     nfev: int
 
 
 def fit_model(frames, config: Config, capacity_ah: float | None = None,
-              soc0: float | None = None, provenance: dict | None = None,
-              soc0_rule: bool = False) -> Fit:  # fmt: skip
+              soc0: float | None = None, provenance: dict | None = None) -> Fit:  # fmt: skip
     """Fit ``config`` to one or several records of one cell: the base by multi-start least
     squares, then the configuration's elements one at a time, each started from the previous
-    fit (as the diagnosis's ladder adds them). Shared cell parameters, each record its own
-    initial state, fitted or, with ``soc0_rule``, the library's rule (``fitting.structure``);
-    one reference temperature (the mean over all records)."""
+    fit (as the diagnosis's ladder adds them). Shared cell parameters, each record started by
+    the library's rule (``fitting.structure``) and counting alike; one reference temperature
+    (the mean over all records). The training RMSE is the records-alike one (the root of the
+    mean over records of each record's mean squared error)."""
     from . import fitting
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
@@ -188,24 +196,23 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     recs = [Record.from_frame(f, tref_k=tref) for f in frames]
     base_cfg = Config((), config.table, config.load_ohm)
     fix_q, fix_s = capacity_ah is not None, soc0 is not None
-    st = fitting.structure(recs, base_cfg, None, fix_q, fix_s, soc0_rule)
+    st = fitting.structure(recs, base_cfg, None, fix_q, fix_s)
     res = fitting.best_of(recs, st, fitting.base_starts(recs, base_cfg, capacity_ah, soc0))
     knots = fitting.knots_for(recs, res.X)
     nfev, X, now = res.nfev, res.X, base_cfg
     for e in config.effects:
         now = now.with_effect(e)
-        st = fitting.structure(recs, now, knots, fix_q, fix_s, soc0_rule)
+        st = fitting.structure(recs, now, knots, fix_q, fix_s)
         res = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
         nfev, X = nfev + res.nfev, res.X
-    st = fitting.structure(recs, config, knots, fix_q, fix_s, soc0_rule)
+    st = fitting.structure(recs, config, knots, fix_q, fix_s)
     X = fitting.complete(st, recs, X)
     b = fitting.bounds_for(recs)
     bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
     if fix_q:
         bounds["lq"] = (X[0, IDX["lq"]],) * 2
-    sq, n = 0.0, 0
-    for r, rec in enumerate(recs):
-        v = ecm.simulate_rows(rec, X[r], knots, config.table, config.load_ohm)[:, 0]
-        sq, n = sq + float(np.sum((v - rec.v) ** 2)), n + rec.n
+    mse = [float(np.mean((ecm.simulate_rows(rec, X[r], knots, config.table,
+                                            config.load_ohm)[:, 0] - rec.v) ** 2))
+           for r, rec in enumerate(recs)]  # fmt: skip
     model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {})
-    return Fit(model, X, 1e3 * float(np.sqrt(sq / n)), nfev)
+    return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)

@@ -222,7 +222,7 @@ def fit_and_predict(train, config: ecm.Config, tests: dict[str, pd.DataFrame]) -
     training record starts by the library's initial-SOC rule, as every prediction does (the
     hand-written C/20 circuits did the same; their numbers are reproduced: 17.3 / 46.8 mV)."""
     t0 = time.perf_counter()
-    fit = fit_model(train, config, soc0_rule=True)
+    fit = fit_model(train, config)
     return {
         "effects": list(config.effects),
         "train_rmse_mv": fit.train_rmse_mv,
