@@ -18,7 +18,7 @@ from scipy.interpolate import PPoly
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
 from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, ise, simulate
-from avoa_pipeline.real import canonical, panasonic
+from avoa_pipeline.real import canonical, jobs, panasonic
 from avoa_pipeline.real import drive_cycles as dc
 
 REPO = Path(__file__).resolve().parents[2]
@@ -106,20 +106,54 @@ def test_hppc_merge_follows_the_ah_counter(real, tmp_path):
     assert frame["voltage_v"].iloc[-1] < 3.4
 
 
-def test_thermal_soak_is_trimmed(real, tmp_path):
-    # the 10 degC HWFET file starts with ~1 h of rest (cell charged warm, logged every 60 s)
-    key = "panasonic_18650pf/10degC/Drive Cycles/03-27-17_09.06 10degC_HWFET_Pan18650PF.mat"
-    path = Path(real["root"], key)
-    if not path.is_file():
-        pytest.skip(f"{path} not present")
-    local = {**real, "sources": {key: hashlib.sha256(path.read_bytes()).hexdigest()}}
-    out = tmp_path / "hwfet10.csv"
-    side = panasonic.import_record(local, [key], "drive_cycle:hwfet", 10.0, out, trim_soak=True)
-    frame, _ = canonical.read(out)
-    first = frame["time_s"][np.abs(frame["current_a"]) > panasonic.REST_A].iloc[0]
-    assert 3400 < side["leading_rest_trimmed_s"] < 3600
-    assert 55 <= first <= 65
-    assert side["n_samples"] == len(frame)
+# 10 and -10 degC (issue 19): what each record must look like after the import. The training
+# cycles (10 degC HWFET, -10 degC UDDS) and the -10 degC US06 start with a thermal soak (cell
+# charged warm, rest logged every 60 s; PROVENANCE.md: first |I| > 0.05 A at 3542 and 7142 s),
+# cut to its last 60 s; the -10 degC tests stop after 2.03 Ah, the 10 degC ones at 2.5 V with
+# regen (charge current) that the colder ones lack.
+COLD = {
+    "10degC": {"soak_s": {"hwfet": (3400, 3600), "us06": (0, 0)}, "regen": True, "stop_ah": None},
+    "-10degC": {"soak_s": {"udds": (7000, 7150), "us06": (7000, 7150)}, "regen": False,
+                "stop_ah": 2.03},
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("temp", list(COLD))
+def test_new_temperature_records_import_and_pass_the_checks(real, cfg, tmp_path, temp):
+    want = COLD[temp]
+    local = {**cfg, "real": real}
+    names = [n for n in panasonic.records(local) if n.startswith(f"{temp}/")]
+    assert sorted(names) == sorted([f"{temp}/hppc", *(f"{temp}/{c}" for c in want["soak_s"])])
+    for name in names:
+        out = tmp_path / f"{jobs.canonical_name(name)}.csv"
+        side = panasonic.import_named(local, name, out)
+        frame, _ = canonical.read(out)
+        checked = records.check(frame, str(out), capacity_ah=side["nominal_capacity_ah"])
+        assert checked.sign.verdict == "discharge-positive", name
+        assert checked.warnings == ()
+        assert side["ambient_temperature_c"] == float(temp.removesuffix("degC"))
+        assert all(ev["verdict"] == "discharge-positive" for ev in side["sign_check"].values())
+        cur = frame["current_a"].to_numpy()
+        if name.endswith("/hppc"):  # pulse file + SOC-step file, merged on the wall clock
+            assert side["merged_blocks"] > 10
+            assert np.sum(np.abs(cur - 0.87) < 0.03) > 5000  # seconds of 0.87 A SOC steps
+            assert np.max(cur) > 11.0  # 4C pulses at least (6C ones are cut by 2.5 V at -10)
+            assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 0.01 * 2.5
+            assert frame["voltage_v"].iloc[-1] < 2.6
+            continue
+        lo, hi = want["soak_s"][name.split("/")[1]]
+        assert lo <= side["leading_rest_trimmed_s"] <= hi, name
+        first = frame["time_s"][np.abs(cur) > panasonic.REST_A].iloc[0]
+        assert first <= 65 if hi else first < 5, name  # the soak's last 60 s kept
+        assert side["n_samples"] == len(frame)
+        # the soak brought the cell to the chamber's temperature before the drive part
+        assert abs(frame["temperature_c"].iloc[0] - side["ambient_temperature_c"]) < 1.5, name
+        assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 2e-3 * 2.5
+        assert (cur.min() < -1.0) == want["regen"], name
+        if want["stop_ah"]:
+            assert abs(side["discharged_ah"] - want["stop_ah"]) < 0.01, name
+        else:  # stopped at 2.5 V (0.1-s samples; the 1-s bin means stay a little above it)
+            assert frame["voltage_v"].min() < 2.7, name
 
 
 def test_trim_leaves_short_rests_alone():
@@ -212,6 +246,23 @@ def test_records_need_a_checksum_for_every_file(cfg):
     with pytest.raises(ConfigError, match=r"real\.panasonic \(25degC/us06\).*no entry"):
         panasonic.records(broken)
     assert panasonic.records({k: v for k, v in cfg.items() if k != "real"}) == {}
+
+
+def test_experiment_temperatures_and_their_cycles(cfg):
+    """Issue 19's rule: at each temperature the longest standard drive cycle trains, the others
+    are unseen; a list `temperatures` narrows the run (config/tiny.yaml), checked against train."""
+    assert dc.temperatures(cfg) == ["25degC", "10degC", "0degC", "-10degC"]
+    assert dc.experiment(cfg)["train"] == {"25degC": "la92", "10degC": "hwfet", "0degC": "udds",
+                                           "-10degC": "udds"}  # fmt: skip
+    assert dc.unseen_cycles(cfg, "10degC") == ["us06"]
+    assert dc.unseen_cycles(cfg, "-10degC") == ["us06"]
+    assert dc.unseen_cycles(cfg, "0degC") == ["us06", "hwfet"]
+    narrowed = copy.deepcopy(cfg)
+    narrowed["real"]["panasonic"]["experiment"]["temperatures"] = ["0degC", "25degC"]
+    assert dc.temperatures(narrowed) == ["0degC", "25degC"]
+    narrowed["real"]["panasonic"]["experiment"]["temperatures"] = ["-20degC"]
+    with pytest.raises(ConfigError, match=r"experiment\.temperatures: '-20degC' has no training"):
+        dc.temperatures(narrowed)
 
 
 # --- experiment 1: the pieces of src/avoa_pipeline/real/drive_cycles.py -------------------------

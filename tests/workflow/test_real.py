@@ -124,6 +124,45 @@ def test_canonical_records_and_sidecars(workdir):
         assert len(side["source_sha256"]) == 64
 
 
+def _dry_run(wd: Path, *configs: str) -> str:
+    env = {**os.environ, "XDG_CACHE_HOME": str(wd / ".cache")}
+    extra = ["--configfile", *configs] if configs else []
+    proc = subprocess.run(
+        [sys.executable, "-m", "snakemake", "-n", "real", *extra],
+        cwd=wd, env=env, capture_output=True, text=True, check=False, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout + proc.stderr
+
+
+def test_every_temperature_is_wired_and_tiny_narrows_it(tmp_path):
+    """Issue 19: the full config's `real` has every per-temperature job at 25, 10, 0 and -10
+    degC (dry run, nothing computed); config/tiny.yaml keeps 25 and 0 degC, imports included."""
+    root = Path(yaml.safe_load((REPO / "config" / "config.yaml").read_text())["real"]["root"])
+    root = root if root.is_absolute() else (REPO / root).resolve()
+    if not (root / "panasonic_18650pf").is_dir():
+        pytest.skip(f"Panasonic data not found under {root}")
+    for name in COPY:
+        src = REPO / name
+        (shutil.copytree if src.is_dir() else shutil.copy2)(src, tmp_path / name)
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    cfg["real"]["root"] = str(root)
+    (tmp_path / "config" / "config.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    out = "results/real/panasonic"
+    per_temp = [f"{out}/diagnosis/{{t}}/diagnosis.json", f"{out}/gap/{{t}}/diagnosis.json",
+                f"{out}/fits/{{t}}/c20.json", f"{out}/fits/{{t}}/paper_rc/gto.json",
+                f"{out}/cross_cycle/{{t}}.csv",
+                "results/real/canonical/panasonic_{t}_hppc.csv"]  # fmt: skip
+    full = _dry_run(tmp_path)
+    tiny = _dry_run(tmp_path, "config/tiny.yaml")
+    for t in ("25degC", "10degC", "0degC", "-10degC"):
+        for path in per_temp:
+            assert path.format(t=t) in full, path.format(t=t)
+            assert (path.format(t=t) in tiny) == (t in ("25degC", "0degC")), path.format(t=t)
+    for rec in ("10degC_hwfet", "10degC_us06", "-10degC_udds", "-10degC_us06"):
+        assert f"results/real/canonical/panasonic_{rec}.csv" in full
+
+
 def test_nothing_to_do_after_a_run(workdir):
     env = {**os.environ, "XDG_CACHE_HOME": str(workdir / ".cache")}
     proc = subprocess.run(

@@ -118,7 +118,7 @@ PAN_TEMPS = sorted({n.split("/")[0] for n in PANASONIC})
 PAN_TESTS = sorted({n.split("/")[1] for n in PANASONIC})
 PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
 PAN_OUT = "results/real/panasonic"
-PAN_EXP_TEMPS = list((PAN_EXP.get("train") or {}) if PANASONIC else [])
+PAN_EXP_TEMPS = real_dc.temperatures(config) if PANASONIC and PAN_EXP else []
 PAN_GAP = bool(PAN_EXP.get("gap", True))
 
 
@@ -140,6 +140,24 @@ def pan_tests(temp):
 
 
 PAN_OCV_RECORD = pan_canon("25degC/ocv_c20") if PANASONIC else []  # the one slow test (25 degC)
+
+
+def pan_imports():
+    """The records `real` imports: with experiment 1, those of its temperatures and the C/20
+    test (a config narrowing the experiment, e.g. config/tiny.yaml, imports no more); without
+    it, every record the config names."""
+    if not PAN_EXP_TEMPS:
+        return list(PANASONIC)
+    return [n for n in PANASONIC
+            if n.split("/")[0] in PAN_EXP_TEMPS or pan_canon(n) == PAN_OCV_RECORD]
+
+
+def pan_fit_settings(temp):
+    """What a paper-model fit at ``temp`` depends on beyond its data (its params: a change
+    reruns it): the experiment's settings and that temperature's training cycle, not the
+    other temperatures, the list of optimizers, the figure or the gap switch."""
+    skip = ("train", "temperatures", "algorithms", "figure_cycle", "gap")
+    return {**{k: v for k, v in PAN_EXP.items() if k not in skip}, "train": PAN_EXP["train"][temp]}
 
 
 def pan_hppc(w):

@@ -7,7 +7,7 @@
 # ------------------------------------------------------------------------------------------------
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
-REAL_TARGETS += [f"{PAN_CANON}/{real_jobs.canonical_name(n)}.csv" for n in PANASONIC]
+REAL_TARGETS += [pan_canon(n) for n in pan_imports()]
 REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
 
 
@@ -66,8 +66,8 @@ rule panasonic_fit_paper:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
         pmodel="|".join(real_dc.PAPER_MODELS),
         algorithm="|".join(PAN_EXP.get("algorithms", [])) or "none",
-    params:  # what a fit depends on beyond its data (not the figure or the gap switch)
-        exp={k: v for k, v in PAN_EXP.items() if k not in ("figure_cycle", "gap")},
+    params:
+        exp=lambda w: pan_fit_settings(w.ptemp),
         base_seed=config["base_seed"],
         tests=lambda w: pan_tests(w.ptemp),
     group:

@@ -2,6 +2,7 @@
 
     python -m avoa_pipeline.real list
     python -m avoa_pipeline.real panasonic-import 25degC/us06 --out us06.csv
+    python -m avoa_pipeline.real panasonic-import --out us06.csv -- -10degC/us06
     python -m avoa_pipeline.real drive-cycles --out-dir DIR [--temperature 25degC]
     python -m avoa_pipeline.real samsung-import --temperature 20degC --out s20.csv
     python -m avoa_pipeline.real arrhenius --hppc 20degC=s20.csv ... --out-rc R --out-arrhenius A
@@ -36,7 +37,7 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
     from . import jobs, panasonic
 
     exp = dc.experiment(cfg)
-    temps = temps or list(exp["train"])
+    temps = temps or dc.temperatures(cfg)
     canon = out_dir / "canonical"
 
     def record(name):
@@ -84,11 +85,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True, parser_class=Parser)
     sub.add_parser("list", help="the Panasonic records the config names")
     p = sub.add_parser("panasonic-import", help="one Panasonic test → canonical CSV + JSON")
-    p.add_argument("name", help="<temperature>/<test>, e.g. 25degC/us06 (see `list`)")
+    p.add_argument(
+        "name",
+        help="<temperature>/<test>, e.g. 25degC/us06 (see `list`); a "
+        "negative temperature after `--`, as argparse reads -10degC as an option: "
+        "`--out X.csv -- -10degC/us06`",
+    )
     p.add_argument("--out", required=True, type=Path)
     d = sub.add_parser("drive-cycles", help="experiment 1 into a folder")
     d.add_argument("--out-dir", required=True, type=Path)
-    d.add_argument("--temperature", action="append", help="only this one (repeatable)")
+    d.add_argument(
+        "--temperature",
+        action="append",
+        help="only this one (repeatable; a negative one as --temperature=-10degC)",
+    )
     cells_cli.add_commands(sub)
     return ap
 

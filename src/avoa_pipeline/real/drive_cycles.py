@@ -138,7 +138,19 @@ def experiment(cfg: dict) -> dict:
         if cycle not in temps[temp]["drive_cycles"]:
             raise ConfigError(f"config: field real.panasonic.experiment.train.{temp}: no drive "
                               f"cycle {cycle!r} at {temp}")  # fmt: skip
+    for temp in exp.get("temperatures") or ():
+        if temp not in exp["train"]:
+            raise ConfigError(f"config: field real.panasonic.experiment.temperatures: {temp!r} has "
+                              "no training cycle in real.panasonic.experiment.train")  # fmt: skip
     return exp
+
+
+def temperatures(cfg: dict) -> list[str]:
+    """The temperatures experiment 1 runs at: ``experiment.temperatures`` if given (a list, so
+    that a smaller config laid over this one can narrow it; Snakemake merges mappings key by
+    key), else every temperature of ``experiment.train``."""
+    exp = experiment(cfg)
+    return list(exp.get("temperatures") or exp["train"])
 
 
 def unseen_cycles(cfg: dict, temp: str) -> list[str]:
