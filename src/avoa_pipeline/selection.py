@@ -20,7 +20,8 @@ it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
 4. **Winner.** Among those that pay, the largest held-out shrink wins, unless a candidate with
    fewer parameters is within one standard error of it (the one-standard-error rule).
 5. **Ladder.** The winner becomes the reference and the remaining elements are tried on top of
-   it, by the same rule, until none pays.
+   it, by the same rule, until none pays; then each element of the result stays only if it pays
+   against the model without it (backward pruning, :func:`prune`).
 
 Only training records enter: a record passed for validation is never seen here.
 """
@@ -403,11 +404,42 @@ class Ladder:
     skipped: list[dict]  # {effect, applicable: False, reason}
     winner: str | None
     rungs: list[dict]  # one row per rung (``ladder_row``), the winner's first
-    runs: list[ModelRun]  # one fit per rung; the last is the selected model
+    runs: list[ModelRun]  # one fit per rung; the last is the climb's end
+    pruned: list[dict] = field(default_factory=list)  # elements dropped after the climb
+    final: ModelRun | None = None  # the selected model: the climb's end, pruned
 
     @property
     def selected(self) -> ModelRun:
+        if self.final is not None:
+            return self.final
         return self.runs[-1] if self.runs else self.base
+
+
+def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
+    """Backward pruning (docs/gap-diagnosis.md, the addendum): each element of ``final``, the
+    latest added first, stays only if ``final`` pays against the model without it (refitted from
+    ``final`` with the element neutral, held out the same way); else it is dropped and the search
+    starts again from the smaller model. Returns the pruned model and one row per drop."""
+    dropped = []
+    while final.effects:
+        for e in reversed(final.effects):
+            rest = tuple(x for x in final.effects if x != e)
+            if any(ecm.REQUIRES.get(x) == e for x in rest):
+                continue  # another element needs it
+            st = ctx.structure(rest, final.st.knots)
+            start = fitting.neutralise(final.X, (e,))
+            idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
+            reduced = ctx.run(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
+            ctx.fits += 1
+            ctx.cross_validate(reduced)
+            (row,) = judge(ctx, reduced, {e: final})
+            if not row["pays"]:
+                dropped.append({**row, "from": list(final.effects)})
+                final = reduced
+                break
+        else:
+            break
+    return final, dropped
 
 
 def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
@@ -433,4 +465,5 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
                 "reason": applicable(ctx.recs, e, (), ctx.table)[1]}
                for e in effects if e not in cands]  # fmt: skip
     rungs, runs = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
-    return Ladder(base, cands, rows, skipped, winner, rungs, runs)
+    final, pruned = prune(ctx, runs[-1]) if runs else (base, [])
+    return Ladder(base, cands, rows, skipped, winner, rungs, runs, pruned, final)

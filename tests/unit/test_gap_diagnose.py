@@ -370,3 +370,20 @@ def test_a_held_out_record_is_predicted_as_simulate_predicts_it():
         np.testing.assert_allclose(base.ho[held], v, rtol=0, atol=1e-9)
     # and the fit that predicted record 0 saw record 1 only: its parameters differ
     assert not np.allclose(base.fold_X[0][0], base.fold_X[1][0])
+
+
+def test_pruning_drops_what_no_longer_pays_and_keeps_what_does():
+    """Backward pruning: a second RC branch in data that have one stays; a current offset that
+    the data do not need is dropped, and the drop is reported."""
+    truth = {**TRUTH, "r2_ohm": 0.01, "tau2_s": 1000.0}
+    frame = with_voltage(profile_frame(), truth, noise_v=1e-3, seed=2)
+    ctx = selection.Context([ecm.Record.from_frame(frame)])
+    base = selection.fit_base(ctx)
+    runs = selection.try_effects(ctx, base, ["second_rc"], cv=False)
+    both = selection.try_effects(ctx, runs["second_rc"], ["current_offset"], cv=False)
+    final = ctx.cross_validate(both["current_offset"])
+    assert final.effects == ("second_rc", "current_offset")
+    pruned, dropped = selection.prune(ctx, final)
+    assert pruned.effects == ("second_rc",)
+    assert [d["effect"] for d in dropped] == ["current_offset"]
+    assert not dropped[0]["pays"]

@@ -530,6 +530,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         for lr, r in zip(lad.rungs, lad.runs, strict=True):
             lr["parameters"] = parameters(ctx, r)
             rungs["+".join(r.effects)] = r
+        rungs.setdefault("+".join(final.effects) or "base", final)  # after pruning
     else:
         best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"],
                    default=None)  # fmt: skip
@@ -596,6 +597,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "candidates": rows + lad.skipped,
         "verdict": verdict,
         "ladder": lad.rungs,
+        "pruned": [{k: v for k, v in p.items() if k != "params"} for p in lad.pruned],
         "selected": {
             "name": selected_name,
             "effects": list(final.effects),
