@@ -1,15 +1,19 @@
 """PyBaMM's Thevenin model from an exported module against the package's simulator, on records
-longer than the unit tests': agreement (RMS and largest difference, mV) and seconds per
-record (PyBaMM: model build and solve, as the module's ``simulate`` does; ours:
-``FittedModel.simulate``). Prints measurements; asserts nothing.
+longer than the unit tests': agreement (RMS and largest difference, mV) and seconds per record
+(PyBaMM: the module's ``simulate``, model builds included; ours: ``FittedModel.simulate``).
+Prints measurements; asserts nothing.
 
 Records: the issue's profile (discharge, rest, charge, 6 A pulse, rests; 2,222 samples at 1 s)
 and a 1 Hz drive-like current (15,000 samples, a new current every second), both with a measured
-temperature that moves 10 °C. Rows: IDAKLU at rtol = atol = 1e-8, 1e-7 and 1e-6 (the module's
-``simulate``) and at its defaults; for the thermal stack, also at 1e-6 without the thermal lead
-(the ambient switched at the sample time instead of THERMAL_LEAD_S before it).
+temperature that moves 10 °C; for the SOC-dependent resistance also the issue's profile with
+steps of 1, 2 or 4 s (``2222@1-4s``, at 1e-8 only: our simulator holds its factor over each
+step). Rows: IDAKLU at rtol = atol = 1e-8, 1e-7 and 1e-6 (the module's default) and at its own
+defaults (rtol 1e-4, atol 1e-6); for the thermal stack, also at 1e-6 without the thermal lead
+(THERMAL_LEAD_S = 0: the ambient switched at the sample time); with ``--chunks``, the stack at
+1e-6 solved in pieces of each size given (the module's default: CHUNK_SAMPLES).
 
     nice -n 10 .venv/bin/python benchmarks/bench_pybamm_export.py [--sizes 2222 15000]
+    ... --sizes 15000 --chunks 250 500 1000 2000 15000
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ BASE = {"vnom_v": 3.9, "beta": 0.93, "capacity_ah": 2.5, "r0_ohm": 0.03, "r1_ohm
 ELEMENT = {
     "second_rc": {"r2_ohm": 0.012, "tau2_s": 400.0},
     "third_rc": {"r3_ohm": 0.008, "tau3_s": 2000.0},
-    "soc_resistance": {"soc_resistance_k": 3.0, "soc_resistance_sigma": 0.15},
+    "soc_resistance": {"soc_resistance_k": 3.0, "soc_resistance_sigma": 0.3},
     "thermal": {"thermal_theta_r0_k": 4000.0, "thermal_theta_rc_k": 3000.0},
     "butler_volmer": {"bv_inv_i0_per_a": 0.5},
     "ocv_shape": {"ocv_shape_u0_v": 0.01, "ocv_shape_u1_v": -0.006},
@@ -43,6 +47,7 @@ ELEMENT = {
 CONFIGS = [
     ("table", ("second_rc",)),
     ("rational", ()),
+    ("table", ("soc_resistance",)),
     ("table", ("second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
                "ocv_shape")),
 ]  # fmt: skip
@@ -76,56 +81,61 @@ def drive_profile(n: int, rng) -> np.ndarray:
     return demand - demand.mean() + 0.1
 
 
-def record(n: int, rng) -> pd.DataFrame:
+def record(n: int, rng, uneven: bool = False) -> pd.DataFrame:
     cur = issue_profile(n) if n == 2222 else drive_profile(n, rng)
-    t = np.arange(n, dtype=float)
+    dt = rng.choice([1.0, 2.0, 4.0], n) if uneven else np.ones(n)
+    t = np.concatenate([[0.0], np.cumsum(dt[:-1])])
     temp = 20.0 + 10.0 * t / t[-1] + 0.5 * np.sin(t / 30.0)
     return pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
 
 
-def pybamm_voltage(cell, frame, tol=None, lead=True):
-    import pybamm
-
-    values = pybamm.ParameterValues(cell.get_parameter_values())
-    updates, t = cell.drive(frame["time_s"], frame["current_a"], frame["temperature_c"])
+def pybamm_voltage(cell, frame, rtol, atol, lead=True, chunk=None):
+    saved = cell.THERMAL_LEAD_S
     if not lead:
-        updates["Ambient temperature [K]"] = cell.held(t, frame["temperature_c"] + 273.15)
-    values.update(updates)
-    model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
-    solver = pybamm.IDAKLUSolver() if tol is None else pybamm.IDAKLUSolver(rtol=tol, atol=tol)
-    sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
-    return sim.solve(t_eval=t, t_interp=t)["Voltage [V]"].entries
+        cell.THERMAL_LEAD_S = 0.0
+    try:
+        return cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"],
+                             rtol=rtol, atol=atol, chunk=chunk or cell.CHUNK_SAMPLES)  # fmt: skip
+    finally:
+        cell.THERMAL_LEAD_S = saved
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[2222, 15000])
+    p.add_argument("--chunks", type=int, nargs="*", default=[], help="piece sizes to time")
     args = p.parse_args()
     rng = np.random.default_rng(1)
-    print(f"{'record':>7} {'configuration':<72} {'solver':<22} {'RMS mV':>8} {'max mV':>8} "
+    print(f"{'record':>9} {'configuration':<72} {'solver':<22} {'RMS mV':>8} {'max mV':>8} "
           f"{'PyBaMM s':>8} {'ours s':>8}")  # fmt: skip
-    for n in args.sizes:
-        frame = record(n, rng)
+    records = [(f"{n}", record(n, rng)) for n in args.sizes]
+    if 2222 in args.sizes:
+        records.append(("2222@1-4s", record(2222, rng, uneven=True)))
+    for name, frame in records:
         for kind, effects in CONFIGS:
+            if name.endswith("s") and "soc_resistance" not in effects:
+                continue
             model = model_of(kind, effects)
             cell = export_pybamm.load_source(export_pybamm.export(model, "m", soc0=SOC0).text)
             model.simulate(frame.iloc[:10], soc0=SOC0)  # compile once, outside the timing
             t0 = time.perf_counter()
             ours = model.simulate(frame, soc0=SOC0)
             t_ours = time.perf_counter() - t0
-            rows = [(f"rtol=atol={tol:g}", tol, True) for tol in (1e-8, 1e-7, 1e-6)]
-            rows.append(("IDAKLU defaults", None, True))
-            if "thermal" in effects:
-                tol = export_pybamm.SOLVER_TOL
-                rows.append((f"{tol:g}, no thermal lead", tol, False))
-            for label, tol, lead in rows:
+            rows = [(f"rtol=atol={tol:g}", tol, tol, True, None) for tol in (1e-8, 1e-7, 1e-6)]
+            rows.append(("IDAKLU defaults", 1e-4, 1e-6, True, None))
+            if name.endswith("s"):
+                rows = rows[:1]
+            elif "thermal" in effects:
+                rows.append(("1e-06, no thermal lead", 1e-6, 1e-6, False, None))
+                rows += [(f"1e-06, pieces of {c}", 1e-6, 1e-6, True, c) for c in args.chunks]
+            for label, rtol, atol, lead, chunk in rows:
                 t0 = time.perf_counter()
-                v = pybamm_voltage(cell, frame, tol, lead)
+                v = pybamm_voltage(cell, frame, rtol, atol, lead, chunk)
                 t_pb = time.perf_counter() - t0
                 d = 1e3 * np.abs(v - ours)
-                print(f"{n:>7} {model.config.name:<72} {label:<22} "
+                print(f"{name:>9} {model.config.name:<72} {label:<22} "
                       f"{np.sqrt(np.mean(d**2)):>8.4f} {d.max():>8.4f} {t_pb:>8.2f} "
-                      f"{t_ours:>8.3f}")  # fmt: skip
+                      f"{t_ours:>8.3f}", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -395,11 +395,10 @@ def cmd_export(args) -> None:
         f"{options['number of rc elements']} RC element(s); initial SOC {ex.initial_soc:.4g}, "
         f"{ex.soc0_note})"
     )
-    if ex.cost is not None:
-        d = ex.cost["difference_mv"].abs()
+    if ex.summary is not None:
         line += (
-            f"; dropped {', '.join(ex.dropped)}: {np.sqrt(np.mean(d**2)):.3g} mV RMS, "
-            f"{d.max():.3g} mV at most on {args.record}; wrote {cost_path}"
+            f"; dropped {', '.join(ex.dropped)}: {ex.summary['rms_mv']:.3g} mV RMS, "
+            f"{ex.summary['max_abs_mv']:.3g} mV at most on {args.record}; wrote {cost_path}"
         )
     print(line)
 

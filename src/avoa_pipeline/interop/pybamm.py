@@ -7,8 +7,9 @@ in PyBaMM's own parameter-set convention (the form of PyBaMM's bundled sets, e.g
 ``drive``/``simulate`` run it on a record as this package's records define the current (row k's
 current held over [t_k, t_k+1)). It imports only PyBaMM and NumPy. Why a module and not a JSON:
 the SOC, temperature and current dependences are functions, which a module states as readable
-formulas through PyBaMM's long-stable public API (``Interpolant``, ``exp``), while PyBaMM's JSON
-serialisation of expression trees is tied to the PyBaMM version that wrote it (docs/pybamm.md).
+formulas through PyBaMM's long-stable public API (``Interpolant``, ``exp``), while PyBaMM's own
+JSON (``ParameterValues.to_json``) stores them in its internal expression-tree format
+(docs/pybamm.md).
 
 Every element of the model library (``ecm.EFFECTS``) has one entry in :data:`ELEMENTS`: how it
 maps onto Thevenin's parameters, or why it cannot. An element that maps contributes a
@@ -46,9 +47,13 @@ VOLTAGE_CUTOFFS_V = (0.0, 6.0)
 """The model knows no cut-off voltages; these are wide (the package accepts cell voltages in
 0.5-6 V) so that they never stop a simulation of a record. Set the cell's own."""
 SOLVER_TOL = 1e-6
-"""rtol = atol of the IDAKLU solver in the generated ``simulate``: 0.013-0.015 mV RMS from our
-simulator on 2,222 and 15,000 samples, where IDAKLU's defaults reach 0.11 mV
-(``benchmarks/bench_pybamm_export.py``; docs/pybamm.md)."""
+"""rtol = atol of the IDAKLU solver in the generated ``simulate``: 0.012-0.017 mV RMS (0.06 mV at
+worst) from our simulator on records of 2,222 and 15,000 samples, where IDAKLU's defaults give
+up to 0.094 mV RMS and 0.33 mV at worst (``benchmarks/bench_pybamm_export.py``, docs/pybamm.md)."""
+CHUNK_SAMPLES = 500
+"""The generated ``simulate`` solves a record in pieces of this many intervals: PyBaMM's time per
+step grows with the length of the held current. 15,000 samples: 68 s in one piece, 12-17 s in
+pieces of 250-2,000 (``benchmarks/bench_pybamm_export.py --sizes 15000 --chunks ...``)."""
 
 
 def require_pybamm():
@@ -354,6 +359,7 @@ CELL_JIG_W_PER_K = 1.0e4
 JIG_THERMAL_MASS_J_PER_K = 1.0
 JIG_AIR_W_PER_K = 1.0e4
 THERMAL_LEAD_S = 2.0e-3  # 20 of those time constants
+CHUNK_SAMPLES = {chunk}  # simulate() solves a record in pieces of this many intervals
 LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
 UPPER_CUTOFF_V = {upper}
 
@@ -415,24 +421,45 @@ def drive(time_s, current_a, temperature_c=None):
     return updates, t
 
 
-def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}, atol={tol}):
+def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}, atol={tol},
+             chunk=CHUNK_SAMPLES):
     """Terminal voltage (V) at each sample of a record, from PyBaMM's Thevenin model with these
     parameters (IDAKLU solver; the voltage at t_k is the one just after row k's current is
-    applied, as avoa-pipeline computes it)."""
+    applied, as avoa-pipeline computes it). Solved in pieces of ``chunk`` intervals, each
+    starting from the state the one before ended in (SoC, RC voltages; the temperature is the
+    record's): PyBaMM's time per step grows with the length of the held current, so one piece
+    for a whole long record costs time quadratic in its length."""
+    t = np.asarray(time_s, dtype=float)
+    cur = np.asarray(current_a, dtype=float)
+    temp = None if temperature_c is None else np.asarray(temperature_c, dtype=float)
     values = pybamm.ParameterValues(get_parameter_values())
-    updates, t = drive(time_s, current_a, temperature_c)
-    values.update(updates)
     if initial_soc is not None:
         values["Initial SoC"] = float(initial_soc)
-    model = pybamm.equivalent_circuit.Thevenin(options=OPTIONS)
     solver = pybamm.IDAKLUSolver(rtol=rtol, atol=atol)
-    sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
-    solution = sim.solve(t_eval=t, t_interp=t)
-    voltage = solution["Voltage [V]"].entries
-    if voltage.size != t.size:
-        raise RuntimeError(f"PyBaMM stopped at {{solution.t[-1]:g}} s of {{t[-1]:g}} s "
-                           f"({{solution.termination}})")
-    return voltage
+    pieces = []
+    a = 0
+    while True:
+        b = min(a + int(chunk), t.size - 1)  # this piece: samples a..b, b shared with the next
+        part = slice(a, b + 1)
+        updates, tt = drive(t[part], cur[part], None if temp is None else temp[part])
+        values.update(updates)
+        model = pybamm.equivalent_circuit.Thevenin(options=OPTIONS)
+        sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
+        solution = sim.solve(t_eval=tt, t_interp=tt)
+        voltage = solution["Voltage [V]"].entries
+        if voltage.size != tt.size:
+            raise RuntimeError(f"PyBaMM stopped at {{t[a] + solution.t[-1]:g}} s of "
+                               f"{{t[-1]:g}} s ({{solution.termination}})")
+        if b == t.size - 1:
+            pieces.append(voltage)
+            return np.concatenate(pieces)
+        pieces.append(voltage[:-1])
+        values = values.copy()
+        values["Initial SoC"] = float(solution["SoC"].entries[-1])
+        for n in range(1, OPTIONS["number of rc elements"] + 1):
+            name = f"Element-{{n}} overpotential [V]"
+            values[f"Element-{{n}} initial overpotential [V]"] = float(solution[name].entries[-1])
+        a = b
 '''
 
 
@@ -527,7 +554,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
                       f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
     text += _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
-        r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL),
+        r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
     )  # fmt: skip
     return text
 
@@ -576,6 +603,7 @@ class Export:
     model: FittedModel  # the model as exported (dropped elements neutral)
     dropped: list[str]
     cost: pd.DataFrame | None  # what dropping costs on the record (:func:`dropping_cost`)
+    summary: dict | None  # the record, RMS and largest |difference_mv| of ``cost``
     initial_soc: float
     soc0_note: str
 
@@ -594,7 +622,7 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
                         "(--record) to measure what that costs")  # fmt: skip
     s0, note = initial_soc_of(model, frame, soc0, record)
     exported = without(model, drop)
-    cost, dropped = None, {}
+    cost, summary, dropped = None, None, {}
     if drop:
         cost = dropping_cost(model, exported, frame, s0)
         d = cost["difference_mv"].abs()
@@ -602,7 +630,7 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
                    "max_abs_mv": float(d.max())}  # fmt: skip
         dropped = {e: {"why": ELEMENTS[e].how, **summary} for e in drop}
     text = module_source(exported, s0, note, source, dropped, file_name)
-    return Export(text, exported, drop, cost, s0, note)
+    return Export(text, exported, drop, cost, summary, s0, note)
 
 
 def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame,
