@@ -1,4 +1,6 @@
-"""Command line: ``python -m avoa_pipeline {fit,generate,recovery,convert,diagnose,simulate} ...``.
+"""Command line: ``python -m avoa_pipeline COMMAND ...``, one function ``cmd_<command>`` each.
+
+Commands: fit, generate, recovery, convert, diagnose, simulate, export (``--help`` says more).
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -160,6 +162,36 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     s.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
+
+    x = sub.add_parser("export", help="a diagnosis's model for PyBaMM (its Thevenin model)")
+    x.add_argument("model", help="model.json written by diagnose")
+    x.add_argument("--to", choices=("pybamm",), required=True, help="the simulator")
+    x.add_argument(
+        "--out",
+        required=True,
+        help="the parameter module (.py) that PyBaMM loads without this package (docs/pybamm.md)",
+    )
+    x.add_argument(
+        "--soc0",
+        type=_float("soc0"),
+        default=None,
+        help="initial SOC written (default: --record's, by the library's rule; else 1)",
+    )
+    x.add_argument(
+        "--record",
+        default=None,
+        metavar="DATA.csv",
+        help="a record of the cell: its initial SOC, and where --drop-unsupported measures "
+        "what dropping costs",
+    )
+    x.add_argument(
+        "--drop-unsupported",
+        action="store_true",
+        help="export without the elements PyBaMM's Thevenin model lacks, and write what that "
+        "costs on --record (OUT with .dropped.csv)",
+    )
+    x.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
+    x.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
     return p
 
 
@@ -325,6 +357,57 @@ def cmd_simulate(args) -> None:
     )
 
 
+def cmd_export(args) -> None:
+    import contextlib
+    from pathlib import Path
+
+    import numpy as np
+
+    from .gap import diagnose
+    from .interop import pybamm as to_pybamm
+    from .io import atomic_path
+    from .model.fitted import FittedModel
+
+    out = Path(args.out)
+    if out.suffix != ".py":
+        raise UserError(f"--out {args.out}: the PyBaMM parameters are a Python module; end it .py")
+    if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
+        raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
+    model = FittedModel.load(args.model)
+    to_pybamm.check_exportable(model, args.model, args.drop_unsupported)
+    frame = None
+    if args.record is not None:
+        frame = diagnose.read_record(
+            args.record, args.current_sign, min_samples=2, cycler=args.cycler
+        )
+        if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
+            raise UserError(f"{args.record}: missing column 'temperature_c' (the model is thermal)")
+    to_pybamm.require_pybamm()
+    ex = to_pybamm.export(
+        model, args.model, args.soc0, frame, args.record, args.drop_unsupported, out.name
+    )
+    options, _ = to_pybamm.build(to_pybamm.load_source(ex.text))  # it loads before it is written
+    cost_path = out.with_suffix(".dropped.csv")
+    with (
+        atomic_path(out) as tmp,
+        atomic_path(cost_path) if ex.cost is not None else contextlib.nullcontext() as cost_tmp,
+    ):
+        tmp.write_text(ex.text)
+        if ex.cost is not None:
+            ex.cost.to_csv(cost_tmp, index=False)
+    line = (
+        f"{args.model}: wrote {out} (PyBaMM Thevenin, {ex.model.config.name}, "
+        f"{options['number of rc elements']} RC element(s); initial SOC {ex.initial_soc:.4g}, "
+        f"{ex.soc0_note})"
+    )
+    if ex.summary is not None:
+        line += (
+            f"; dropped {', '.join(ex.dropped)}: {ex.summary['rms_mv']:.3g} mV RMS, "
+            f"{ex.summary['max_abs_mv']:.3g} mV at most on {args.record}; wrote {cost_path}"
+        )
+    print(line)
+
+
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
@@ -335,6 +418,7 @@ def main(argv=None) -> int:
             "convert": cmd_convert,
             "diagnose": cmd_diagnose,
             "simulate": cmd_simulate,
+            "export": cmd_export,
         }
         commands[args.command](args)
     except UserError as exc:

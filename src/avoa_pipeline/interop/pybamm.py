@@ -1,0 +1,660 @@
+"""A fitted model (``model.json``) as PyBaMM's Thevenin equivalent-circuit model.
+
+``python -m avoa_pipeline export DIR/model.json --to pybamm --out cell.py`` writes a Python module
+in PyBaMM's own parameter-set convention (the form of PyBaMM's bundled sets, e.g.
+``pybamm/input/parameters/ecm/example_set.py``): ``get_parameter_values()`` returns the dict for
+``pybamm.ParameterValues``, ``OPTIONS`` the options of ``pybamm.equivalent_circuit.Thevenin``, and
+``drive``/``simulate`` run it on a record as this package's records define the current (row k's
+current held over [t_k, t_k+1)). It imports only PyBaMM and NumPy. Why a module and not a JSON:
+the SOC, temperature and current dependences are functions, which a module states as readable
+formulas through PyBaMM's long-stable public API (``Interpolant``, ``exp``), while PyBaMM's own
+JSON (``ParameterValues.to_json``) stores them in its internal expression-tree format
+(docs/pybamm.md).
+
+Every element of the model library (``ecm.EFFECTS``) has one entry in :data:`ELEMENTS`: how it
+maps onto Thevenin's parameters, or why it cannot. An element that maps contributes a
+:class:`Piece` (constants, helper functions, terms of the OCV, RC branches, factors and terms of
+the resistances); the module text is assembled from the pieces, and :func:`parameter_values`
+executes that same text, so the file and the in-process parameters cannot differ.
+
+Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
+point of this module. PyBaMM is imported only by the functions that need it (optional extra).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import textwrap
+import types
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from ..errors import UserError
+from ..model import ecm, fitting
+from ..model.fitted import FittedModel
+
+INSTALL = "pip install 'avoa-pipeline[pybamm]'"
+DEFAULT_SOC0 = 1.0
+"""model.json holds the cell, not a record's initial state: without --soc0 or --record the
+export starts full (PyBaMM's ``sim.solve(initial_soc=...)`` overrides it)."""
+VOLTAGE_CUTOFFS_V = (0.0, 6.0)
+"""The model knows no cut-off voltages; these are wide (the package accepts cell voltages in
+0.5-6 V) so that they never stop a simulation of a record. Set the cell's own."""
+SOLVER_TOL = 1e-6
+"""rtol = atol of the IDAKLU solver in the generated ``simulate``: 0.012-0.017 mV RMS (0.06 mV at
+worst) from our simulator on records of 2,222 and 15,000 samples, where IDAKLU's defaults give
+up to 0.094 mV RMS and 0.33 mV at worst (``benchmarks/bench_pybamm_export.py``, docs/pybamm.md)."""
+CHUNK_SAMPLES = 500
+"""The generated ``simulate`` solves a record in pieces of this many intervals: PyBaMM's time per
+step grows with the length of the held current. 15,000 samples: 68 s in one piece, 12-17 s in
+pieces of 250-2,000 (``benchmarks/bench_pybamm_export.py --sizes 15000 --chunks ...``)."""
+
+
+def require_pybamm():
+    """PyBaMM, or a one-line UserError saying how to install it (telemetry off before import)."""
+    os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
+    try:
+        import pybamm
+    except ImportError:
+        raise UserError(
+            f"export --to pybamm needs PyBaMM, which is not installed: {INSTALL}"
+        ) from None
+    return pybamm
+
+
+# ----------------------------------------------------------------------------------------------
+# the mapping table
+
+
+@dataclass(frozen=True)
+class Piece:
+    """What one element adds to the generated module.
+
+    ``constants``: (NAME, value, comment); ``helpers``: function sources; ``ocv_terms``:
+    expressions of ``sc`` (the SOC the OCV sees) added to the OCV; ``branches``: RC branches as
+    (our branch number, R constant, τ constant); ``factors`` and ``terms``: (resistor,
+    expression of ``T_cell`` (°C), ``current`` (A, discharge positive), ``soc``) multiplying or
+    added to a resistance; the resistor is "R0", "RC" (every RC branch) or "R1".."R3".
+    """
+
+    constants: tuple[tuple[str, object, str], ...] = ()
+    helpers: tuple[str, ...] = ()
+    ocv_terms: tuple[str, ...] = ()
+    branches: tuple[tuple[int, str, str], ...] = ()
+    factors: tuple[tuple[str, str], ...] = ()
+    terms: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
+class Element:
+    """How one element of the model library maps onto PyBaMM's Thevenin model (``piece``: what
+    it adds, from the fitted model and its physical row), or why it cannot (``piece`` None)."""
+
+    how: str
+    piece: Callable[[FittedModel, np.ndarray], Piece] | None = None
+
+    @property
+    def exported(self) -> bool:
+        return self.piece is not None
+
+
+def _rc(j: int, r: int, tau: int):
+    def piece(m: FittedModel, P: np.ndarray) -> Piece:
+        return Piece(
+            constants=((f"R{j}_OHM", P[r], f"RC branch {j}: resistance"),
+                       (f"TAU{j}_S", P[tau], f"RC branch {j}: time constant R{j}·C{j}")),
+            branches=((j, f"R{j}_OHM", f"TAU{j}_S"),),
+        )  # fmt: skip
+
+    return piece
+
+
+_SOC_FACTOR = '''
+def soc_factor(soc):
+    """soc_resistance: 1 + k·exp(−SOC/σ) (SOC clipped to [−0.5, 2], as avoa-pipeline does)."""
+    s = pybamm.minimum(pybamm.maximum(soc, -0.5), 2.0)
+    return 1.0 + SOC_RESISTANCE_K * pybamm.exp(-s / SOC_RESISTANCE_SIGMA)
+'''
+
+
+def _soc_resistance(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece(
+        constants=(("SOC_RESISTANCE_K", P[ecm.KLOW], "rise of the resistances at SOC 0"),
+                   ("SOC_RESISTANCE_SIGMA", P[ecm.SIG], "SOC width of the rise")),
+        helpers=(_SOC_FACTOR,),
+        factors=(("R0", "soc_factor(soc)"), ("RC", "soc_factor(soc)")),
+    )  # fmt: skip
+
+
+_ARRHENIUS = '''
+def arrhenius(theta_k, T_cell):
+    """thermal: exp(θ·(1/T − 1/T_REF_K)), T the cell temperature in K (PyBaMM passes °C)."""
+    return pybamm.exp(theta_k * (1.0 / (T_cell + 273.15) - 1.0 / T_REF_K))
+'''
+
+
+def _thermal(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece(
+        constants=(("THERMAL_THETA_R0_K", P[ecm.TH0], "Arrhenius θ = Ea/R of R0"),
+                   ("THERMAL_THETA_RC_K", P[ecm.TH1], "Arrhenius θ = Ea/R of the RC branches")),
+        helpers=(_ARRHENIUS,),
+        factors=(("R0", "arrhenius(THERMAL_THETA_R0_K, T_cell)"),
+                 ("RC", "arrhenius(THERMAL_THETA_RC_K, T_cell)")),
+    )  # fmt: skip
+
+
+_BUTLER_VOLMER = '''
+def butler_volmer(T_cell, current):
+    """butler_volmer as a resistance in series with R0: the drop (2RT/F)·asinh(I/(2·i0)) divided
+    by I; asinh(x)/x is 1 at x = 0, so it tends to RT/(F·i0) at rest."""
+    x = 0.5 * BV_INV_I0_PER_A * current
+    nonzero = (x > 0) + (x < 0)
+    asinh_over_x = nonzero * pybamm.arcsinh(x) / (x + 1.0 - nonzero) + (1.0 - nonzero)
+    two_rt_f = 2.0 * GAS_R * (T_cell + 273.15) / FARADAY
+    return two_rt_f * 0.5 * BV_INV_I0_PER_A * asinh_over_x
+'''
+
+
+def _butler_volmer(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece(
+        constants=(("BV_INV_I0_PER_A", P[ecm.BVG], "1/i0, the inverse exchange current"),
+                   ("GAS_R", ecm.GAS_R, "J/(mol K)"), ("FARADAY", ecm.FARADAY, "C/mol")),
+        helpers=(_BUTLER_VOLMER,),
+        terms=(("R0", "butler_volmer(T_cell, current)"),),
+    )  # fmt: skip
+
+
+def _ocv_shape(m: FittedModel, P: np.ndarray) -> Piece:
+    knots = m.knots.grid()
+    d = P[ecm.D0 :]
+    return Piece(
+        constants=(("OCV_SHAPE_SOC", _flat_ends(knots), "ocv_shape: knots (and a point beyond "
+                    "each end: avoa-pipeline holds the end values)"),
+                   ("OCV_SHAPE_V", [d[0], *d, d[-1]], "ocv_shape: the correction at the knots")),
+        ocv_terms=('pybamm.Interpolant(OCV_SHAPE_SOC, OCV_SHAPE_V, sc, "ocv_shape")',),
+    )  # fmt: skip
+
+
+def _voltage_offset(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece(constants=(("VOLTAGE_OFFSET_V", P[ecm.VOFF], "added to the OCV"),),
+                 ocv_terms=("VOLTAGE_OFFSET_V",))  # fmt: skip
+
+
+ELEMENTS: dict[str, Element] = {
+    "second_rc": Element("an RC branch: R2 [Ohm], C2 [F] = τ2/R2", _rc(2, ecm.R2, ecm.TAU2)),
+    "third_rc": Element("an RC branch: R3 [Ohm], C3 [F] = τ3/R3", _rc(3, ecm.R3, ecm.TAU3)),
+    "soc_resistance": Element(
+        "R0 and every R_j times 1 + k·exp(−SOC/σ) as functions of PyBaMM's SoC; C_j = τ_j/R_j, "
+        "so the time constants stay fixed as in avoa-pipeline",
+        _soc_resistance,
+    ),
+    "thermal": Element(
+        "R0 times exp(θ0·(1/T − 1/T_ref)) and every R_j times exp(θ1·(1/T − 1/T_ref)) as "
+        "functions of PyBaMM's cell temperature; C_j = τ_j/R_j. The export makes the cell "
+        "temperature follow the ambient temperature, which drive() sets from a measured one",
+        _thermal,
+    ),
+    "butler_volmer": Element(
+        "a current- and temperature-dependent resistance in series with R0: "
+        "(2RT/F)·asinh(I/(2 i0))/I, T the cell temperature (the drop is exactly the element's)",
+        _butler_volmer,
+    ),
+    "ocv_shape": Element(
+        "added to the OCV as a linear interpolant through its knots (flat beyond them)",
+        _ocv_shape,
+    ),
+    "voltage_offset": Element("added to the OCV", _voltage_offset),
+    "diffusion": Element(
+        "PyBaMM's diffusion element (Fan 2022) is Fickian diffusion in a slab with one "
+        "parameter τ_D, which fixes both the time scales (τ_D/(n²π²)) and the size of the "
+        "surface-SOC lag (τ_D·I/(3·3600·Q) in steady state); avoa-pipeline's is a first-order lag "
+        "with its own size κ and time constant τ_d: no τ_D gives the same voltage"
+    ),
+    "hysteresis": Element("PyBaMM's Thevenin model has no hysteresis state"),
+    "current_offset": Element(
+        "an offset of the training records' current sensor, not of the cell: PyBaMM's Thevenin "
+        "model runs on the current it is given (its SOC and every drop see that current)"
+    ),
+    "coulombic_efficiency": Element(
+        "PyBaMM's Thevenin model counts charge with one capacity in both directions "
+        "(dSoC/dt = −I/(3600·Q), Q a scalar)"
+    ),
+}
+"""Element → how it maps or why it cannot: the one place that decides what the export does."""
+
+BASE_HOW = (
+    "the OCV as a function of SoC (a measured table: a linear interpolant through its points, "
+    "flat beyond them, plus the fitted offset; the paper's rational curve, eq. 5: its closed "
+    "form, SOC clipped to [0, 1.2]); R0 [Ohm]; RC branch 1 as R1 [Ohm], C1 [F] = τ1/R1; "
+    "Cell capacity [A.h]; Initial SoC"
+)
+
+
+def unsupported(model: FittedModel) -> list[str]:
+    """The model's elements that PyBaMM's Thevenin model cannot hold."""
+    return [e for e in model.config.effects if not ELEMENTS[e].exported]
+
+
+def check_exportable(model: FittedModel, source: str, drop_unsupported: bool) -> list[str]:
+    """The elements to drop (with ``drop_unsupported``), or a one-line UserError naming them."""
+    if model.config.load_ohm is not None:
+        raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
+                        "test rig, not of the cell; PyBaMM's Thevenin model has none")  # fmt: skip
+    bad = unsupported(model)
+    if bad and not drop_unsupported:
+        why = "; ".join(f"{e}: {ELEMENTS[e].how}" for e in bad)
+        raise UserError(f"{source}: element{'s' if len(bad) > 1 else ''} {', '.join(bad)} "
+                        f"cannot be exported to PyBaMM's Thevenin model ({why}); "
+                        "--drop-unsupported exports the rest")  # fmt: skip
+    return bad
+
+
+def without(model: FittedModel, elements) -> FittedModel:
+    """The model with ``elements`` removed: their parameters back to neutral, nothing refitted
+    (what the export holds when they are dropped)."""
+    if not elements:
+        return model
+    effects = tuple(e for e in model.config.effects if e not in elements)
+    config = ecm.Config(effects, model.config.table, model.config.load_ohm)
+    x = fitting.neutralise(model.x[None, :], elements)[0]
+    names = set(config.names())
+    bounds = {n: b for n, b in model.bounds.items() if n in names}
+    return dataclasses.replace(model, config=config, x=x, bounds=bounds)
+
+
+# ----------------------------------------------------------------------------------------------
+# the module text
+
+
+def _flat_ends(x) -> list[float]:
+    x = [float(v) for v in x]
+    return [x[0] - 1.0, *x, x[-1] + 1.0]
+
+
+def _plain(text: str) -> str:
+    """``text`` safe inside the generated docstring and comments (file names are the user's)."""
+    return str(text).replace("\\", "/").replace('"', "'").replace("\n", " ").replace("\r", " ")
+
+
+def _literal(value) -> str:
+    if isinstance(value, dict) and value:
+        return "{\n" + "".join(f"    {k!r}: {v!r},\n" for k, v in value.items()) + "}"
+    if isinstance(value, str | dict):
+        return repr(value)
+    if isinstance(value, list | tuple | np.ndarray):
+        body = ", ".join(repr(float(v)) for v in value)
+        return "np.array([\n" + textwrap.fill(body, 96, initial_indent="    ",
+                                               subsequent_indent="    ") + ",\n])"  # fmt: skip
+    return repr(float(value))
+
+
+def _base(m: FittedModel, P: np.ndarray) -> Piece:
+    table = m.config.table
+    if table is None:
+        return Piece(
+            constants=(("VNOM_V", P[ecm.VNOM], "rational OCV (eq. 5): Vnom"),
+                       ("ONE_MINUS_BETA", P[ecm.OMB], "rational OCV (eq. 5): 1 − β")),
+            ocv_terms=("VNOM_V * sc / (ONE_MINUS_BETA + (1.0 - ONE_MINUS_BETA) * sc)",),
+        )  # fmt: skip
+    vals = table.values
+    return Piece(
+        constants=(("OCV_SOC", _flat_ends(table.grid()), "the measured OCV: SOC (and a point "
+                    "beyond each end: avoa-pipeline holds the end values)"),
+                   ("OCV_V", [vals[0], *vals, vals[-1]], "the measured OCV: V"),
+                   ("OCV_OFFSET_V", P[ecm.VOFF], "the fitted offset of the table")),
+        ocv_terms=('pybamm.Interpolant(OCV_SOC, OCV_V, sc, "OCV table")', "OCV_OFFSET_V"),
+    )  # fmt: skip
+
+
+_HEADER = '''"""PyBaMM parameters of one cell: an equivalent-circuit model fitted by avoa-pipeline.
+
+Generated by avoa-pipeline {version} from {source_doc} ({configuration}); needs PyBaMM and
+NumPy only. Use it like PyBaMM's own parameter sets:
+
+    import importlib.util
+    import pybamm
+    spec = importlib.util.spec_from_file_location("cell", "{file_doc}")
+    cell = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cell)
+    model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
+    values = pybamm.ParameterValues(cell.get_parameter_values())
+
+or run a record (current held over each interval, as avoa-pipeline's records define it):
+voltage = cell.simulate(time_s, current_a[, temperature_c]).
+
+Current is positive on discharge (PyBaMM's convention and avoa-pipeline's). ELEMENTS says how
+each part of the model maps; DROPPED lists what the export left out and what that costs.
+Edit the values below freely; the thermal values and cut-offs are not identified (see there).
+"""
+
+import numpy as np
+import pybamm
+
+SOURCE = {source}
+ELEMENTS = {elements}
+DROPPED = {dropped}
+OPTIONS = {options}
+
+CAPACITY_AH = {capacity}
+INITIAL_SOC = {soc0}  # {soc0_note}
+T_REF_K = {tref}  # reference temperature of the fitted parameters (and the ambient default)
+R0_OHM = {r0}
+'''
+
+_THERMAL_AND_DRIVE = '''
+
+# The identified model has no thermal dynamics: its resistances see the cell temperature as
+# measured. These values make PyBaMM's lumped cell-jig-ambient model follow the ambient
+# temperature within about 0.1 ms (time constants of mass/coefficient) and a few mK at tens of
+# watts, so that the ambient temperature is the cell's: drive() sets it from a measured one.
+# Put your cell's values here to let PyBaMM compute the temperature instead.
+CELL_THERMAL_MASS_J_PER_K = 1.0
+CELL_JIG_W_PER_K = 1.0e4
+JIG_THERMAL_MASS_J_PER_K = 1.0
+JIG_AIR_W_PER_K = 1.0e4
+THERMAL_LEAD_S = 2.0e-3  # 20 of those time constants
+CHUNK_SAMPLES = {chunk}  # simulate() solves a record in pieces of this many intervals
+LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
+UPPER_CUTOFF_V = {upper}
+
+
+def get_parameter_values():
+    """The dict for pybamm.ParameterValues (PyBaMM's parameter-set convention)."""
+    return {{
+        "chemistry": "ecm",
+        "Cell capacity [A.h]": CAPACITY_AH,
+        "Nominal cell capacity [A.h]": CAPACITY_AH,
+        "Initial SoC": INITIAL_SOC,
+        "Open-circuit voltage [V]": ocv,
+        "Entropic change [V/K]": 0.0,
+        "R0 [Ohm]": {r0_value},
+{rc_values}        "Current function [A]": CAPACITY_AH,
+        "Upper voltage cut-off [V]": UPPER_CUTOFF_V,
+        "Lower voltage cut-off [V]": LOWER_CUTOFF_V,
+        "Ambient temperature [K]": T_REF_K,
+        "Initial temperature [K]": T_REF_K,
+        "Cell thermal mass [J/K]": CELL_THERMAL_MASS_J_PER_K,
+        "Cell-jig heat transfer coefficient [W/K]": CELL_JIG_W_PER_K,
+        "Jig thermal mass [J/K]": JIG_THERMAL_MASS_J_PER_K,
+        "Jig-air heat transfer coefficient [W/K]": JIG_AIR_W_PER_K,
+    }}
+
+
+def held(time_s, values, lead_s=0.0):
+    """A function of time for PyBaMM that holds values[k] from time_s[k] − lead_s to
+    time_s[k+1] − lead_s (row k's value holds over [t_k, t_k+1), as in avoa-pipeline's records).
+    PyBaMM's solvers need a continuous input, so each switch is a linear ramp over 1e-6 of its
+    interval; give the sample times as t_eval, so that the solver stops at every switch."""
+    t = np.asarray(time_s, dtype=float)
+    y = np.asarray(values, dtype=float)
+    if t.ndim != 1 or y.shape != t.shape or t.size < 2 or not np.all(np.diff(t) > 0):
+        raise ValueError("held: need 1-D time and values of one length (≥ 2), time increasing")
+    dt = np.diff(t)
+    if not 0.0 <= lead_s < 0.5 * dt.min():
+        raise ValueError("held: lead_s must lie in [0, half the shortest interval)")
+    start = np.concatenate([[t[0] - dt[0]], t[1:] - lead_s])
+    end = np.concatenate([t[1:] - lead_s - 1e-6 * dt, [t[-1] + dt[-1]]])
+    x = np.column_stack([start, end]).ravel()
+    y2 = np.repeat(y, 2)
+    return lambda time: pybamm.Interpolant(x, y2, time, interpolator="linear")
+
+
+def drive(time_s, current_a, temperature_c=None):
+    """(parameter updates, t_eval) that run a record: the current (A, positive = discharge) held
+    over each interval; a measured temperature (°C) held too, as the ambient temperature that
+    the cell follows, switched THERMAL_LEAD_S early so that the cell has reached it at each
+    sample time. Times count from the first sample."""
+    t = np.asarray(time_s, dtype=float)
+    t = t - t[0]
+    updates = {{"Current function [A]": held(t, current_a)}}
+    if temperature_c is not None:
+        temp_k = np.asarray(temperature_c, dtype=float) + 273.15
+        lead = min(THERMAL_LEAD_S, 0.1 * float(np.min(np.diff(t))))
+        updates["Ambient temperature [K]"] = held(t, temp_k, lead)
+        updates["Initial temperature [K]"] = float(temp_k[0])
+    return updates, t
+
+
+def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}, atol={tol},
+             chunk=CHUNK_SAMPLES):
+    """Terminal voltage (V) at each sample of a record, from PyBaMM's Thevenin model with these
+    parameters (IDAKLU solver; the voltage at t_k is the one just after row k's current is
+    applied, as avoa-pipeline computes it). Solved in pieces of ``chunk`` intervals, each
+    starting from the state the one before ended in (SoC, RC voltages; the temperature is the
+    record's): PyBaMM's time per step grows with the length of the held current, so one piece
+    for a whole long record costs time quadratic in its length."""
+    t = np.asarray(time_s, dtype=float)
+    cur = np.asarray(current_a, dtype=float)
+    temp = None if temperature_c is None else np.asarray(temperature_c, dtype=float)
+    values = pybamm.ParameterValues(get_parameter_values())
+    if initial_soc is not None:
+        values["Initial SoC"] = float(initial_soc)
+    solver = pybamm.IDAKLUSolver(rtol=rtol, atol=atol)
+    pieces = []
+    a = 0
+    while True:
+        b = min(a + int(chunk), t.size - 1)  # this piece: samples a..b, b shared with the next
+        part = slice(a, b + 1)
+        updates, tt = drive(t[part], cur[part], None if temp is None else temp[part])
+        values.update(updates)
+        model = pybamm.equivalent_circuit.Thevenin(options=OPTIONS)
+        sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
+        solution = sim.solve(t_eval=tt, t_interp=tt)
+        voltage = solution["Voltage [V]"].entries
+        if voltage.size != tt.size:
+            raise RuntimeError(f"PyBaMM stopped at {{t[a] + solution.t[-1]:g}} s of "
+                               f"{{t[-1]:g}} s ({{solution.termination}})")
+        if b == t.size - 1:
+            pieces.append(voltage)
+            return np.concatenate(pieces)
+        pieces.append(voltage[:-1])
+        values = values.copy()
+        values["Initial SoC"] = float(solution["SoC"].entries[-1])
+        for n in range(1, OPTIONS["number of rc elements"] + 1):
+            name = f"Element-{{n}} overpotential [V]"
+            values[f"Element-{{n}} initial overpotential [V]"] = float(solution[name].entries[-1])
+        a = b
+'''
+
+
+def _resistance_function(name: str, value: str, factors: list[str], terms: list[str],
+                         doc: str) -> str:  # fmt: skip
+    expr = " * ".join([value, *factors])
+    expr = " + ".join([expr, *terms])
+    return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n    return {expr}\n'
+
+
+def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source: str,
+                  dropped: dict | None = None, file_name: str = "cell.py") -> str:  # fmt: skip
+    """The text of the PyBaMM parameter module of ``model`` (already without the elements it
+    cannot hold: :func:`without`); ``dropped``: element → why and what dropping it cost."""
+    cannot = [e for e in model.config.effects if not ELEMENTS[e].exported]
+    if cannot:
+        raise ValueError(f"module_source: {', '.join(cannot)} cannot be exported; drop first")
+    P = ecm.to_physical(model.x)[0]
+    pieces = {"base": _base(model, P), "rc1": _rc(1, ecm.R1, ecm.TAU1)(model, P)}
+    pieces |= {e: ELEMENTS[e].piece(model, P) for e in model.config.effects}
+    consts = {name: (value, note) for p in pieces.values() for name, value, note in p.constants}
+    # a branch with R = 0 holds no voltage (it starts at 0): left out, the rest renumbered
+    branches = sorted(b for p in pieces.values() for b in p.branches if consts[b[1]][0] != 0.0)
+    factors = [f for p in pieces.values() for f in p.factors]
+    terms = [t for p in pieces.values() for t in p.terms]
+
+    def of(kind, *resistors):
+        return [e for r, e in kind if r in resistors]
+
+    elements = {"base": BASE_HOW, **{e: ELEMENTS[e].how for e in model.config.effects}}
+    text = _HEADER.format(
+        version=__version__,
+        source_doc=_plain(Path(source).name),
+        configuration=model.config.name,
+        file_doc=_plain(Path(file_name).name),
+        source=_literal({"model": str(source), "configuration": model.config.name,
+                         "avoa_pipeline": __version__}),
+        elements=_literal(elements),
+        dropped=_literal(dropped or {}),
+        options=_literal({"number of rc elements": len(branches)}),
+        capacity=_literal(P[ecm.Q]),
+        soc0=_literal(initial_soc),
+        soc0_note=_plain(soc0_note),
+        tref=_literal(model.tref_k),
+        r0=_literal(P[ecm.R0]),
+    )  # fmt: skip
+    for name, (value, note) in consts.items():
+        line = f"{name} = {_literal(value)}  # {note}\n"
+        text += line if "\n" not in line[:-1] else f"# {note}\n{name} = {_literal(value)}\n"
+    for h in dict.fromkeys(h for p in pieces.values() for h in p.helpers):
+        text += "\n" + h
+    if model.config.table is not None:
+        doc, sc = "the measured table (linear, flat beyond it)\n    plus its offset", "soc"
+    else:
+        doc = "the paper's eq. 5, Vnom·s/(1 − β(1 − s)),\n    s clipped to [0, 1.2]"
+        sc = "pybamm.minimum(pybamm.maximum(soc, 0.0), 1.2)"
+    extra = [e for e in model.config.effects if pieces[e].ocv_terms]
+    if extra:
+        doc += ", plus " + " and ".join(extra)
+    ocv_terms = [t for p in pieces.values() for t in p.ocv_terms]
+    ocv_expr = (
+        ocv_terms[0]
+        if len(ocv_terms) == 1
+        else "(\n        " + "\n        + ".join(ocv_terms) + "\n    )"
+    )
+    text += (f'\n\ndef ocv(soc):\n    """Open-circuit voltage [V] at SoC: {doc}."""\n'
+             f"    sc = {sc}\n    return {ocv_expr}\n")  # fmt: skip
+    r0_value = "R0_OHM"
+    if of(factors, "R0") or of(terms, "R0"):
+        text += _resistance_function(
+            "r0",
+            "R0_OHM",
+            of(factors, "R0"),
+            of(terms, "R0"),
+            "R0 [Ohm] at the cell temperature (°C), current and SoC.",
+        )
+        r0_value = "r0"
+    rc_values = ""
+    for n, (j, r_name, tau_name) in enumerate(branches, start=1):
+        f, t = of(factors, "RC", f"R{j}"), of(terms, "RC", f"R{j}")
+        if f or t:
+            text += _resistance_function(
+                f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model)."
+            )
+            text += (f'\n\ndef c{n}(T_cell, current, soc):\n    """C{n} [F] = τ/R{n}: the '
+                     f'time constant stays fixed."""\n    return {tau_name} / '
+                     f"r{n}(T_cell, current, soc)\n")  # fmt: skip
+            r_val, c_val = f"r{n}", f"c{n}"
+        else:
+            r_val, c_val = r_name, f"{tau_name} / {r_name}"
+        rc_values += (f'        "R{n} [Ohm]": {r_val},\n        "C{n} [F]": {c_val},\n'
+                      f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
+    text += _THERMAL_AND_DRIVE.format(
+        lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
+        r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
+    )  # fmt: skip
+    return text
+
+
+# ----------------------------------------------------------------------------------------------
+# loading, checking, writing
+
+
+def load_source(text: str, name: str = "avoa_pybamm_export") -> types.ModuleType:
+    """The generated module from its text (needs PyBaMM)."""
+    require_pybamm()
+    module = types.ModuleType(name)
+    module.__file__ = f"<{name}>"
+    exec(compile(text, module.__file__, "exec"), module.__dict__)
+    return module
+
+
+def build(module: types.ModuleType):
+    """(options, pybamm.ParameterValues) of a loaded module, checked: the Thevenin model with
+    these options takes every parameter it needs from these values."""
+    pybamm = require_pybamm()
+    values = pybamm.ParameterValues(module.get_parameter_values())
+    model = pybamm.equivalent_circuit.Thevenin(options=module.OPTIONS)
+    values.process_model(model, inplace=False)  # raises on a missing parameter
+    return dict(module.OPTIONS), values
+
+
+def initial_soc_of(model: FittedModel, frame: pd.DataFrame | None, soc0: float | None,
+                   record: str | None = None) -> tuple[float, str]:  # fmt: skip
+    """The export's initial SOC and where it came from: ``soc0`` if given, else the library's
+    rule on the record's first sample (as ``simulate`` does), else :data:`DEFAULT_SOC0`."""
+    if soc0 is not None:
+        return float(soc0), "given (--soc0)"
+    if frame is not None:
+        return model.initial_soc(model.record(frame)), (
+            f"the library's rule on the first sample of {Path(record or 'the record').name}"
+        )
+    return DEFAULT_SOC0, "default (full); --soc0 or --record sets it"
+
+
+@dataclass
+class Export:
+    """One export: the module text and what went into it."""
+
+    text: str
+    model: FittedModel  # the model as exported (dropped elements neutral)
+    dropped: list[str]
+    cost: pd.DataFrame | None  # what dropping costs on the record (:func:`dropping_cost`)
+    summary: dict | None  # the record, RMS and largest |difference_mv| of ``cost``
+    initial_soc: float
+    soc0_note: str
+
+
+def export(model: FittedModel, source: str, soc0: float | None = None,
+           frame: pd.DataFrame | None = None, record: str | None = None,
+           drop_unsupported: bool = False, file_name: str = "cell.py") -> Export:  # fmt: skip
+    """The module text of ``model`` (``source``: its file, for messages and the module's SOURCE).
+
+    ``frame``: a record of the cell (``record``: its name); it sets the initial SOC (unless
+    ``soc0``) and, when elements are dropped, is where their cost is measured (required then).
+    """
+    drop = check_exportable(model, source, drop_unsupported)
+    if drop and frame is None:
+        raise UserError(f"--drop-unsupported drops {', '.join(drop)}: give a record of the cell "
+                        "(--record) to measure what that costs")  # fmt: skip
+    s0, note = initial_soc_of(model, frame, soc0, record)
+    exported = without(model, drop)
+    cost, summary, dropped = None, None, {}
+    if drop:
+        cost = dropping_cost(model, exported, frame, s0)
+        d = cost["difference_mv"].abs()
+        summary = {"record": str(record), "rms_mv": float(np.sqrt(np.mean(d**2))),
+                   "max_abs_mv": float(d.max())}  # fmt: skip
+        dropped = {e: {"why": ELEMENTS[e].how, **summary} for e in drop}
+    text = module_source(exported, s0, note, source, dropped, file_name)
+    return Export(text, exported, drop, cost, summary, s0, note)
+
+
+def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame,
+                  soc0: float) -> pd.DataFrame:  # fmt: skip
+    """What dropping costs on ``frame``, by the package's simulator, both from ``soc0``:
+    time_s, voltage_v (measured), model_v (the full model, as ``simulate`` gives it),
+    exported_v (the model as exported: dropped elements neutral, nothing refitted) and
+    difference_mv = 1000·(exported_v − model_v)."""
+    full = model.simulate(frame, soc0=soc0)
+    part = exported.simulate(frame, soc0=soc0)
+    return pd.DataFrame({
+        "time_s": frame["time_s"].to_numpy(), "voltage_v": frame["voltage_v"].to_numpy(),
+        "model_v": full, "exported_v": part, "difference_mv": 1e3 * (part - full),
+    })  # fmt: skip
+
+
+def parameter_values(model: FittedModel, soc0: float | None = None,
+                     drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
+    """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
+    module text the export writes, executed in place. Elements PyBaMM's Thevenin model cannot
+    hold are a UserError unless ``drop_unsupported`` (then dropped without a cost: the CLI
+    measures that on a record)."""
+    drop = check_exportable(model, source, drop_unsupported)
+    s0, note = initial_soc_of(model, None, soc0)
+    text = module_source(without(model, drop), s0, note, source,
+                         {e: {"why": ELEMENTS[e].how} for e in drop})  # fmt: skip
+    return build(load_source(text))

@@ -1,0 +1,371 @@
+"""Export to PyBaMM's Thevenin model (``avoa_pipeline.interop.pybamm``, ``export --to pybamm``).
+
+The comparison (docs/pybamm.md): one record, its current held over each interval as our records
+define it (row k's current over [t_k, t_k+1)) and its measured temperature held the same way;
+PyBaMM's voltage at each sample time from the written module's ``simulate`` (IDAKLU, rtol = atol
+= 1e-6) against ``FittedModel.simulate`` from the same initial SOC; RMS of the difference over
+all samples ≤ 0.1 mV, for every element that maps, alone and stacked, on both OCV kinds.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_ecm import ACTIVE, TRUTH
+
+from avoa_pipeline import cli
+from avoa_pipeline.interop import pybamm as X
+from avoa_pipeline.model import ecm
+from avoa_pipeline.model.fitted import FittedModel
+
+TOL_RMS_MV = 0.1
+SOC0 = 0.6
+TREF_K = 300.15
+
+# the cell (test_ecm's truth) and each element's parameters away from neutral (test_ecm's)
+BASE = {k: v for k, v in TRUTH.items() if k != "soc0"}
+
+# every exportable configuration the diagnosis can select: each element alone on the OCV kind
+# it applies to, RC branches 1-3, and everything stacked
+CASES = [
+    ("rational", (), {}),
+    ("table", (), {}),
+    ("table", ("second_rc",), {}),
+    ("rational", ("second_rc", "third_rc"), {}),
+    ("table", ("second_rc",), {"r1_ohm": 0.0}),  # a branch with R = 0 is left out
+    ("table", ("soc_resistance",), {}),
+    ("rational", ("soc_resistance",), {}),
+    ("table", ("thermal",), {}),
+    ("rational", ("butler_volmer",), {}),
+    ("table", ("ocv_shape",), {}),
+    ("rational", ("voltage_offset", "ocv_shape"), {}),
+    ("table", ("second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
+               "ocv_shape"), {}),
+]  # fmt: skip
+CASE_IDS = ["+".join((k, *e)) + ("-r1=0" if x else "") for k, e, x in CASES]
+
+
+def ocv_table() -> ecm.OcvTable:
+    soc = np.linspace(0.0, 1.0, 41)
+    v = 3.3 + 0.8 * soc + 0.12 * np.tanh((soc - 0.1) / 0.05) + 0.03 * np.sin(9 * soc)
+    return ecm.OcvTable.from_points(soc, v, source="ocv.csv", how="test table")
+
+
+def fitted(kind: str, effects, extra=None) -> FittedModel:
+    """A FittedModel of chosen parameter values (bounds ±1 around them, internal coordinates)."""
+    config = ecm.Config(tuple(effects), ocv_table() if kind == "table" else None)
+    names = config.names()
+    values = {**BASE, **{k: v for e in effects for k, v in ACTIVE[e].items()}, **(extra or {})}
+    if kind == "table":
+        values["voltage_offset_v"] = -0.01  # the table's fitted offset (base)
+    x = ecm.vector({k: v for k, v in values.items() if ecm.BY_REPORT[k] in names})
+    bounds = {n: (x[ecm.IDX[n]] - 1.0, x[ecm.IDX[n]] + 1.0) for n in names
+              if not ecm.PARAMS[n].per_record}  # fmt: skip
+    return FittedModel(config, x, ecm.Knots(0.2, 0.12), TREF_K, bounds, {"selected_by": "test"})
+
+
+def record(uniform: bool = True, temperature: bool = True, seed: int = 0) -> pd.DataFrame:
+    """About 300 samples: rest, discharge, rest, a drive segment (a new current every sample),
+    a 6C pulse, rest, charge, rest; with ``uniform`` False, 1-4 s steps."""
+    rng = np.random.default_rng(seed)
+    c = BASE["capacity_ah"]  # A per C
+    segments = [np.zeros(15), np.full(50, 2 * c), np.zeros(25),
+                rng.uniform(-1.5 * c, 3 * c, 60), np.full(15, 6 * c), np.zeros(30),
+                np.full(50, -1.5 * c), np.zeros(40)]  # fmt: skip
+    cur = np.concatenate(segments)
+    dt = np.ones(cur.size) if uniform else rng.choice([1.0, 2.0, 4.0], cur.size)
+    t = np.concatenate([[0.0], np.cumsum(dt[:-1])]) + 100.0
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": np.full(t.size, 3.7)})
+    if temperature:  # a measured temperature that moves every sample (5 °C over the record)
+        frame["temperature_c"] = 24.0 + 5.0 * (t - t[0]) / (t[-1] - t[0]) + 0.3 * np.sin(t / 7)
+    return frame
+
+
+def measured(model: FittedModel, frame: pd.DataFrame) -> pd.DataFrame:
+    """The record with the model's voltage from SOC0 as its measured voltage (a CSV the
+    command's record checks accept)."""
+    return frame.assign(voltage_v=model.simulate(frame, soc0=SOC0))
+
+
+def load_module(path):
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def rms_mv(a, b) -> float:
+    return 1e3 * float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
+
+
+@pytest.fixture(scope="module")
+def pybamm():
+    return pytest.importorskip(
+        "pybamm", reason="pybamm is not installed (pip install avoa-pipeline[pybamm])"
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# the table
+
+
+def test_every_element_of_the_library_has_one_entry():
+    """A new element of the model library fails here until the table says how it maps."""
+    assert set(X.ELEMENTS) == set(ecm.EFFECTS)
+    exported = {e for e, el in X.ELEMENTS.items() if el.exported}
+    assert exported == {"second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
+                        "ocv_shape", "voltage_offset"}  # fmt: skip
+
+
+@pytest.mark.parametrize("element", [e for e in ecm.EFFECTS if not X.ELEMENTS[e].exported])
+def test_an_unsupported_element_is_refused_in_one_line_naming_it(element):
+    model = fitted("table", (element,))
+    with pytest.raises(X.UserError) as exc:
+        X.check_exportable(model, "m.json", drop_unsupported=False)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    assert msg.startswith("m.json: element ")
+    assert element in msg
+    assert "--drop-unsupported" in msg
+    assert X.check_exportable(model, "m.json", drop_unsupported=True) == [element]
+
+
+def test_the_papers_load_resistor_is_refused():
+    model = fitted("rational", ())
+    model.config = ecm.Config((), None, load_ohm=2.0)
+    with pytest.raises(X.UserError, match="load_ohm"):
+        X.check_exportable(model, "m.json", drop_unsupported=True)
+
+
+# ----------------------------------------------------------------------------------------------
+# PyBaMM against our simulator
+
+
+@pytest.mark.parametrize(("kind", "effects", "extra"), CASES, ids=CASE_IDS)
+def test_pybamm_from_the_written_module_gives_our_voltage(pybamm, tmp_path, kind, effects, extra):
+    model = fitted(kind, effects, extra)
+    # 1-4 s steps, except where soc_resistance acts: our simulator holds its factor g(SOC) over
+    # each interval, PyBaMM follows the SOC within it, a difference that grows with the step
+    # (docs/pybamm.md, "soc_resistance and the step")
+    frame = record(uniform="soc_resistance" in effects)
+    ours = model.simulate(frame, soc0=SOC0)
+    # the elements matter on this record (else agreement would say nothing about them)
+    bare = X.without(model, effects).simulate(frame, soc0=SOC0)
+    if effects:
+        assert rms_mv(ours, bare) > 1.0
+    path = tmp_path / "cell.py"
+    path.write_text(X.export(model, "model.json", soc0=SOC0).text)
+    cell = load_module(path)
+    expected_rc = 1 + sum(e in effects for e in ("second_rc", "third_rc")) - bool(extra)
+    assert cell.OPTIONS["number of rc elements"] == expected_rc
+    v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"])
+    assert v.shape == ours.shape
+    assert rms_mv(v, ours) <= TOL_RMS_MV
+
+
+def test_a_record_solved_in_pieces_gives_our_voltage(pybamm):
+    """``simulate`` solves long records in pieces, each from the state the last ended in (SoC,
+    the RC voltages; the record's temperature): pieces of 70 intervals on this record."""
+    model = fitted("table", ("second_rc", "third_rc", "thermal", "butler_volmer"))
+    frame = record(uniform=False)
+    ours = model.simulate(frame, soc0=SOC0)
+    cell = X.load_source(X.export(model, "model.json", soc0=SOC0).text)
+    v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"], chunk=70)
+    assert rms_mv(v, ours) <= TOL_RMS_MV
+
+
+def test_without_a_measured_temperature_the_cell_sits_at_the_reference(pybamm, tmp_path):
+    """No temperature column: the module's ambient (T_ref) holds the cell there, where the
+    Arrhenius factors are 1, as in our simulator with the record's temperature at T_ref."""
+    model = fitted("table", ("second_rc", "thermal", "butler_volmer"))
+    frame = record(temperature=False)
+    at_ref = frame.assign(temperature_c=TREF_K - 273.15)
+    ours = model.simulate(at_ref, soc0=SOC0)
+    cell = X.load_source(X.export(model, "model.json", soc0=SOC0).text)
+    assert rms_mv(cell.simulate(frame["time_s"], frame["current_a"]), ours) <= TOL_RMS_MV
+
+
+def test_parameter_values_are_the_written_modules(pybamm):
+    """``parameter_values(model)``: PyBaMM's Thevenin options and values; R0 and the OCV
+    evaluate to the library's formulas at chosen points."""
+    model = fitted("table", ("second_rc", "soc_resistance", "thermal", "butler_volmer",
+                             "ocv_shape"))  # fmt: skip
+    options, values = X.parameter_values(model, soc0=0.4)
+    assert options == {"number of rc elements": 2}
+    assert isinstance(values, pybamm.ParameterValues)
+    assert values["Initial SoC"] == 0.4
+    P = ecm.to_physical(model.x)[0]
+    assert values["Cell capacity [A.h]"] == pytest.approx(P[ecm.Q], rel=1e-15)
+    param = pybamm.EcmParameters()
+    for soc, temp_c, cur in [(0.3, 20.0, 1.2), (0.8, 35.0, -0.7), (0.5, 27.0, 0.0)]:
+        sym = param.rcr_element("R0 [Ohm]", pybamm.Scalar(temp_c), pybamm.Scalar(cur),
+                                pybamm.Scalar(soc))  # fmt: skip
+        r0 = np.asarray(values.process_symbol(sym).evaluate()).item()
+        tk = temp_c + 273.15
+        g = 1 + P[ecm.KLOW] * np.exp(-soc / P[ecm.SIG])
+        f0 = np.exp(P[ecm.TH0] * (1 / tk - 1 / TREF_K))
+        x = 0.5 * P[ecm.BVG] * cur
+        bv = 2 * ecm.GAS_R * tk / ecm.FARADAY * (np.arcsinh(x) / cur if cur else P[ecm.BVG] / 2)
+        assert r0 == pytest.approx(P[ecm.R0] * g * f0 + bv, rel=1e-12)
+        ocv = np.asarray(values.process_symbol(param.ocv(pybamm.Scalar(soc))).evaluate()).item()
+        want = ecm.ocv_values(P, soc, model.knots, model.config.table)
+        assert ocv == pytest.approx(float(want), abs=1e-12)
+
+
+# ----------------------------------------------------------------------------------------------
+# the command
+
+
+def run_cli(args, capsys):
+    code = cli.main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_export_writes_a_module_that_loads_without_this_package(pybamm, tmp_path, capsys):
+    """The CLI's file, loaded by a fresh interpreter in which avoa_pipeline cannot be imported,
+    runs a record to our voltage."""
+    model = fitted("rational", ("second_rc", "thermal"))
+    model.save(tmp_path / "model.json")
+    frame = measured(model, record())
+    frame.to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "cell.py"
+    code, stdout, _ = run_cli(["export", str(tmp_path / "model.json"), "--to", "pybamm",
+                               "--out", str(out), "--record", str(tmp_path / "rec.csv")],
+                              capsys)  # fmt: skip
+    assert code == 0
+    assert "initial SOC" in stdout
+    assert not (tmp_path / "cell.dropped.csv").exists()
+    loaded = FittedModel.load(tmp_path / "model.json")
+    ours = loaded.simulate(frame)  # the initial SOC by the library's rule, as the export's
+    data = tmp_path / "rec.json"
+    data.write_text(json.dumps({k: frame[k].tolist() for k in frame.columns}))
+    script = textwrap.dedent(f"""
+        import importlib.util, json, sys
+        sys.modules["avoa_pipeline"] = None  # importing it now fails
+        try:
+            import avoa_pipeline
+        except ImportError:
+            pass
+        else:
+            raise SystemExit("avoa_pipeline importable")
+        spec = importlib.util.spec_from_file_location("cell", {str(out)!r})
+        cell = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(cell)
+        import pybamm
+        model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
+        values = pybamm.ParameterValues(cell.get_parameter_values())
+        values.process_model(model)
+        d = json.load(open({str(data)!r}))
+        v = cell.simulate(d["time_s"], d["current_a"], d["temperature_c"])
+        print(json.dumps([float(a) for a in v]))
+    """)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYBAMM_DISABLE_TELEMETRY"] = "true"
+    res = subprocess.run([sys.executable, "-I", "-c", script], capture_output=True, text=True,
+                         env=env, cwd=tmp_path, timeout=300, check=False)  # fmt: skip
+    assert res.returncode == 0, res.stderr[-2000:]
+    v = np.array(json.loads(res.stdout.strip().splitlines()[-1]))
+    assert rms_mv(v, ours) <= TOL_RMS_MV
+
+
+def test_drop_unsupported_exports_the_rest_and_writes_its_cost(pybamm, tmp_path, capsys):
+    model = fitted("table", ("second_rc", "hysteresis", "diffusion"))
+    model.save(tmp_path / "model.json")
+    frame = measured(model, record())
+    frame.to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "cell.py"
+    args = ["export", str(tmp_path / "model.json"), "--to", "pybamm", "--out", str(out)]
+    code, _, err = run_cli(args, capsys)
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "hysteresis, diffusion" in err
+    assert not out.exists()
+    code, _, err = run_cli([*args, "--drop-unsupported"], capsys)  # the cost needs a record
+    assert code == 2
+    assert "--record" in err
+    assert not out.exists()
+    code, stdout, _ = run_cli([*args, "--drop-unsupported", "--record", str(tmp_path / "rec.csv"),
+                               "--soc0", str(SOC0)], capsys)  # fmt: skip
+    assert code == 0
+    assert "dropped hysteresis, diffusion" in stdout
+    cost = pd.read_csv(tmp_path / "cell.dropped.csv")
+    assert list(cost.columns) == ["time_s", "voltage_v", "model_v", "exported_v", "difference_mv"]
+    np.testing.assert_allclose(cost["model_v"], model.simulate(frame, soc0=SOC0), atol=1e-12)
+    kept = X.without(model, ("hysteresis", "diffusion"))
+    np.testing.assert_allclose(cost["exported_v"], kept.simulate(frame, soc0=SOC0), atol=1e-12)
+    np.testing.assert_allclose(cost["difference_mv"], 1e3 * (cost["exported_v"] - cost["model_v"]))
+    assert rms_mv(cost["exported_v"], cost["model_v"]) > 1.0  # dropping them costs something
+    cell = load_module(out)
+    assert set(cell.DROPPED) == {"hysteresis", "diffusion"}
+    assert cell.DROPPED["diffusion"]["rms_mv"] == pytest.approx(
+        rms_mv(cost["exported_v"], cost["model_v"]), rel=1e-9
+    )
+    # what the file holds is what exported_v says
+    v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"])
+    assert rms_mv(v, cost["exported_v"]) <= TOL_RMS_MV
+
+
+def _tamper(tmp_path, how):
+    model = fitted("table", ("second_rc",))
+    model.save(tmp_path / "model.json")
+    d = json.loads((tmp_path / "model.json").read_text())
+    if how == "version":
+        d["format_version"] = 2
+    elif how == "out_of_bounds":
+        d["parameters"]["r2_ohm"] = 50.0
+    else:
+        del d["parameters"]["tau1_s"]
+    (tmp_path / "model.json").write_text(json.dumps(d))
+    measured(model, record()).to_csv(tmp_path / "rec.csv", index=False)
+
+
+@pytest.mark.parametrize("how", ["version", "out_of_bounds", "missing"])
+def test_a_bad_model_json_gets_simulates_refusal_and_nothing_is_written(tmp_path, capsys, how):
+    _tamper(tmp_path, how)
+    m = str(tmp_path / "model.json")
+    code_s, _, err_s = run_cli(["simulate", m, str(tmp_path / "rec.csv"), "--out",
+                                str(tmp_path / "pred.csv")], capsys)  # fmt: skip
+    code_e, _, err_e = run_cli(["export", m, "--to", "pybamm", "--out", str(tmp_path / "c.py"),
+                                "--record", str(tmp_path / "rec.csv")], capsys)  # fmt: skip
+    assert code_s == code_e == 2
+    assert err_e == err_s
+    assert err_e.count("\n") == 1
+    assert not (tmp_path / "c.py").exists()
+    assert not (tmp_path / "c.dropped.csv").exists()
+
+
+def test_without_pybamm_the_command_says_how_to_install_it(tmp_path, capsys, monkeypatch):
+    fitted("rational", ()).save(tmp_path / "model.json")
+    monkeypatch.setitem(sys.modules, "pybamm", None)  # `import pybamm` now fails
+    out = tmp_path / "c.py"
+    code, _, err = run_cli(["export", str(tmp_path / "model.json"), "--to", "pybamm", "--out",
+                            str(out)], capsys)  # fmt: skip
+    assert code == 2
+    assert err.count("\n") == 1
+    assert "pip install 'avoa-pipeline[pybamm]'" in err
+    assert not out.exists()
+
+
+def test_out_must_be_a_python_module(tmp_path, capsys):
+    fitted("rational", ()).save(tmp_path / "model.json")
+    code, _, err = run_cli(["export", str(tmp_path / "model.json"), "--to", "pybamm", "--out",
+                            str(tmp_path / "c.json")], capsys)  # fmt: skip
+    assert code == 2
+    assert ".py" in err
+
+
+def test_the_command_line_does_not_import_pybamm():
+    code = ("import sys, avoa_pipeline.cli, avoa_pipeline.interop.pybamm; "
+            "assert 'pybamm' not in sys.modules, 'pybamm imported'")  # fmt: skip
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=False)  # fmt: skip
+    assert res.returncode == 0, res.stderr
