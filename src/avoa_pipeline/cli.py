@@ -322,22 +322,38 @@ def cmd_diagnose(args) -> None:
     )
 
 
+def _model_and_record(args, data):
+    """``simulate`` and ``export``: the model (``FittedModel.load``, its one refusal) and the
+    record it runs on (or None), checked together: ``--soc0`` in [0, 1], a temperature for a
+    thermal model."""
+    import numpy as np
+
+    from . import inputs
+    from .model.fitted import FittedModel
+
+    if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
+        raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
+    model = FittedModel.load(args.model)
+    if data is None:
+        return model, None
+    rec = inputs.read_record(data, cycler=args.cycler, current_sign=args.current_sign)
+    needs_t = {"thermal", "bv_arrhenius"} & set(model.config.effects)
+    if needs_t and "temperature_c" not in rec.frame.columns:
+        raise UserError(f"{data}: missing column 'temperature_c' (the model has "
+                        f"{', '.join(sorted(needs_t))})")  # fmt: skip
+    return model, rec
+
+
 def cmd_simulate(args) -> None:
     import numpy as np
     import pandas as pd
 
     from . import inputs
     from .io import atomic_path, check_output
-    from .model.fitted import FittedModel
 
     check_output(args.out, inputs=[args.model, args.data])
-    if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
-        raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
-    model = FittedModel.load(args.model)
-    rec = inputs.read_record(args.data, cycler=args.cycler, current_sign=args.current_sign)
+    model, rec = _model_and_record(args, args.data)
     frame = rec.frame
-    if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
-        raise UserError(f"{args.data}: missing column 'temperature_c' (the model is thermal)")
     v = model.predict(frame, soc0=args.soc0, source=args.model)
     out = pd.DataFrame(
         {
@@ -361,27 +377,18 @@ def cmd_export(args) -> None:
     import contextlib
     from pathlib import Path
 
-    import numpy as np
-
-    from .gap import diagnose
     from .interop import pybamm as to_pybamm
-    from .io import atomic_path
-    from .model.fitted import FittedModel
+    from .io import atomic_path, check_output
 
     out = Path(args.out)
     if out.suffix != ".py":
         raise UserError(f"--out {args.out}: the PyBaMM parameters are a Python module; end it .py")
-    if args.soc0 is not None and not (np.isfinite(args.soc0) and 0.0 <= args.soc0 <= 1.0):
-        raise UserError(f"--soc0 must lie in [0, 1], got {args.soc0}")
-    model = FittedModel.load(args.model)
+    check_output(out, inputs=[args.model, args.record])
+    check_output(out.with_suffix(".dropped.csv"), inputs=[args.model, args.record],
+                 what="--out's cost file")  # fmt: skip
+    model, rec = _model_and_record(args, args.record)
     to_pybamm.check_exportable(model, args.model, args.drop_unsupported)
-    frame = None
-    if args.record is not None:
-        frame = diagnose.read_record(
-            args.record, args.current_sign, min_samples=2, cycler=args.cycler
-        )
-        if "thermal" in model.config.effects and "temperature_c" not in frame.columns:
-            raise UserError(f"{args.record}: missing column 'temperature_c' (the model is thermal)")
+    frame = None if rec is None else rec.frame
     to_pybamm.require_pybamm()
     ex = to_pybamm.export(
         model, args.model, args.soc0, frame, args.record, args.drop_unsupported, out.name

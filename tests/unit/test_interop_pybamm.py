@@ -33,6 +33,8 @@ TREF_K = 300.15
 # the cell (test_ecm's truth) and each element's parameters away from neutral (test_ecm's)
 BASE = {k: v for k, v in TRUTH.items() if k != "soc0"}
 
+R1_SOC_GENTLE = {"r1_soc_u0": 0.3, "r1_soc_u2": 0.2}
+
 # every exportable configuration the diagnosis can select: each element alone on the OCV kind
 # it applies to, RC branches 1-3, and everything stacked
 CASES = [
@@ -49,8 +51,15 @@ CASES = [
     ("rational", ("voltage_offset", "ocv_shape"), {}),
     ("table", ("second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
                "ocv_shape"), {}),
+    ("table", ("r0_soc",), {}),
+    # R1 by SOC: ours holds R1(SOC) over each 1-s interval, PyBaMM follows it continuously: a
+    # factor rising 25 % per 0.1 SOC (test_ecm's: 60 %) under this record's 6C pulse
+    ("rational", ("r1_soc",), R1_SOC_GENTLE),
+    ("table", ("r0_charge",), {}),
+    ("table", ("butler_volmer", "bv_arrhenius"), {}),
+    ("table", ("second_rc", "r0_soc", "r1_soc", "r0_charge", "thermal"), R1_SOC_GENTLE),
 ]  # fmt: skip
-CASE_IDS = ["+".join((k, *e)) + ("-r1=0" if x else "") for k, e, x in CASES]
+CASE_IDS = ["+".join((k, *e)) + ("-r1=0" if "r1_ohm" in x else "") for k, e, x in CASES]
 
 
 def ocv_table() -> ecm.OcvTable:
@@ -122,7 +131,8 @@ def test_every_element_of_the_library_has_one_entry():
     assert set(X.ELEMENTS) == set(ecm.EFFECTS)
     exported = {e for e, el in X.ELEMENTS.items() if el.exported}
     assert exported == {"second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
-                        "ocv_shape", "voltage_offset"}  # fmt: skip
+                        "ocv_shape", "voltage_offset", "r0_soc", "r1_soc", "r0_charge",
+                        "bv_arrhenius"}  # fmt: skip
 
 
 @pytest.mark.parametrize("element", [e for e in ecm.EFFECTS if not X.ELEMENTS[e].exported])
@@ -152,10 +162,10 @@ def test_the_papers_load_resistor_is_refused():
 @pytest.mark.parametrize(("kind", "effects", "extra"), CASES, ids=CASE_IDS)
 def test_pybamm_from_the_written_module_gives_our_voltage(pybamm, tmp_path, kind, effects, extra):
     model = fitted(kind, effects, extra)
-    # 1-4 s steps, except where soc_resistance acts: our simulator holds its factor g(SOC) over
-    # each interval, PyBaMM follows the SOC within it, a difference that grows with the step
-    # (docs/pybamm.md, "soc_resistance and the step")
-    frame = record(uniform="soc_resistance" in effects)
+    # 1-4 s steps, except where a resistance follows the SOC (soc_resistance, r1_soc): our
+    # simulator holds its factor over each interval, PyBaMM follows the SOC within it, a
+    # difference that grows with the step (docs/pybamm.md, "soc_resistance and the step")
+    frame = record(uniform=bool({"soc_resistance", "r1_soc"} & set(effects)))
     ours = model.simulate(frame, soc0=SOC0)
     # the elements matter on this record (else agreement would say nothing about them)
     bare = X.without(model, effects).simulate(frame, soc0=SOC0)
@@ -164,7 +174,7 @@ def test_pybamm_from_the_written_module_gives_our_voltage(pybamm, tmp_path, kind
     path = tmp_path / "cell.py"
     path.write_text(X.export(model, "model.json", soc0=SOC0).text)
     cell = load_module(path)
-    expected_rc = 1 + sum(e in effects for e in ("second_rc", "third_rc")) - bool(extra)
+    expected_rc = 1 + sum(e in effects for e in ("second_rc", "third_rc")) - ("r1_ohm" in extra)
     assert cell.OPTIONS["number of rc elements"] == expected_rc
     v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"])
     assert v.shape == ours.shape

@@ -152,27 +152,57 @@ def _thermal(m: FittedModel, P: np.ndarray) -> Piece:
 _BUTLER_VOLMER = '''
 def butler_volmer(T_cell, current):
     """butler_volmer as a resistance in series with R0: the drop (2RT/F)·asinh(I/(2·i0)) divided
-    by I; asinh(x)/x is 1 at x = 0, so it tends to RT/(F·i0) at rest."""
-    x = 0.5 * BV_INV_I0_PER_A * current
+    by I; asinh(x)/x is 1 at x = 0, so it tends to RT/(F·i0) at rest. With bv_arrhenius, 1/i0
+    follows exp(θ·(1/T − 1/T_REF_K)) (θ = 0 without it)."""
+    inv_i0 = BV_INV_I0_PER_A * pybamm.exp(BV_THETA_I0_K * (1.0 / (T_cell + 273.15) - 1.0 / T_REF_K))
+    x = 0.5 * inv_i0 * current
     nonzero = (x > 0) + (x < 0)
     asinh_over_x = nonzero * pybamm.arcsinh(x) / (x + 1.0 - nonzero) + (1.0 - nonzero)
     two_rt_f = 2.0 * GAS_R * (T_cell + 273.15) / FARADAY
-    return two_rt_f * 0.5 * BV_INV_I0_PER_A * asinh_over_x
+    return two_rt_f * 0.5 * inv_i0 * asinh_over_x
 '''
 
 
 def _butler_volmer(m: FittedModel, P: np.ndarray) -> Piece:
     return Piece(
         constants=(("BV_INV_I0_PER_A", P[ecm.BVG], "1/i0, the inverse exchange current"),
+                   ("BV_THETA_I0_K", P[ecm.THBV], "bv_arrhenius: θ of 1/i0 (0: none)"),
                    ("GAS_R", ecm.GAS_R, "J/(mol K)"), ("FARADAY", ecm.FARADAY, "C/mol")),
         helpers=(_BUTLER_VOLMER,),
         terms=(("R0", "butler_volmer(T_cell, current)"),),
     )  # fmt: skip
 
 
+def _bv_arrhenius(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece()  # its θ is a constant of butler_volmer's piece, which it needs
+
+
+def _soc_table(name: str, col: int, resistor: str, what: str):
+    def piece(m: FittedModel, P: np.ndarray) -> Piece:
+        knots = m.knots.grid()
+        logs = P[col : col + ecm.N_KNOTS]
+        return Piece(
+            constants=((f"{name}_SOC", _flat_ends(knots), f"{what}: knots (and a point beyond "
+                        "each end: avoa-pipeline holds the end values)"),
+                       (f"{name}_LOG", [logs[0], *logs, logs[-1]],
+                        f"{what}: log of the factor at the knots")),
+            factors=((resistor, f'pybamm.exp(pybamm.Interpolant({name}_SOC, {name}_LOG, soc, '
+                                f'"{name.lower()}"))'),),
+        )  # fmt: skip
+
+    return piece
+
+
+def _r0_charge(m: FittedModel, P: np.ndarray) -> Piece:
+    return Piece(
+        constants=(("R0_CHARGE_FACTOR", float(np.exp(P[ecm.RHO])), "R0 while charging / R0"),),
+        factors=(("R0", "(1.0 + (R0_CHARGE_FACTOR - 1.0) * (current < 0))"),),
+    )  # fmt: skip
+
+
 def _ocv_shape(m: FittedModel, P: np.ndarray) -> Piece:
     knots = m.knots.grid()
-    d = P[ecm.D0 :]
+    d = P[ecm.D0 : ecm.D0 + ecm.N_KNOTS]
     return Piece(
         constants=(("OCV_SHAPE_SOC", _flat_ends(knots), "ocv_shape: knots (and a point beyond "
                     "each end: avoa-pipeline holds the end values)"),
@@ -210,6 +240,23 @@ ELEMENTS: dict[str, Element] = {
         _ocv_shape,
     ),
     "voltage_offset": Element("added to the OCV", _voltage_offset),
+    "r0_soc": Element(
+        "R0 times exp(l(SoC)), l a linear interpolant through the knots (flat beyond them)",
+        _soc_table("R0_SOC", ecm.L0, "R0", "r0_soc"),
+    ),
+    "r1_soc": Element(
+        "R1 times exp(l(SoC)) as r0_soc; C1 = τ1/R1(SoC), so τ1 stays fixed as in avoa-pipeline",
+        _soc_table("R1_SOC", ecm.L1, "R1", "r1_soc"),
+    ),
+    "r0_charge": Element(
+        "R0 times exp(ρ) where the current is a charge (I < 0 in PyBaMM's discharge-positive "
+        "sign), as a function of PyBaMM's current",
+        _r0_charge,
+    ),
+    "bv_arrhenius": Element(
+        "butler_volmer's 1/i0 times exp(θ·(1/T − 1/T_ref)), T the cell temperature",
+        _bv_arrhenius,
+    ),
     "diffusion": Element(
         "PyBaMM's diffusion element (Fan 2022) is Fickian diffusion in a slab with one "
         "parameter τ_D, which fixes both the time scales (τ_D/(n²π²)) and the size of the "
