@@ -242,6 +242,11 @@ def _pair_files(tmp_path):
 def test_final_effects_and_judge_pair():
     assert ev.final_effects(_diagnosis()) == []
     assert ev.final_effects(_diagnosis("thermal", "second_rc")) == ["thermal", "second_rc"]
+    # since pruning: the selected model, which may hold fewer elements than the last rung
+    pruned = {**_diagnosis("current_offset", "hysteresis", "ocv_shape"),
+              "selected": {"effects": ["hysteresis", "ocv_shape"]},
+              "pruned": [{"effect": "current_offset"}]}  # fmt: skip
+    assert ev.final_effects(pruned) == ["hysteresis", "ocv_shape"]
     j = ev.judge_pair(("second_rc", "hysteresis"), ["hysteresis", "thermal"])
     assert j == {"missing": ["second_rc"], "extra": ["thermal"]}
     both = ev.judge_pair(("second_rc", "hysteresis"), ["hysteresis", "second_rc"])

@@ -358,7 +358,10 @@ PAIR_COLUMNS = (
 
 
 def final_effects(diag: dict) -> list[str]:
-    """The effects of the ladder's last rung (none when the verdict is ``none``)."""
+    """The effects of the selected model (the ladder's last rung, pruned; none when the verdict
+    is ``none``). A diagnosis from before pruning (no ``pruned``) names its last rung's."""
+    if "pruned" in diag:
+        return list(diag["selected"]["effects"])
     ladder = diag.get("ladder") or []
     return list(ladder[-1]["effects"]) if ladder else []
 
