@@ -466,16 +466,32 @@ class Record:
 # the compiled simulator
 
 
-@nb.njit(cache=True, nogil=True)
-def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
-              g_load, sel, out, tr):  # fmt: skip
+def _kernel(extras: bool):
+    """The compiled simulator, one version with and one without the issue-19 elements (R0/R1
+    by SOC, the charge R0, the Arrhenius exchange current): ``extras`` is a constant of the
+    compiled code, so without them their code is not compiled in and the base model costs what
+    it did before them (``benchmarks/bench_simulator.py``; a run-time flag cost 10-25 %)."""
+
+    @nb.njit(cache=True, nogil=True)
+    def simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
+                 g_load, sel, out, tr):  # fmt: skip
+        return _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t,
+                     two_rt_f, g_load, sel, out, tr, extras)  # fmt: skip
+
+    return simulate
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
+          g_load, sel, out, tr, extras):  # fmt: skip
     """Terminal voltage of every physical row of ``P`` at the selected samples.
 
     ``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
     ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
     voltages, the thermal R0 factor and the battery current of row 0 when non-empty. An element
     whose parameter is neutral in every row is skipped (the flags do not change inside the loops,
-    so the compiler takes the branches out of them).
+    so the compiler takes the branches out of them). ``extras``: a constant of the compiled
+    version (:func:`_kernel`).
     """
     m = P.shape[0]
     n = cur.shape[0]
@@ -581,18 +597,20 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
             f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
             ro = f0 * g * r0[c]
             g1 = 1.0
-            if soc_r0 or soc_r1:  # log-multipliers at the knots, by the (bulk) SOC
-                x = (s - k_lo) / k_step
-                j = min(max(int(x), 0), nk - 2) if x > 0.0 else 0
-                w = min(max(x - j, 0.0), 1.0)
-                if soc_r0:
-                    ro *= np.exp((1.0 - w) * l0[c, j] + w * l0[c, j + 1])
-                if soc_r1:
-                    g1 = np.exp((1.0 - w) * l1[c, j] + w * l1[c, j + 1])
+            if extras:
+                if soc_r0 or soc_r1:  # log-multipliers at the knots, by the (bulk) SOC
+                    xs = (s - k_lo) / k_step
+                    js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
+                    ws = min(max(xs - js, 0.0), 1.0)
+                    if soc_r0:
+                        ro *= np.exp((1.0 - ws) * l0[c, js] + ws * l0[c, js + 1])
+                    if soc_r1:
+                        g1 = np.exp((1.0 - ws) * l1[c, js] + ws * l1[c, js + 1])
             e -= v1[c] + v2[c] + v3[c]
             ip = ik0 + ioff[c]
-            if r0chg and ip < 0.0:
-                ro *= np.exp(rho[c])
+            if extras:
+                if r0chg and ip < 0.0:
+                    ro *= np.exp(rho[c])
             if load:  # the load's current follows the terminal voltage: solved exactly
                 v = (e - ro * ip) / (1.0 + ro * g_load)
                 i = ip + v * g_load
@@ -600,7 +618,10 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
                 i = ip
                 v = e - ro * i
                 if bv:
-                    gb = bvg[c] * np.exp(thbv[c] * dinv) if bvarr else bvg[c]
+                    gb = bvg[c]
+                    if extras:
+                        if bvarr:
+                            gb *= np.exp(thbv[c] * dinv)
                     v -= rtf * np.arcsinh(0.5 * gb * i)
             if row >= 0:
                 out[row, c] = v
@@ -611,7 +632,10 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
                 tr[3, k] = f0
                 tr[4, k] = i
             gi = f1 * g * i
-            v1[c] = a1[c] * v1[c] + r1[c] * g1 * (1.0 - a1[c]) * gi
+            if extras:
+                v1[c] = a1[c] * v1[c] + r1[c] * g1 * (1.0 - a1[c]) * gi
+            else:
+                v1[c] = a1[c] * v1[c] + r1[c] * (1.0 - a1[c]) * gi
             if rc2:
                 v2[c] = a2[c] * v2[c] + r2[c] * (1.0 - a2[c]) * gi
             if rc3:
@@ -626,6 +650,7 @@ def _simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, di
             soc[c] = s - dq
 
 
+_SIMULATE = {False: _kernel(False), True: _kernel(True)}
 _NO_TABLE = np.empty(0)
 
 
@@ -648,8 +673,9 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     tab = _NO_TABLE if table is None else table.values
     t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
     g = 0.0 if load_ohm is None else 1.0 / load_ohm
-    _simulate(P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt, rec.uniform,
-              rec.dinv_t, rec.two_rt_f, g, sel, out, tr)  # fmt: skip
+    extras = bool(np.any(P[:, L0:NP] != 0.0) or np.any(P[:, [RHO, THBV]] != 0.0))
+    _SIMULATE[extras](P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
+                      rec.uniform, rec.dinv_t, rec.two_rt_f, g, sel, out, tr)  # fmt: skip
     return (out, tr) if traces else out
 
 
