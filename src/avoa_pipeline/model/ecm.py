@@ -597,7 +597,7 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
             f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
             ro = f0 * g * r0[c]
             g1 = 1.0
-            if extras:
+            if extras:  # noqa: SIM102 - a constant alone, so that the compiler drops the block
                 if soc_r0 or soc_r1:  # log-multipliers at the knots, by the (bulk) SOC
                     xs = (s - k_lo) / k_step
                     js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
@@ -608,7 +608,7 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                         g1 = np.exp((1.0 - ws) * l1[c, js] + ws * l1[c, js + 1])
             e -= v1[c] + v2[c] + v3[c]
             ip = ik0 + ioff[c]
-            if extras:
+            if extras:  # noqa: SIM102 - as above
                 if r0chg and ip < 0.0:
                     ro *= np.exp(rho[c])
             if load:  # the load's current follows the terminal voltage: solved exactly
@@ -619,7 +619,7 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                 v = e - ro * i
                 if bv:
                     gb = bvg[c]
-                    if extras:
+                    if extras:  # noqa: SIM102 - as above
                         if bvarr:
                             gb *= np.exp(thbv[c] * dinv)
                     v -= rtf * np.arcsinh(0.5 * gb * i)
