@@ -9,6 +9,7 @@ drive-cycle-like random current at 10 Hz for 200k. Prints measured times; assert
     nice -n 19 .venv/bin/python benchmarks/bench_diagnose.py
     ... --sizes 15000 --effect hysteresis --repeat 3
     ... --sweep 6        # 6 replicates x (control + 8 effects x 2 magnitudes)
+    ... --stages A.csv B.csv   # where each diagnosis's time goes (fits, held-out fits, Jacobians)
 """
 
 from __future__ import annotations
@@ -142,13 +143,86 @@ def sweep(replicates: int) -> None:
     )
 
 
+def stages(paths) -> None:
+    """Where one diagnosis's time goes, per CSV of ``paths`` (canonical records): CPU seconds of
+    the full fits (``Context.fit``: multi-start, coarse trials and the refinement) and of the
+    held-out fits (``Context.cross_validate``: one per fold or held-out record), the least-squares
+    problems solved, their residual and Jacobian evaluations, and the ladder's length."""
+    from scipy.optimize import _lsq
+
+    from avoa_pipeline import inputs, selection
+    from avoa_pipeline.model import fitting
+
+    spent: dict[str, list[float]] = {}
+
+    def timed(owner, name):
+        f = getattr(owner, name)
+
+        def run(*a, **k):
+            c0 = time.process_time()
+            try:
+                return f(*a, **k)
+            finally:
+                spent.setdefault(name, [0, 0.0])
+                spent[name][0] += 1
+                spent[name][1] += time.process_time() - c0
+
+        setattr(owner, name, run)
+        return f
+
+    solved = {"problems": 0, "residuals": 0, "jacobians": 0}
+    least_squares = fitting.least_squares
+
+    def counted(*a, **k):
+        res = least_squares(*a, **k)
+        solved["problems"] += 1
+        solved["residuals"] += res.nfev
+        solved["jacobians"] += res.njev or 0
+        return res
+
+    assert _lsq  # scipy's solver, counted through fitting's reference to it
+    fit, cv = timed(selection.Context, "fit"), timed(selection.Context, "cross_validate")
+    fitting.least_squares = counted
+    try:
+        for path in paths:
+            spent.clear()
+            solved.update(problems=0, residuals=0, jacobians=0)
+            rec = inputs.read_record(path)
+            c0 = time.process_time()
+            r = diagnose.diagnose(rec)
+            total = time.process_time() - c0
+            held = sum(1 for c in r["candidates"] if c.get("heldout_rmse_mv") is not None)
+            tried = sum(1 for c in r["candidates"] if c.get("applicable"))
+            print(f"{path}: {total:.1f} s CPU, selected {r['selected']['name']}, "
+                  f"{len(r['ladder'])} rungs, {len(r.get('pruned', []))} pruned")  # fmt: skip
+            for name, (n, sec) in spent.items():
+                print(f"  {name:15s} {n:4d} calls {sec:7.1f} s ({sec / total:.0%})")
+            print(f"  least squares   {solved['problems']:4d} problems, {solved['residuals']} "
+                  f"residual and {solved['jacobians']} Jacobian evaluations; first rung: "
+                  f"{tried} candidates, {held} held out")  # fmt: skip
+    finally:
+        selection.Context.fit, selection.Context.cross_validate = fit, cv
+        fitting.least_squares = least_squares
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[2000, 15000, 200000])
     p.add_argument("--effect", default="hysteresis", choices=sorted(EFFECT))
     p.add_argument("--repeat", type=int, default=1)
     p.add_argument("--sweep", type=int, default=0, metavar="REPLICATES")
+    p.add_argument(
+        "--stages",
+        nargs="+",
+        default=None,
+        metavar="CSV",
+        help="where the time of each CSV's diagnosis goes (full and held-out fits)",
+    )
     args = p.parse_args()
+    if args.stages:
+        diagnose.diagnose(record(2000, "none"))  # the numba cache, outside the timing
+        stages(args.stages)
+        return
     if args.sweep:
         sweep(args.sweep)
         return
