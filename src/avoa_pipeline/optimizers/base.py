@@ -249,8 +249,8 @@ class Tracker:
 
     def ask_one(self, x: np.ndarray) -> Generator[np.ndarray, np.ndarray, float]:
         """``f = yield from tracker.ask_one(x)``: :meth:`ask` of one point, as a float (the path
-        of RUN's agents, where the population path's array handling would cost more than the
-        accounting itself)."""
+        of RUN's agents and Nelder–Mead, where the population path's array handling would cost
+        more than the accounting itself)."""
         max_nfe = self.budget.max_nfe
         if max_nfe is not None and self.nfe >= max_nfe:
             return np.inf
@@ -318,23 +318,28 @@ def search_steps(
     tracker: Tracker, search: Callable[[Callable[[np.ndarray], np.ndarray]], None]
 ) -> Steps:
     """``yield from search_steps(tracker, search)``: run ``search(evaluate)``, a loop that calls
-    ``evaluate(X)`` itself (a scipy driver), as this run's steps.
+    ``evaluate`` itself (a scipy driver), as this run's steps: ``evaluate(X)`` of rows ``X``
+    (shape ``(k, D)``) is :meth:`Tracker.ask`, ``evaluate(x)`` of one point (shape ``(D,)``)
+    :meth:`Tracker.ask_one`.
 
     Why a greenlet: scipy's Nelder–Mead and L-BFGS-B own their loops and call the objective from
-    inside them, so they cannot yield. ``search`` runs in a greenlet of its own; each
-    ``evaluate(X)`` switches back here with ``X``, which becomes a :meth:`Tracker.ask`, and the
-    values are switched back in as its return value. Only one of the two runs at any moment, so
-    the search sees exactly the calls and values it would see calling the objective directly.
+    inside them, so they cannot yield. ``search`` runs in a greenlet of its own; each ``evaluate``
+    switches back here with its argument, which becomes the ask, and the values are switched back
+    in as its return value. Only one of the two runs at any moment, so the search sees exactly
+    the calls and values it would see calling the objective directly.
     """
 
-    def evaluate(X: np.ndarray) -> np.ndarray:
+    def evaluate(X: np.ndarray):
         return child.parent.switch(X)
 
     child = greenlet(search)
     try:
         request = child.switch(evaluate)
         while not child.dead:
-            values = yield from tracker.ask(request)
+            if request.ndim == 1:
+                values = yield from tracker.ask_one(request)
+            else:
+                values = yield from tracker.ask(request)
             child.parent = greenlet.getcurrent()
             request = child.switch(values)
     finally:

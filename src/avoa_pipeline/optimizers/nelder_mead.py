@@ -40,6 +40,7 @@ get), and bounds (``fminsearch`` is unconstrained). mealpy has no Nelder–Mead.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy.optimize import Bounds, minimize
@@ -58,7 +59,7 @@ class LocalSearchAccounting:
     :class:`BudgetExhausted` when nothing is left.
     """
 
-    def __init__(self, tracker: Tracker, pop_size: int, ask: Callable[[np.ndarray], np.ndarray]):
+    def __init__(self, tracker: Tracker, pop_size: int, ask: Callable[[np.ndarray], Any]):
         self.tracker = tracker
         self.pop_size = pop_size
         self.ask = ask
@@ -95,7 +96,7 @@ class LocalSearchAccounting:
         """:meth:`evaluate` of one point, as a float; ``BudgetExhausted`` if none is left."""
         if self.remaining < 1:
             raise BudgetExhausted
-        f = float(self.ask(x[None, :])[0])
+        f = self.ask(np.asarray(x, dtype=float))
         self._close_iterations()
         return f
 
