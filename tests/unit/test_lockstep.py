@@ -18,6 +18,7 @@ them there with the script before reading a mismatch as a change of the optimize
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import time
 from pathlib import Path
@@ -40,23 +41,23 @@ REFERENCES = Path(__file__).parents[1] / "data" / "fit_references_bec3407.json"
 algorithms = pytest.mark.parametrize("name", ALGORITHMS)
 
 
-def _numbers(rec: dict) -> dict:
-    """The numbers of a record the references hold (everything but times and provenance)."""
-    return {
-        "seed": rec["seed"],
-        "best_params": [rec["best_params"][n] for n in rec["param_names"]],
-        "best_ise": rec["best_ise"],
-        "nfe": rec["nfe"],
-        "iterations": rec["iterations"],
-        "history_best_ise": rec["history"]["best_ise"],
-        "history_nfe": rec["history"]["nfe"],
-    }
+def _reference_script():
+    """tests/data/make_fit_references.py as a module: what it writes is what the test reads."""
+    path = REFERENCES.parent / "make_fit_references.py"
+    spec = importlib.util.spec_from_file_location("make_fit_references", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+REF = _reference_script()
+_numbers = REF.numbers
 
 
 @pytest.fixture(scope="module")
 def references():
     runs = json.loads(REFERENCES.read_text())["runs"]
-    assert len(runs) == 2 * 3 * len(ALGORITHMS)
+    assert len(runs) == len(REF.PROBLEMS) * len(REF.BUDGETS) * len(ALGORITHMS)
     return runs
 
 
@@ -68,7 +69,7 @@ def problems(cfg):
 @algorithms
 def test_block_records_equal_the_one_seed_records_of_bec3407(name, cfg, references, problems):
     runs = [r for r in references if r["algorithm"] == name]
-    assert len(runs) == 6
+    assert len(runs) == len(REF.PROBLEMS) * len(REF.BUDGETS)
     for ref in runs:
         prob = problems[ref["scenario"], ref["case"]]
         budget = Budget(**ref["budget"])
