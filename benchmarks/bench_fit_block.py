@@ -1,5 +1,5 @@
 """Time one fit block per algorithm (the workflow's fit job: every seed of one scenario × case ×
-algorithm) against its kernel bound, single-threaded as in a workflow job.
+algorithm) against its kernel bound, single-threaded as in a workflow job (numba and BLAS).
 
     .venv/bin/python benchmarks/bench_fit_block.py                 # s4 c4, 7 algorithms x 30 seeds
     .venv/bin/python benchmarks/bench_fit_block.py --algorithms avoa gto --seeds 10
@@ -18,17 +18,23 @@ bit for bit (timings excepted). Nothing is asserted.
 
 from __future__ import annotations
 
-import argparse
-import json
-import tempfile
-import time
-from pathlib import Path
+import os
 
-import numba
-from bench_kernel import ns_per_candidate_sample
+# one BLAS thread, as Snakemake gives a job of `threads: 1` (set before numpy is imported)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-from avoa_pipeline import config, problem, workflow
-from avoa_pipeline.names import ALGORITHMS
+import argparse  # noqa: E402
+import json  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numba  # noqa: E402
+from bench_kernel import ns_per_candidate_sample  # noqa: E402
+
+from avoa_pipeline import config, problem, workflow  # noqa: E402
+from avoa_pipeline.names import ALGORITHMS  # noqa: E402
 
 NUMBERS = ("best_params", "best_ise", "nfe", "iterations")
 

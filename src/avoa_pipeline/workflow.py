@@ -114,7 +114,8 @@ def fit_batch(cfg, data_csv: str, scenario, case, algorithm: str, seeds, out_jso
     kept, lines = len(seeds) - len(todo), []
     if todo:  # one problem (dataset read, kernels loaded); the seeds stepped together
         prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
-        with threadpool_limits(1):  # scipy's L-BFGS-B calls BLAS: its threads would spin
+        with threadpool_limits(1):  # L-BFGS-B's BLAS threads would spin (Snakemake's jobs
+            # get OPENBLAS_NUM_THREADS=threads anyway; this covers the other callers)
             recs = fit.run_seeds(cfg, prob, algorithm, [s for s, _, _ in todo], budget)
         for (seed, out, key), rec in zip(todo, recs, strict=True):
             rec["job_key"] = key
