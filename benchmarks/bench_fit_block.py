@@ -32,18 +32,10 @@ from pathlib import Path  # noqa: E402
 
 import numba  # noqa: E402
 from bench_kernel import ns_per_candidate_sample  # noqa: E402
+from compare_records import same_numbers  # noqa: E402
 
 from avoa_pipeline import config, problem, workflow  # noqa: E402
 from avoa_pipeline.names import ALGORITHMS  # noqa: E402
-
-NUMBERS = ("best_params", "best_ise", "nfe", "iterations")
-
-
-def same_numbers(a: dict, b: dict) -> bool:
-    """Two records of one seed agree bit for bit (JSON floats round-trip exactly), timings aside."""
-    return all(a[k] == b[k] for k in NUMBERS) and all(
-        a["history"][k] == b["history"][k] for k in ("best_ise", "nfe")
-    )
 
 
 def main() -> None:
