@@ -10,7 +10,7 @@ import numpy as np
 
 from . import __version__, seeds
 from .errors import ConfigError
-from .optimizers import ALGORITHMS, Budget, minimize
+from .optimizers import ALGORITHMS, Budget, minimize_together
 from .problem import Problem
 
 
@@ -41,56 +41,80 @@ def budget_from(cfg: dict, pop_size=None, iterations=None, max_nfe=None) -> Budg
     return Budget(pop_size=pop, iterations=it, max_nfe=nfe)
 
 
-def warm_up(problem: Problem, pop_size: int) -> None:
-    """Load the compiled kernels before the clock starts (wall_s is optimizer time only)."""
+def warm_up(problem: Problem, rows: int) -> None:
+    """Load the compiled kernels before the clock starts (wall_s is optimizer time only): one
+    candidate, and populations of ``rows`` (the largest ask of a step)."""
     x = (problem.lb + problem.ub) / 2
-    problem.objective(np.tile(x, (max(pop_size, 1), 1)))
+    problem.objective(np.tile(x, (max(rows, 1), 1)))
     problem.objective_one(x)
     problem.objective(x[None, :])
 
 
 def run(cfg: dict, problem: Problem, algorithm: str, seed: int, budget: Budget) -> dict:
+    """The record of one fit (the command line's ``fit``): :func:`run_seeds` with one seed."""
+    return run_seeds(cfg, problem, algorithm, [seed], budget)[0]
+
+
+def run_seeds(
+    cfg: dict, problem: Problem, algorithm: str, seed_list: list[int], budget: Budget
+) -> list[dict]:
+    """The records of several seeds of one algorithm on one problem (a fit block), their runs
+    stepped together: every step evaluates all the seeds' asks in one kernel call
+    (:func:`.optimizers.minimize_together`). Each seed's numbers are those :func:`run` gives it
+    alone; only its times differ (``docs/records.md``, "Time")."""
     if algorithm not in ALGORITHMS:
         raise ConfigError(f"unknown algorithm {algorithm!r}; choose from {', '.join(ALGORITHMS)}")
-    rng = seeds.stream(cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed)
-    warm_up(problem, budget.pop_size)
-    res = minimize(
-        algorithm, problem.objective, problem.lb, problem.ub, budget, rng, problem.objective_one
+    keys = [
+        [cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, s] for s in seed_list
+    ]
+    rngs = [seeds.stream(*k) for k in keys]
+    warm_up(problem, budget.pop_size * len(seed_list))
+    results = minimize_together(
+        algorithm, problem.objective, problem.lb, problem.ub, budget, rngs, problem.objective_one
     )
-    best = dict(zip(problem.names, map(float, res.best_x), strict=False))
     truth = problem.true_free()
-    record = {
-        "scenario": problem.scenario,
-        "case": problem.case,
-        "algorithm": algorithm,
-        "seed": seed,
-        "param_names": list(problem.names),
-        "best_params": best,
-        "best_ise": res.best_f,
-        "true_params": None
-        if truth is None
-        else dict(zip(problem.names, map(float, truth), strict=False)),
-        "true_ise": None if truth is None else float(problem.objective(truth[None, :])[0]),
-        "rel_error": None
-        if truth is None
-        else {n: float((best[n] - t) / t) for n, t in zip(problem.names, truth, strict=False)},
-        "lb": problem.lb.tolist(),
-        "ub": problem.ub.tolist(),
-        "nfe": res.nfe,
-        "iterations": res.iterations,
-        "n_samples": int(problem.time_s.size),
-        "wall_s": res.wall_s,
-        "budget": {
-            "pop_size": budget.pop_size,
-            "iterations": budget.iterations,
-            "max_nfe": budget.max_nfe,
-        },
-        "history": {
-            "best_ise": res.history_best.tolist(),
-            "nfe": res.history_nfe.tolist(),
-            "wall_s": res.history_time.tolist(),
-        },
-        "seed_keys": [cfg["base_seed"], "fit", problem.scenario, problem.case, algorithm, seed],
-        "versions": versions(),
-    }
-    return record
+    true_params = (
+        None if truth is None else dict(zip(problem.names, map(float, truth), strict=True))
+    )
+    true_ise = None if truth is None else float(problem.objective(truth[None, :])[0])
+    lib_versions = versions()
+    records = []
+    for seed, key, res in zip(seed_list, keys, results, strict=True):
+        best = dict(zip(problem.names, map(float, res.best_x), strict=True))
+        records.append(
+            {
+                "scenario": problem.scenario,
+                "case": problem.case,
+                "algorithm": algorithm,
+                "seed": seed,
+                "param_names": list(problem.names),
+                "best_params": best,
+                "best_ise": res.best_f,
+                "true_params": None if true_params is None else dict(true_params),
+                "true_ise": true_ise,
+                "rel_error": None
+                if truth is None
+                else {
+                    n: float((best[n] - t) / t) for n, t in zip(problem.names, truth, strict=True)
+                },
+                "lb": problem.lb.tolist(),
+                "ub": problem.ub.tolist(),
+                "nfe": res.nfe,
+                "iterations": res.iterations,
+                "n_samples": int(problem.time_s.size),
+                "wall_s": res.wall_s,
+                "budget": {
+                    "pop_size": budget.pop_size,
+                    "iterations": budget.iterations,
+                    "max_nfe": budget.max_nfe,
+                },
+                "history": {
+                    "best_ise": res.history_best.tolist(),
+                    "nfe": res.history_nfe.tolist(),
+                    "wall_s": res.history_time.tolist(),
+                },
+                "seed_keys": key,
+                "versions": dict(lib_versions),
+            }
+        )
+    return records

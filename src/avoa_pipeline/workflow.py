@@ -13,6 +13,7 @@ from pathlib import Path
 import numba
 import pandas as pd
 import yaml
+from threadpoolctl import threadpool_limits
 
 from . import aggregate, config, fit, problem, synthetic
 from .io import atomic_path, write_json, write_log
@@ -89,7 +90,8 @@ def _code_hash() -> str:
 
 def fit_batch(cfg, data_csv: str, scenario, case, algorithm: str, seeds, out_jsons,
               log: str | None = None) -> dict:  # fmt: skip
-    """Several seeds of one scenario × case × algorithm in one job, one record per seed.
+    """Several seeds of one scenario × case × algorithm in one job, one record per seed, the
+    seeds stepped together (:func:`.fit.run_seeds`: one kernel call per step for all of them).
 
     A record already on disk whose ``job_key`` is this fit's current :func:`fit_key` is kept
     (Snakemake's ``update`` flag leaves it in place): adding seeds to a batch computes only the
@@ -100,27 +102,30 @@ def fit_batch(cfg, data_csv: str, scenario, case, algorithm: str, seeds, out_jso
     if len(seeds) != len(out_jsons):
         raise ValueError(f"{len(seeds)} seeds for {len(out_jsons)} records")
     budget = fit.budget_from(cfg)
-    prob = None
-    kept, lines = 0, []
+    todo = []  # (seed, record path, job_key) of the records to compute
     for seed, out in zip(seeds, out_jsons, strict=True):
         key = fit_key(cfg, data_csv, scenario, case, algorithm, seed)
         try:
             old = json.loads(Path(out).read_text())
         except (FileNotFoundError, json.JSONDecodeError, UnicodeDecodeError):
             old = None
-        if isinstance(old, dict) and old.get("job_key") == key:
-            kept += 1
-            continue
-        if prob is None:  # one problem (dataset read, kernels loaded) for the whole batch
-            prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
-        rec = fit.run(cfg, prob, algorithm, seed, budget)
-        rec["job_key"] = key
-        write_json(rec, out)
-        lines.append(f"{algorithm} s{scenario} c{case} seed {seed}: ISE {rec['best_ise']:.6g}, "
-                     f"nfe {rec['nfe']}, {rec['wall_s']:.3f} s")  # fmt: skip
-    lines.append(f"{len(seeds) - kept} computed, {kept} kept (current job_key)")
+        if not (isinstance(old, dict) and old.get("job_key") == key):
+            todo.append((seed, out, key))
+    kept, lines = len(seeds) - len(todo), []
+    if todo:  # one problem (dataset read, kernels loaded); the seeds stepped together
+        prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
+        with threadpool_limits(1):  # L-BFGS-B's BLAS threads would spin (Snakemake's jobs
+            # get OPENBLAS_NUM_THREADS=threads anyway; this covers the other callers)
+            recs = fit.run_seeds(cfg, prob, algorithm, [s for s, _, _ in todo], budget)
+        for (seed, out, key), rec in zip(todo, recs, strict=True):
+            rec["job_key"] = key
+            write_json(rec, out)
+            ise, nfe, wall = rec["best_ise"], rec["nfe"], rec["wall_s"]
+            lines.append(f"{algorithm} s{scenario} c{case} seed {seed}: ISE {ise:.6g}, "
+                         f"nfe {nfe}, {wall:.3f} s")  # fmt: skip
+    lines.append(f"{len(todo)} computed, {kept} kept (current job_key)")
     write_log(log, "\n".join(lines))
-    return {"computed": len(seeds) - kept, "kept": kept}
+    return {"computed": len(todo), "kept": kept}
 
 
 def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None) -> None:

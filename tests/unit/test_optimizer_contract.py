@@ -26,7 +26,14 @@ from optim_helpers import (
     shifted,
 )
 
-from avoa_pipeline.optimizers import ALGORITHMS, REGISTRY, Budget, OptimResult, Tracker
+from avoa_pipeline.optimizers import (
+    ALGORITHMS,
+    REGISTRY,
+    Budget,
+    OptimResult,
+    Tracker,
+    step_together,
+)
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 
 P = 20  # population size of the shared problems
@@ -188,9 +195,13 @@ algorithms = pytest.mark.parametrize("name", ALGORITHMS)
 class StrictTracker(Tracker):
     """Fails if the optimizer asks for an evaluation after the budget is spent."""
 
-    def evaluate(self, X):
-        assert not self.done, "evaluate() called after the budget was exhausted"
-        return super().evaluate(X)
+    def ask(self, X):
+        assert not self.done, "ask() called after the budget was exhausted"
+        return super().ask(X)
+
+    def ask_one(self, x):
+        assert not self.done, "ask_one() called after the budget was exhausted"
+        return super().ask_one(x)
 
 
 def checked_run(name, f, lb, ub, budget, seed=0, **settings) -> tuple[OptimResult, Recorder]:
@@ -267,7 +278,7 @@ def test_evaluation_budget_is_respected_exactly(name):
         rec = Recorder(sphere)
         budget = Budget(pop_size=P, iterations=None, max_nfe=max_nfe)
         tracker = StrictTracker(rec, lb, ub, budget)
-        REGISTRY[name](tracker, np.random.default_rng(0), P)
+        step_together([(tracker, REGISTRY[name](tracker, np.random.default_rng(0), P))], rec)
         res = tracker.result()
         assert res.nfe == max_nfe
         assert rec.all.shape[0] == max_nfe  # rows past the budget never reach the objective

@@ -17,9 +17,10 @@ Per sample k (eqs. 3-6 of Fahmy et al.; current positive = discharge):
 Speed: with the load, the chain SOC → Vocv (a division) → Vt → I → SOC is carried from sample to
 sample, so one candidate at a time is latency-bound. The population kernel therefore steps all
 candidates of a block together (time outer, candidates inner), which gives the CPU independent
-work; blocks run on the numba threads. The single-candidate kernel (RUN, the local searches) keeps
-its state in scalars. All share one inlined step, :func:`_step`, so they agree bit for bit.
-Measured by ``benchmarks/bench_kernel.py``.
+work, in SIMD lanes (a fit block's seeds stepped together give it 30 to 600 rows per call);
+blocks run on the numba threads. The single-candidate kernel (a fit run alone) keeps its state
+in scalars. All share one inlined step, :func:`_step`, so they agree bit for bit. Measured by
+``benchmarks/bench_kernel.py``.
 
 ``P`` holds *effective* parameters (fade already applied), one candidate per row, in the column
 order of :data:`avoa_pipeline.model.battery.PARAM_NAMES`: vnom, q, vdis, r0, rtr, tau.
@@ -78,35 +79,43 @@ def _step(s, vtr, ipk, vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv, g_load, l
     return vt, i, s_next, a * vtr + b * i
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _score_block(P, ip, vmeas, ts, soc0, qdis, g_load, dynamics, out):
     """Write the ISE of every row of ``P`` into ``out``: time outer, candidates inner, so the
-    candidates' independent chains overlap; one loop per load case so no branch sits inside."""
+    candidates' independent chains overlap in SIMD lanes; one loop per load case so no branch
+    sits inside.
+
+    Written for the vectoriser: the state (SOC, Vtr, the accumulated error) lives in one (3, m)
+    array and the constants in one (10, m) array (with thirteen separate arrays LLVM gives up on
+    its runtime alias checks and steps one candidate at a time), and ``error_model="numpy"``
+    keeps the exception branch of a division by zero out of the loop (such a row scores inf or
+    NaN, which the optimizers count as +inf, instead of raising). Each lane does the scalar
+    code's IEEE operations in the same order, so every row's value is bit for bit what
+    :func:`ise_one` gives it, whatever the other rows (tested).
+    """
     m = P.shape[0]
     C = _coefficients(P, ts, qdis, g_load, dynamics)
-    vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv = C
-    soc = np.full(m, soc0)
-    vtr = np.zeros(m)
-    acc = np.zeros(m)
+    S = np.zeros((3, m))  # SOC, Vtr, accumulated squared error
+    S[0, :] = soc0
     if g_load != 0.0:
         for k in range(ip.shape[0]):
             ipk, vk = ip[k], vmeas[k]
             for c in range(m):
-                vt, _, soc[c], vtr[c] = _step(
-                    soc[c], vtr[c], ipk, vnom[c], omb[c], beta[c], r0[c], a[c], b[c],
-                    inv_den[c], dq[c], kq[c], kv[c], g_load, True,
+                vt, _, S[0, c], S[1, c] = _step(
+                    S[0, c], S[1, c], ipk, C[0, c], C[1, c], C[2, c], C[3, c], C[4, c],
+                    C[5, c], C[6, c], C[7, c], C[8, c], C[9, c], g_load, True,
                 )  # fmt: skip
-                acc[c] += (vt - vk) * (vt - vk)
+                S[2, c] += (vt - vk) * (vt - vk)
     else:
         for k in range(ip.shape[0]):
             ipk, vk = ip[k], vmeas[k]
             for c in range(m):
-                vt, _, soc[c], vtr[c] = _step(
-                    soc[c], vtr[c], ipk, vnom[c], omb[c], beta[c], r0[c], a[c], b[c],
-                    inv_den[c], dq[c], kq[c], kv[c], 0.0, False,
+                vt, _, S[0, c], S[1, c] = _step(
+                    S[0, c], S[1, c], ipk, C[0, c], C[1, c], C[2, c], C[3, c], C[4, c],
+                    C[5, c], C[6, c], C[7, c], C[8, c], C[9, c], 0.0, False,
                 )  # fmt: skip
-                acc[c] += (vt - vk) * (vt - vk)
-    out[:] = acc
+                S[2, c] += (vt - vk) * (vt - vk)
+    out[:] = S[2]
 
 
 @nb.njit(cache=True, parallel=True, nogil=True)
@@ -139,12 +148,13 @@ def _effective(x, free, base, fade):
     return (p * fade).reshape(1, -1)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def ise_one(x, free, base, fade, ip, vmeas, ts, soc0, qdis, g_load, dynamics):
     """ISE of one candidate ``x`` of free parameters (columns ``free`` of the fresh-cell vector
-    ``base``; effective parameters = fresh × ``fade``): the single-candidate path of the local
-    searches and RUN. The state lives in scalars: in the block kernel it lives in arrays, and for
-    one candidate every sample then waits for a store and a reload on the sample-to-sample chain.
+    ``base``; effective parameters = fresh × ``fade``): the single-candidate path of a fit run
+    alone (Nelder–Mead, RUN). The state lives in scalars: in the block kernel it lives in arrays,
+    and for one candidate every sample then waits for a store and a reload on the
+    sample-to-sample chain. Division by zero as in :func:`_score_block` (inf or NaN, no raise).
     """
     C = _coefficients(_effective(x, free, base, fade), ts, qdis, g_load, dynamics)[:, 0]
     vnom, omb, beta, r0, a, b, inv_den, dq, kq, kv = C

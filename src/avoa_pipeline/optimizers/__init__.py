@@ -5,7 +5,16 @@ Importing this package registers all seven algorithms of the paper in ``REGISTRY
 
 from ..names import ALGORITHMS
 from . import avoa, ga, gto, gwo, nelder_mead, quasi_newton, run  # noqa: F401 - registers each
-from .base import REGISTRY, Budget, OptimResult, Tracker, minimize, register
+from .base import (
+    REGISTRY,
+    Budget,
+    OptimResult,
+    Tracker,
+    minimize,
+    minimize_together,
+    register,
+    step_together,
+)
 
 PAPER_LABELS = {
     "nelder_mead": "Nelder–Mead",
@@ -26,5 +35,7 @@ __all__ = [
     "OptimResult",
     "Tracker",
     "minimize",
+    "minimize_together",
     "register",
+    "step_together",
 ]

@@ -96,7 +96,7 @@ import math
 
 import numpy as np
 
-from .base import Tracker, register
+from .base import Steps, Tracker, register
 
 LEVY_BETA = 1.5
 """Levy-flight exponent (fixed at 3/2 in the reference code; Fahmy's delta)."""
@@ -134,7 +134,7 @@ def avoa(
     alpha: float = 0.8,
     beta: float = 0.2,
     gamma: float = 2.5,
-) -> None:
+) -> Steps:
     """AVOA as in the authors' MATLAB code (see the module docstring for every deviation)."""
     for name, value in (("p1", p1), ("p2", p2), ("p3", p3), ("alpha", alpha), ("beta", beta)):
         if not 0.0 <= value <= 1.0:
@@ -151,7 +151,7 @@ def avoa(
     X = tracker.random_uniform(rng, P)
     best1: list = [np.inf, None]
     best2: list = [np.inf, None]
-    update_best_two(tracker.evaluate(X), X, best1, best2)
+    update_best_two((yield from tracker.ask(X)), X, best1, best2)
     tracker.end_iteration()
     T = tracker.planned_iterations(P)
 
@@ -201,5 +201,5 @@ def avoa(
             new[m] = R[m] - np.abs(R[m] - X[m]) * F[m] * levy[m]
         X = tracker.clip(np.where(np.isnan(new), X, new))
 
-        update_best_two(tracker.evaluate(X), X, best1, best2)
+        update_best_two((yield from tracker.ask(X)), X, best1, best2)
         tracker.end_iteration()

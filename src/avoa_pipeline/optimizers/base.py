@@ -1,28 +1,51 @@
-"""Shared machinery of every optimizer: budget, evaluation accounting, history, registry.
+"""Shared machinery of every optimizer: ask/tell steps, budget, evaluation accounting, history,
+registry, and the drivers that answer the asks.
 
-Every optimizer is a plain function ``run(tracker, rng, pop_size, **settings) -> None`` registered
-under its name. It asks the :class:`Tracker` to evaluate whole populations and calls
-``tracker.end_iteration()`` once per iteration; the tracker counts objective evaluations, keeps the
-best point, enforces the budget and records the per-iteration history. So the budget rules (the
-paper's 500 iterations, or a fixed number of evaluations) are written once, here, and an
-algorithm only describes its search moves.
+Every optimizer is a generator function ``fn(tracker, rng, pop_size, **settings)`` registered under
+its name: a state machine that describes its moves and asks for their values, with
+``f = yield from tracker.ask(X)`` (rows of ``X`` = candidates) or ``f = yield from
+tracker.ask_one(x)``, and calls ``tracker.end_iteration()`` once per iteration. The :class:`Tracker`
+cuts an ask to the budget, yields the rows to evaluate to whoever drives the generator, and is told
+their values (the generator's ``send``); it counts evaluations, keeps the best point, enforces the
+budget and records the per-iteration history. So the budget rules (the paper's 500 iterations, or
+a fixed number of evaluations) are written once, here, an algorithm only describes its search
+moves, and the driver decides how the asks are evaluated (nevergrad's ask/tell; evosax's
+strategies vectorised over seeds):
+
+- :func:`minimize`: one run; each ask is one objective call (one point through ``objective_one``).
+- :func:`minimize_together`: several runs of one algorithm on one objective (the seeds of a fit
+  block) stepped in lockstep by :func:`step_together`: each step advances every unfinished run to
+  its next ask and evaluates all their rows in one objective call. Each run's numbers are those
+  :func:`minimize` gives it: a run's moves depend only on its own generator and tracker, and row
+  ``i`` of a population objective depends on row ``i`` alone (the model kernel scores every
+  candidate by its own recursion, bit for bit whatever the other rows; tested).
+
+A search whose loop belongs to a library that calls the objective itself (scipy's Nelder–Mead and
+L-BFGS-B) runs inside a greenlet (:func:`search_steps`): each objective call suspends it and
+becomes an ask, so the local searches step together too, with scipy's code unchanged.
+
+Time. A run's clock (``wall_s`` and the history's times) counts the time its own generator runs
+plus its share of every evaluation it asked for (the evaluation's time × its rows ÷ all rows).
+For one run that is its wall time; for runs stepped together it is each run's cost, and the
+runs' clocks add up to the block's wall time (``docs/records.md``).
 
 Budget semantics:
 - ``iterations``: stop after this many completed iterations (the paper: 500). The evaluation of the
   initial population is iteration 0 of the history.
-- ``max_nfe``: stop once this many objective evaluations are spent. A population evaluation that
-  would overrun the budget evaluates only the rows that fit; the rest get ``+inf`` and are never
-  accepted as best. Algorithms check ``tracker.done`` between moves.
+- ``max_nfe``: stop once this many objective evaluations are spent. A population ask that would
+  overrun the budget asks only the rows that fit; the rest get ``+inf`` and are never accepted as
+  best. Algorithms check ``tracker.done`` between moves.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from greenlet import greenlet
 
 Objective = Callable[[np.ndarray], np.ndarray]
 """Population in (shape ``(P, D)``), objective values out (shape ``(P,)``)."""
@@ -30,7 +53,11 @@ Objective = Callable[[np.ndarray], np.ndarray]
 ObjectiveOne = Callable[[np.ndarray], float]
 """One point in (shape ``(D,)``), its objective value out; must equal ``Objective`` on one row."""
 
-REGISTRY: dict[str, Callable[..., None]] = {}
+Steps = Generator[np.ndarray, np.ndarray, None]
+"""A run of an optimizer: yields the rows it asks to evaluate (shape ``(k, D)``), is sent their
+objective values (shape ``(k,)``)."""
+
+REGISTRY: dict[str, Callable[..., Steps]] = {}
 
 
 def register(name: str):
@@ -73,15 +100,24 @@ class OptimResult:
     best_f: float
     nfe: int
     iterations: int
-    wall_s: float
+    wall_s: float  # the run's clock (see the module docstring)
     history_best: np.ndarray  # best objective after iteration 0..T
     history_nfe: np.ndarray  # cumulative evaluations after iteration 0..T
-    history_time: np.ndarray  # cumulative optimizer wall time (s) after iteration 0..T
+    history_time: np.ndarray  # the run's clock (s) after iteration 0..T
     extra: dict = field(default_factory=dict)
 
 
+def _values(objective: Objective, objective_one: ObjectiveOne | None, X: np.ndarray) -> np.ndarray:
+    """Objective values of the rows of ``X``; one row through ``objective_one`` if given."""
+    if X.shape[0] == 1 and objective_one is not None:
+        return np.array([objective_one(X[0])], dtype=float)
+    return np.asarray(objective(X), dtype=float).reshape(X.shape[0])
+
+
 class Tracker:
-    """Wraps the objective: counts evaluations, keeps the best, records the history."""
+    """One run's accounts: cuts asks to the budget, counts evaluations, keeps the best, records
+    the history, and keeps the run's clock. ``objective`` (and ``objective_one``) answer the asks
+    of :meth:`evaluate` / :meth:`evaluate_one`, for callers that drive no generator."""
 
     def __init__(
         self,
@@ -109,7 +145,30 @@ class Tracker:
         self._hist_best: list[float] = []
         self._hist_nfe: list[int] = []
         self._hist_time: list[float] = []
-        self._t0 = time.perf_counter()
+        self._elapsed = 0.0
+        self._running_since: float | None = None
+
+    # --- the run's clock (driven by step_together) ---------------------------------------------
+    def resume(self) -> None:
+        """The run's generator starts a step: its clock runs."""
+        self._running_since = time.perf_counter()
+
+    def pause(self) -> None:
+        """The run's generator has yielded (or ended): its clock stops."""
+        if self._running_since is not None:
+            self._elapsed += time.perf_counter() - self._running_since
+            self._running_since = None
+
+    def charge(self, seconds: float) -> None:
+        """Add this run's share of an evaluation to its clock."""
+        self._elapsed += seconds
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds on the run's clock so far."""
+        if self._running_since is None:
+            return self._elapsed
+        return self._elapsed + (time.perf_counter() - self._running_since)
 
     # --- budget -----------------------------------------------------------------------------
     @property
@@ -166,17 +225,20 @@ class Tracker:
             frac = max(frac, min(1.0, (self.nfe + last) / N))
         return frac
 
-    # --- evaluation ---------------------------------------------------------------------------
-    def evaluate(self, X: np.ndarray) -> np.ndarray:
-        """Objective of each row of ``X`` (rows past the evaluation budget get ``+inf``)."""
+    # --- ask / tell ---------------------------------------------------------------------------
+    def ask(self, X: np.ndarray) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
+        """``f = yield from tracker.ask(X)``: the objective of each row of ``X``.
+
+        Yields the rows that fit into the evaluation budget (none: nothing is yielded) and is sent
+        their values; rows past the budget get ``+inf``, and so does a NaN (a simulation that
+        blew up is never better than any number)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         n = X.shape[0]
         f = np.full(n, np.inf)
         k = int(min(n, self.nfe_left))
         if k <= 0:
             return f
-        fk = np.asarray(self.objective(X[:k]), dtype=float).reshape(k)
-        # a NaN objective (a simulation that blew up) is never better than any number
+        fk = yield X[:k]
         f[:k] = np.where(np.isnan(fk), np.inf, fk)
         self.nfe += k
         i = int(np.argmin(f))
@@ -185,17 +247,14 @@ class Tracker:
             self.best_x = X[i].copy()
         return f
 
-    def evaluate_one(self, x: np.ndarray) -> float:
-        """:meth:`evaluate` of one point, as a float: the path of the algorithms that move one
-        agent at a time (RUN, the local searches), where the population path's array handling
-        would cost more than the simulation."""
+    def ask_one(self, x: np.ndarray) -> Generator[np.ndarray, np.ndarray, float]:
+        """``f = yield from tracker.ask_one(x)``: :meth:`ask` of one point, as a float (the path
+        of RUN's agents and Nelder–Mead, where the population path's array handling would cost
+        more than the accounting itself)."""
         max_nfe = self.budget.max_nfe
         if max_nfe is not None and self.nfe >= max_nfe:
             return np.inf
-        if self.objective_one is None:
-            f = float(self.objective(x[None, :])[0])
-        else:
-            f = float(self.objective_one(x))
+        f = float((yield x[None, :])[0])
         if f != f:  # NaN: a simulation that blew up is never better than any number
             f = np.inf
         self.nfe += 1
@@ -204,11 +263,20 @@ class Tracker:
             self.best_x = np.array(x, dtype=float)
         return f
 
+    def evaluate(self, X: np.ndarray) -> np.ndarray:
+        """:meth:`ask`, answered at once by this tracker's objective."""
+        return _answer(self.ask(X), self)
+
+    def evaluate_one(self, x: np.ndarray) -> float:
+        """:meth:`ask_one`, answered at once by this tracker's objective (``objective_one`` if
+        given)."""
+        return _answer(self.ask_one(np.asarray(x, dtype=float)), self)
+
     def end_iteration(self) -> None:
         """Close an iteration (the initial population is iteration 0) and record the history."""
         self._hist_best.append(self.best_f)
         self._hist_nfe.append(self.nfe)
-        self._hist_time.append(time.perf_counter() - self._t0)
+        self._hist_time.append(self.elapsed)
         if len(self._hist_best) > 1:
             self.iteration += 1
 
@@ -223,7 +291,7 @@ class Tracker:
             # evaluations after the last closed iteration (a partial one at the budget's end)
             self._hist_best.append(self.best_f)
             self._hist_nfe.append(self.nfe)
-            self._hist_time.append(time.perf_counter() - self._t0)
+            self._hist_time.append(self.elapsed)
         return OptimResult(
             best_x=np.asarray(self.best_x, dtype=float),
             best_f=float(self.best_f),
@@ -234,6 +302,115 @@ class Tracker:
             history_nfe=np.asarray(self._hist_nfe, dtype=np.int64),
             history_time=np.asarray(self._hist_time),
         )
+
+
+def _answer(steps: Generator, tracker: Tracker):
+    """Drive a single ask of ``tracker`` to its value with the tracker's own objective."""
+    try:
+        rows = next(steps)
+        while True:
+            rows = steps.send(_values(tracker.objective, tracker.objective_one, rows))
+    except StopIteration as stop:
+        return stop.value
+
+
+def search_steps(
+    tracker: Tracker, search: Callable[[Callable[[np.ndarray], np.ndarray]], None]
+) -> Steps:
+    """``yield from search_steps(tracker, search)``: run ``search(evaluate)``, a loop that calls
+    ``evaluate`` itself (a scipy driver), as this run's steps: ``evaluate(X)`` of rows ``X``
+    (shape ``(k, D)``) is :meth:`Tracker.ask`, ``evaluate(x)`` of one point (shape ``(D,)``)
+    :meth:`Tracker.ask_one`.
+
+    Why a greenlet: scipy's Nelder–Mead and L-BFGS-B own their loops and call the objective from
+    inside them, so they cannot yield. ``search`` runs in a greenlet of its own; each ``evaluate``
+    switches back here with its argument, which becomes the ask, and the values are switched back
+    in as its return value. Only one of the two runs at any moment, so the search sees exactly
+    the calls and values it would see calling the objective directly.
+    """
+
+    def evaluate(X: np.ndarray):
+        return child.parent.switch(X)
+
+    child = greenlet(search)
+    try:
+        request = child.switch(evaluate)
+        while not child.dead:
+            if request.ndim == 1:
+                values = yield from tracker.ask_one(request)
+            else:
+                values = yield from tracker.ask(request)
+            child.parent = greenlet.getcurrent()
+            request = child.switch(values)
+    finally:
+        if not child.dead:  # the run was abandoned mid-search: end the search too
+            child.throw()
+
+
+def step_together(
+    runs: Sequence[tuple[Tracker, Steps]],
+    objective: Objective,
+    objective_one: ObjectiveOne | None = None,
+) -> None:
+    """Drive ``runs`` (tracker, steps) in lockstep until every one has ended: each step resumes
+    every unfinished run until its next ask, evaluates all the asked rows in one ``objective``
+    call (a single row through ``objective_one`` if given) and tells each run its values.
+
+    Each run's clock runs while its generator runs and is charged the evaluation's time (with
+    stacking and splitting) in proportion to its rows."""
+    live = list(runs)
+    told: list[np.ndarray | None] = [None] * len(live)
+    while live:
+        asking, asks = [], []
+        for (tracker, steps), values in zip(live, told, strict=True):
+            tracker.resume()
+            try:
+                rows = steps.send(values)
+            except StopIteration:
+                continue
+            finally:
+                tracker.pause()
+            asking.append((tracker, steps))
+            asks.append(rows)
+        if not asking:
+            return
+        t0 = time.perf_counter()
+        X = asks[0] if len(asks) == 1 else np.concatenate(asks)
+        F = _values(objective, objective_one, X)
+        told, lo = [], 0
+        for rows in asks:
+            told.append(F[lo : lo + rows.shape[0]])
+            lo += rows.shape[0]
+        per_row = (time.perf_counter() - t0) / X.shape[0]
+        for (tracker, _), rows in zip(asking, asks, strict=True):
+            tracker.charge(per_row * rows.shape[0])
+        live = asking
+
+
+def minimize_together(
+    name: str,
+    objective: Objective,
+    lb,
+    ub,
+    budget: Budget,
+    rngs: Sequence[np.random.Generator],
+    objective_one: ObjectiveOne | None = None,
+    **settings,
+) -> list[OptimResult]:
+    """One run of the registered optimizer ``name`` per generator in ``rngs``, stepped together
+    (:func:`step_together`); each result equals :func:`minimize` with that generator alone."""
+    if name not in REGISTRY:
+        raise KeyError(f"unknown algorithm {name!r}; known: {', '.join(sorted(REGISTRY))}")
+    trackers = [Tracker(objective, lb, ub, budget, objective_one) for _ in rngs]
+    runs = [
+        (t, REGISTRY[name](t, rng, budget.pop_size, **settings))
+        for t, rng in zip(trackers, rngs, strict=True)
+    ]
+    step_together(runs, objective, objective_one)
+    for tracker in trackers:
+        if tracker.best_x is None:
+            raise RuntimeError(f"{name} evaluated no point")
+    return [tracker.result() for tracker in trackers]
 
 
 def minimize(
@@ -251,10 +428,4 @@ def minimize(
     ``objective_one``, if given, evaluates a single point faster than ``objective`` on one row and
     gives the same value.
     """
-    if name not in REGISTRY:
-        raise KeyError(f"unknown algorithm {name!r}; known: {', '.join(sorted(REGISTRY))}")
-    tracker = Tracker(objective, lb, ub, budget, objective_one)
-    REGISTRY[name](tracker, rng, budget.pop_size, **settings)
-    if tracker.best_x is None:
-        raise RuntimeError(f"{name} evaluated no point")
-    return tracker.result()
+    return minimize_together(name, objective, lb, ub, budget, [rng], objective_one, **settings)[0]

@@ -72,7 +72,7 @@ import math
 
 import numpy as np
 
-from .base import Tracker, register
+from .base import Steps, Tracker, register
 
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
@@ -121,7 +121,7 @@ def ga(
     mutation: str = "adaptfeasible",
     scale: float = 1.0,
     shrink: float = 1.0,
-) -> None:
+) -> Steps:
     """Minimise with the MATLAB-``ga``-like GA described in the module docstring.
 
     ``elite_count`` defaults to ``ceil(0.05 * pop_size)``; ``scale`` and ``shrink`` apply only to
@@ -141,7 +141,7 @@ def ga(
     lb, ub = tracker.lb, tracker.ub
 
     X = tracker.random_uniform(rng, P)
-    score = tracker.evaluate(X)
+    score = yield from tracker.ask(X)
     tracker.end_iteration()
     best_hist = [float(np.min(score))]
     delta = 1.0
@@ -171,7 +171,7 @@ def ga(
             mut_kids = np.clip(mut_parents + noise, lb, ub)
 
         kids = np.vstack([xover_kids, mut_kids])
-        kid_score = tracker.evaluate(kids)
+        kid_score = yield from tracker.ask(kids)
         X = np.vstack([X[elite], kids])
         score = np.concatenate([score[elite], kid_score])
         best_hist.append(float(np.min(score)))

@@ -78,7 +78,7 @@ import math
 
 import numpy as np
 
-from .base import Tracker, register
+from .base import Steps, Tracker, register
 
 
 class _Troop:
@@ -109,7 +109,7 @@ def gto(
     p: float = 0.03,
     beta: float = 3.0,
     w: float = 0.8,
-) -> None:
+) -> Steps:
     """GTO as in the authors' MATLAB code (see the module docstring for every deviation)."""
     if not 0.0 <= p <= 1.0:
         raise ValueError(f"p must be in [0, 1], got {p}")
@@ -118,7 +118,7 @@ def gto(
     lb, ub = tracker.lb, tracker.ub
 
     X = tracker.random_uniform(rng, P)
-    troop = _Troop(X, tracker.evaluate(X))
+    troop = _Troop(X, (yield from tracker.ask(X)))
     GX = X.copy()
     tracker.end_iteration()
     T = tracker.planned_iterations(2 * P)
@@ -149,7 +149,7 @@ def gto(
             g2 = GX[j2] if j2 < i else old[j2]
             GX[i] = X[i] - L * (L * (X[i] - g1) + r[i] * (X[i] - g2))
         GX = tracker.clip(GX)
-        troop.group_formation(GX, tracker.evaluate(GX))
+        troop.group_formation(GX, (yield from tracker.ask(GX)))
         if tracker.done:
             break
 
@@ -165,5 +165,5 @@ def gto(
             Q = 2.0 * rng.random((P, 1)) - 1.0
             GX = S - (S * Q - X * Q) * (beta * E)
         GX = tracker.clip(GX)
-        troop.group_formation(GX, tracker.evaluate(GX))
+        troop.group_formation(GX, (yield from tracker.ask(GX)))
         tracker.end_iteration()

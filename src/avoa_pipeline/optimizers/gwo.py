@@ -68,7 +68,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Tracker, register
+from .base import Steps, Tracker, register
 
 
 def _update_leaders(X, f, leader_pos, leader_score) -> None:
@@ -87,7 +87,7 @@ def _update_leaders(X, f, leader_pos, leader_score) -> None:
 
 
 @register("gwo")
-def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> None:
+def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> Steps:
     """Grey Wolf Optimizer (reference MATLAB version); no tunable settings."""
     if settings:
         raise TypeError(f"gwo takes no settings, got {sorted(settings)}")
@@ -98,7 +98,7 @@ def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -
     leader_score = np.full(3, np.inf)
 
     X = tracker.random_uniform(rng, P)
-    f = tracker.evaluate(X)
+    f = yield from tracker.ask(X)
     _update_leaders(X, f, leader_pos, leader_score)
     tracker.end_iteration()
 
@@ -112,6 +112,6 @@ def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -
         C = 2.0 * r2
         L = leader_pos[:, None, :]  # (3, 1, D)
         X = tracker.clip(np.mean(L - A * np.abs(C * L - X[None]), axis=0))
-        f = tracker.evaluate(X)
+        f = yield from tracker.ask(X)
         _update_leaders(X, f, leader_pos, leader_score)
         tracker.end_iteration()

@@ -17,6 +17,10 @@ Pseudo-code::
         # every objective call goes through the tracker and counts toward the budget;
         # the call that would exceed the budget raises BudgetExhausted and ends the run
 
+Ask/tell: scipy's loop calls the objective itself, so the search runs in a greenlet
+(:func:`.base.search_steps`) and each objective call becomes an ask of one point; the seeds of a
+fit block stepped together are evaluated as one population of one point per seed.
+
 Budget / iteration mapping. A local search has no population, so "an iteration" is defined as
 ``pop_size`` objective evaluations: the first ``pop_size`` evaluations close iteration 0 and every
 further ``pop_size`` evaluations close one more iteration (``tracker.end_iteration()``). Hence
@@ -35,10 +39,13 @@ get), and bounds (``fminsearch`` is unconstrained). mealpy has no Nelder–Mead.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 from scipy.optimize import Bounds, minimize
 
-from .base import BudgetExhausted, Tracker, register
+from .base import BudgetExhausted, Steps, Tracker, register, search_steps
 
 NM_OPTIONS = ("xatol", "fatol", "maxiter", "maxfev", "adaptive")
 
@@ -46,14 +53,16 @@ NM_OPTIONS = ("xatol", "fatol", "maxiter", "maxfev", "adaptive")
 class LocalSearchAccounting:
     """Evaluation accounting shared by the local searches (Nelder–Mead, quasi-Newton).
 
-    Evaluates through the tracker, closes an iteration every ``pop_size`` evaluations, and never
-    evaluates past the budget: the evaluation cap is ``max_nfe`` and/or ``(iterations + 1) *
-    pop_size``. :meth:`evaluate` raises :class:`BudgetExhausted` when nothing is left.
+    Evaluates with ``ask`` (the tracker's asks, through :func:`.base.search_steps`), closes an
+    iteration every ``pop_size`` evaluations, and never evaluates past the budget: the evaluation
+    cap is ``max_nfe`` and/or ``(iterations + 1) * pop_size``. :meth:`evaluate` raises
+    :class:`BudgetExhausted` when nothing is left.
     """
 
-    def __init__(self, tracker: Tracker, pop_size: int):
+    def __init__(self, tracker: Tracker, pop_size: int, ask: Callable[[np.ndarray], Any]):
         self.tracker = tracker
         self.pop_size = pop_size
+        self.ask = ask
         budget = tracker.budget
         cap = np.inf
         if budget.max_nfe is not None:
@@ -79,7 +88,7 @@ class LocalSearchAccounting:
         if k <= 0:
             raise BudgetExhausted
         f = np.full(n, np.inf)
-        f[:k] = self.tracker.evaluate(X[:k])
+        f[:k] = self.ask(X[:k])
         self._close_iterations()
         return f, k == n
 
@@ -87,7 +96,7 @@ class LocalSearchAccounting:
         """:meth:`evaluate` of one point, as a float; ``BudgetExhausted`` if none is left."""
         if self.remaining < 1:
             raise BudgetExhausted
-        f = self.tracker.evaluate_one(x)
+        f = self.ask(np.asarray(x, dtype=float))
         self._close_iterations()
         return f
 
@@ -112,15 +121,21 @@ def restart_loop(tracker: Tracker, rng: np.random.Generator, run_once) -> None:
 
 
 @register("nelder_mead")
-def nelder_mead(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> None:
+def nelder_mead(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> Steps:
     """Bounded Nelder–Mead (scipy) restarted from random points until the budget is spent."""
     unknown = set(settings) - set(NM_OPTIONS)
     if unknown:
         raise TypeError(f"nelder_mead: unknown settings {sorted(unknown)}; known: {NM_OPTIONS}")
-    acc = LocalSearchAccounting(tracker, pop_size)
     bounds = Bounds(tracker.lb, tracker.ub)
 
-    def run_once(x0: np.ndarray) -> None:
-        minimize(acc.evaluate_one, x0, method="Nelder-Mead", bounds=bounds, options=dict(settings))
+    def search(ask) -> None:
+        acc = LocalSearchAccounting(tracker, pop_size, ask)
 
-    restart_loop(tracker, rng, run_once)
+        def run_once(x0: np.ndarray) -> None:
+            minimize(
+                acc.evaluate_one, x0, method="Nelder-Mead", bounds=bounds, options=dict(settings)
+            )
+
+        restart_loop(tracker, rng, run_once)
+
+    yield from search_steps(tracker, search)

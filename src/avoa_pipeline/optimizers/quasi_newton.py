@@ -22,6 +22,9 @@ Non-finite values (a simulation that failed, mapped to ``+inf`` by the tracker):
 finite, ``fun`` returns ``(1e300, 0)`` so that the line search backs off; non-finite difference
 quotients are set to 0. Both are only safeguards; the tracker never accepts such points as best.
 
+Ask/tell: as Nelder–Mead's (see ``nelder_mead.py``), L-BFGS-B runs in a greenlet and each
+``fun`` call becomes an ask of its ``D + 1`` points.
+
 Budget / iteration mapping: as for Nelder–Mead (see ``nelder_mead.py``), "an iteration" is
 ``pop_size`` objective evaluations; ``tracker.end_iteration()`` is called each time another
 ``pop_size`` evaluations have been spent (once after the first ``pop_size``). Every gradient costs
@@ -42,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import Bounds, minimize
 
-from .base import BudgetExhausted, Tracker, register
+from .base import BudgetExhausted, Steps, Tracker, register, search_steps
 from .nelder_mead import LocalSearchAccounting, restart_loop
 
 LBFGSB_OPTIONS = ("ftol", "gtol", "maxcor", "maxls", "maxiter", "maxfun")
@@ -50,7 +53,7 @@ _BIG = 1e300
 
 
 @register("quasi_newton")
-def quasi_newton(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> None:
+def quasi_newton(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> Steps:
     """L-BFGS-B, forward-difference gradient in one population call, restarts until the budget."""
     settings = dict(settings)
     rel_step = float(settings.pop("rel_step", np.sqrt(np.finfo(float).eps)))
@@ -61,26 +64,30 @@ def quasi_newton(tracker: Tracker, rng: np.random.Generator, pop_size: int, **se
         )
     if not rel_step > 0:
         raise ValueError(f"rel_step must be positive, got {rel_step}")
-    acc = LocalSearchAccounting(tracker, pop_size)
     lb, ub = tracker.lb, tracker.ub
     h = rel_step * (ub - lb)
     D = tracker.dim
     bounds = Bounds(lb, ub)
 
-    def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
-        x = np.clip(x, lb, ub)
-        steps = np.where(x + h <= ub, h, -h)
-        X = np.vstack([x, x + np.diag(steps)])
-        f, complete = acc.evaluate(X)
-        if not complete:
-            raise BudgetExhausted
-        if not np.isfinite(f[0]):
-            return _BIG, np.zeros(D)
-        g = (f[1:] - f[0]) / steps
-        g[~np.isfinite(g)] = 0.0
-        return float(f[0]), g
+    def search(ask) -> None:
+        acc = LocalSearchAccounting(tracker, pop_size, ask)
 
-    def run_once(x0: np.ndarray) -> None:
-        minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options=settings)
+        def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
+            x = np.clip(x, lb, ub)
+            steps = np.where(x + h <= ub, h, -h)
+            X = np.vstack([x, x + np.diag(steps)])
+            f, complete = acc.evaluate(X)
+            if not complete:
+                raise BudgetExhausted
+            if not np.isfinite(f[0]):
+                return _BIG, np.zeros(D)
+            g = (f[1:] - f[0]) / steps
+            g[~np.isfinite(g)] = 0.0
+            return float(f[0]), g
 
-    restart_loop(tracker, rng, run_once)
+        def run_once(x0: np.ndarray) -> None:
+            minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options=settings)
+
+        restart_loop(tracker, rng, run_once)
+
+    yield from search_steps(tracker, search)

@@ -62,7 +62,9 @@ Why compiled: the loop is a numba generator (:func:`_agents`) that yields each c
 resumed with its objective value. As plain numpy on 6-element vectors, the moves cost about as much
 Python time as the model costs to simulate (RUN was half of the full grid's optimizer time); the
 generator keeps the algorithm's control flow in one place while the evaluations, the budget and
-the history stay with the Python :class:`~.base.Tracker`.
+the history stay with the Python :class:`~.base.Tracker`. Each candidate becomes an ask of one
+point (``tracker.ask_one``), so the seeds of a fit block stepped together are evaluated as one
+population of one candidate per seed (:func:`.base.step_together`).
 
 Schedule. The reference counts ``it = 2..MaxIt`` with the initial population as ``it = 1`` and uses
 ``τ = it/MaxIt``. With an iteration budget T (our iteration t = 1..T after the initial population)
@@ -112,7 +114,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from .base import Tracker, register
+from .base import Steps, Tracker, register
 
 
 def _three_partners(rng: np.random.Generator, P: int) -> np.ndarray:
@@ -240,7 +242,7 @@ def run(
     pop_size: int,
     *,
     esq_overwrites_mean: bool = True,
-) -> None:
+) -> Steps:
     """Minimise with RUN (see the module docstring). ``pop_size`` must be at least 4."""
     P, D = int(pop_size), tracker.dim
     if P < 4:
@@ -248,7 +250,7 @@ def run(
     lb, ub = tracker.lb, tracker.ub
 
     X = tracker.random_uniform(rng, P)
-    cost = tracker.evaluate(X)
+    cost = yield from tracker.ask(X)
     tracker.end_iteration()
     ib = int(np.argmin(cost))
     best_x, best_f = X[ib].copy(), np.array([cost[ib]])
@@ -327,7 +329,7 @@ def run(
             if tracker.done:
                 complete = False
                 break
-            fbox[0] = tracker.evaluate_one(x)
+            fbox[0] = yield from tracker.ask_one(x)
         if not complete:
             break
         tracker.end_iteration()
