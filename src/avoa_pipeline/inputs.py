@@ -66,7 +66,7 @@ def _read(path, cycler: str | None, current_sign: str) -> Read:
         from .real import cycler as cyc
 
         frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
-        ev = records.SignEvidence(**_evidence_fields(info["sign"]["voltage_check"]))
+        ev = records.SignEvidence.from_dict(info["sign"]["voltage_check"])
         origin = {"read_as": f"{cycler} export", "conversion": info}
         return Read(path, frame, ev, False, tuple(info["warnings"]), origin)
     raw = read_csv(path)
@@ -79,18 +79,6 @@ def _read(path, cycler: str | None, current_sign: str) -> Read:
     if side.is_file():
         origin["sidecar"] = str(side)
     return Read(path, frame, records.frame_sign(frame), True, (), origin)
-
-
-def _evidence_fields(d: dict) -> dict:
-    return {
-        "verdict": d["verdict"],
-        "z": d["z"],
-        "steps": d["steps"],
-        "events": d["events"],
-        "agreeing": d["agreeing_share"],
-        "resistance_ohm": d["step_resistance_ohm"],
-        "noise_v": 1e-3 * d["noise_mv"],
-    }
 
 
 def _judge(reads: list[Read], current_sign: str) -> list[records.Checked]:

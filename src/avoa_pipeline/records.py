@@ -324,6 +324,12 @@ class SignEvidence:
     def contradicts(self) -> bool:
         return self.verdict == SIGNS[1]
 
+    @classmethod
+    def from_dict(cls, d: dict) -> SignEvidence:
+        """The evidence of :meth:`as_dict` (a converted export's sidecar)."""
+        return cls(d["verdict"], d["z"], d["steps"], d["events"], d["agreeing_share"],
+                   d["step_resistance_ohm"], 1e-3 * d["noise_mv"])  # fmt: skip
+
     def as_dict(self) -> dict:
         return {
             "verdict": self.verdict,

@@ -50,12 +50,8 @@ def _stats(recs: list[Record]) -> dict:
 
 def internal_limits(name: str) -> tuple[float, float]:
     """The library's physical range of a parameter (``ecm.LIMITS``) in internal coordinates."""
-    lo, hi = ecm.LIMITS[name]
-    t = ecm.PARAMS[name].transform
-    if t == "log10":
-        return float(np.log10(lo)), float(np.log10(hi))
-    if t == "log10_1m":  # rounded: 1 − 0.9999 is not 1e-4 in binary
-        return round(float(np.log10(1.0 - hi)), 12), float(np.log10(1.0 - lo))
+    rep = ecm.PARAMS[name].report
+    lo, hi = sorted(ecm.internal_value(rep, v)[1] for v in ecm.LIMITS[name])
     return lo, hi
 
 
