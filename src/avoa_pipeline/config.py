@@ -8,6 +8,7 @@ the file and the field.
 
 from __future__ import annotations
 
+import copy
 from importlib import resources
 from pathlib import Path
 
@@ -83,6 +84,28 @@ def check(cfg: dict, source: str = "config") -> None:
             fail(f"profile.segments.{i}.duration_s", "shorter than one sample")
     if cfg["constants"]["cycle_n"] > 10 * cfg["constants"]["n_cycles_ref"]:
         fail("constants.cycle_n", "more than 10 N cycles is outside the fade law's use")
+
+
+def part(cfg: dict, *paths) -> dict:
+    """The parts of ``cfg`` at ``paths``, in the config's own nesting, and nothing else: what a
+    workflow rule passes to its job (its ``params``), so that a job reads only what the rule
+    names and a change elsewhere in the config neither reaches nor reruns it. A path is a dotted
+    string (``"real.panasonic"``) or a tuple of keys (for keys holding dots or slashes, such as
+    a source file's name under ``real.sources``). A missing key is a :class:`ConfigError`
+    naming the field."""
+    out: dict = {}
+    for path in paths:
+        keys = tuple(path.split(".")) if isinstance(path, str) else tuple(path)
+        src, dst = cfg, out
+        for i, key in enumerate(keys):
+            if not isinstance(src, dict) or key not in src:
+                raise ConfigError(f"config: field {'.'.join(keys[: i + 1])} missing")
+            src = src[key]
+            if i == len(keys) - 1:
+                dst[key] = copy.deepcopy(src)  # never a view into the config
+            else:
+                dst = dst.setdefault(key, {})
+    return out
 
 
 def bounds(cfg: dict, case: int) -> tuple[tuple[str, ...], list[float], list[float]]:

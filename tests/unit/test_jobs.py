@@ -1,7 +1,14 @@
-"""Job execution any executor can run: every package rule has an adapter, a job stops when its
+"""Job execution any executor can run: every package rule names a script that calls the
+package with what the rule passes, a job stops when its
 Snakemake dies, and a killed run's locks are cleared only when no Snakemake works there."""
 
+import ast
+import importlib
+import inspect
+import json
 import os
+import re
+import runpy
 import signal
 import subprocess
 import sys
@@ -13,7 +20,7 @@ from types import SimpleNamespace
 import psutil
 import pytest
 
-from avoa_pipeline import jobguard, jobs, snakemake_compat
+from avoa_pipeline import jobguard, snakemake_compat
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -27,29 +34,175 @@ def _fake_snakemake(tmp_path: Path, body: str) -> Path:
     return path
 
 
-def test_every_script_rule_has_an_adapter():
-    rules = []
-    for smk in (REPO / "workflow/rules").glob("*.smk"):
-        text = smk.read_text()
-        for block in text.split("rule ")[1:]:
-            name = block.split(":")[0].strip()
-            if "scripts/job.py" in block.split("\nrule ")[0] and name.isidentifier():
-                rules.append(name)
-    assert "dataset" in rules
-    for name in rules:
-        assert jobs.adapter(name), name
-    assert jobs.adapter("fit_3") is jobs.fit
-    with pytest.raises(KeyError, match="no job adapter"):
-        jobs.adapter("nonsense")
+def _rule_blocks() -> list[tuple[str, str]]:
+    """(rule name, its text) of every rule in workflow/rules; the per-block fit rules
+    (``rule:`` with ``name: f"fit_{_block}"``) are named ``fit_<block>``."""
+    out = []
+    for smk in sorted((REPO / "workflow/rules").glob("*.smk")):
+        chunks = re.split(r"(?m)^(?=[ \t]*rule\b)", smk.read_text())
+        for chunk in chunks[1:]:
+            m = re.match(r"\s*rule\s*(\w*):", chunk)
+            name = m.group(1) if m and m.group(1) else "fit_<block>"
+            out.append((name, chunk))
+    return out
 
 
-def test_dataset_adapter_runs_without_snakemake(cfg, tmp_path):
-    out = SimpleNamespace(csv=str(tmp_path / "s1c2.csv"), meta=str(tmp_path / "s1c2.json"))
-    job = SimpleNamespace(rule="dataset", config=cfg, wildcards=SimpleNamespace(scenario="1",
-                          case="2"), output=out, log=[str(tmp_path / "d.log")])  # fmt: skip
-    jobs.run(job)
-    assert Path(out.csv).stat().st_size > 0
+def _section_names(block: str, section: str) -> set[str]:
+    """The names given in a rule's ``section:`` (``name=...`` lines one level in)."""
+    lines = block.splitlines()
+    for i, line in enumerate(lines):
+        if line.split("#")[0].strip() == f"{section}:":
+            indent = len(line) - len(line.lstrip())
+            names = set()
+            for sub in lines[i + 1 :]:
+                if sub.strip() and len(sub) - len(sub.lstrip()) <= indent:
+                    break
+                m = re.match(rf"^ {{{indent + 4}}}(\w+)=", sub)
+                if m:
+                    names.add(m.group(1))
+            return names
+    return set()
+
+
+def _script_rules() -> list[tuple[str, str, Path]]:
+    out = []
+    for name, block in _rule_blocks():
+        m = re.search(r'script:\s*\n\s*"([^"]+)"', block)
+        if m:
+            out.append((name, block, (REPO / "workflow/rules" / m.group(1)).resolve()))
+    return out
+
+
+def _used(tree: ast.AST, section: str) -> set[str]:
+    """Names a script reads from ``snakemake.<section>``, directly or through an alias
+    (``p = snakemake.params``, ``w, p = snakemake.wildcards, snakemake.params``)."""
+
+    def is_section(node):
+        return (isinstance(node, ast.Attribute) and node.attr == section
+                and isinstance(node.value, ast.Name) and node.value.id == "snakemake")  # fmt: skip
+
+    aliases = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign):
+            for target in node.targets:
+                pairs = (zip(target.elts, node.value.elts, strict=False)
+                         if isinstance(target, ast.Tuple) and isinstance(node.value, ast.Tuple)
+                         else [(target, node.value)])  # fmt: skip
+                aliases |= {t.id for t, v in pairs if isinstance(t, ast.Name) and is_section(v)}
+    used = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and (
+            is_section(node.value)
+            or (isinstance(node.value, ast.Name) and node.value.id in aliases)
+        ):
+            used.add(node.attr)
+    return used - {"keys", "get"}
+
+
+def test_every_package_rule_names_a_script_that_calls_what_the_package_has():
+    """Each rule names its own script (no dispatch on the rule's name); every script exists,
+    starts the job (jobs.start), calls package functions that exist with arguments their
+    signatures accept, and reads only ``params``, ``input`` and ``output`` names its rule gives
+    and never Snakemake's ``config``."""
+    rules = _script_rules()
+    assert {"dataset", "fit_<block>", "gap_diagnose", "panasonic_import"} <= {
+        r for r, _, _ in rules
+    }
+    for rule, block, script in rules:
+        assert script.is_file(), f"rule {rule}: no script {script}"
+        text = script.read_text()
+        tree = ast.parse(text)
+        assert "jobs.start(snakemake)" in text, script.name
+        assert "snakemake.config" not in text, script.name
+        for section in ("params", "input", "output"):
+            given = _section_names(block, section)
+            for name in _used(tree, section):
+                assert name in given, (
+                    f"{script.name}: snakemake.{section}.{name} not in rule {rule}"
+                )
+        imported = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module.startswith("avoa_pipeline"):
+                module = importlib.import_module(node.module)
+                for alias in node.names:
+                    try:  # a function, or a submodule (``from avoa_pipeline import jobs``)
+                        obj = getattr(module, alias.name, None) or importlib.import_module(
+                            f"{node.module}.{alias.name}"
+                        )
+                    except ImportError:
+                        obj = None
+                    assert obj is not None, f"{script.name}: {node.module}.{alias.name}"
+                    imported[alias.asname or alias.name] = obj
+        calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call)
+                 and isinstance(n.func, ast.Name)
+                 and callable(imported.get(n.func.id))]  # fmt: skip
+        calls += [n.args[0] for n in ast.walk(tree) if isinstance(n, ast.Call)
+                  and isinstance(n.func, ast.Name) and n.func.id == "partial"]  # fmt: skip
+        assert calls, f"{script.name} calls no package function"
+        for call in calls:
+            if isinstance(call, ast.Call):
+                fn = imported[call.func.id]
+                inspect.signature(fn).bind(*[None] * len(call.args),
+                                           **{k.arg: None for k in call.keywords})  # fmt: skip
+
+
+def test_a_rule_passes_only_what_its_job_reads(cfg):
+    """config.part: the named parts in the config's nesting, copies (a job cannot change the
+    config), tuple paths for keys with dots, one line naming a missing field."""
+    from avoa_pipeline import config as config_mod
+    from avoa_pipeline.errors import ConfigError
+
+    part = config_mod.part(cfg, "base_seed", "budget.pop_size", ("real", "panasonic", "cell"))
+    assert part == {"base_seed": cfg["base_seed"],
+                    "budget": {"pop_size": cfg["budget"]["pop_size"]},
+                    "real": {"panasonic": {"cell": cfg["real"]["panasonic"]["cell"]}}}  # fmt: skip
+    key = next(iter(cfg["real"]["sources"]))
+    assert config_mod.part(cfg, ("real", "sources", key))["real"]["sources"] == {
+        key: cfg["real"]["sources"][key]
+    }
+    part["budget"]["pop_size"] = -1
+    assert cfg["budget"]["pop_size"] > 0
+    with pytest.raises(ConfigError, match=r"field budget\.nonsense missing"):
+        config_mod.part(cfg, "budget.nonsense")
+
+
+def _run_script(name: str, **job) -> None:
+    job.setdefault("log", [])
+    runpy.run_path(str(REPO / "workflow/scripts" / name), init_globals={
+        "snakemake": SimpleNamespace(**job)})  # fmt: skip
+
+
+def test_the_dataset_and_fit_scripts_run_without_snakemake_on_their_rules_parts(cfg, tmp_path):
+    """The dataset and a fit block from the parts their rules pass equal those from the whole
+    config, record for record (timings aside; the same job_key, so a run's records stay
+    current): the jobs read nothing else."""
+    from avoa_pipeline import config as config_mod
+    from avoa_pipeline import workflow as wf
+
+    cfg = {**cfg, "budget": {"pop_size": 8, "iterations": 5, "max_nfe": None}}
+    data = tmp_path / "s4c4.csv"
+    settings = config_mod.part(cfg, *wf.DATASET_PARTS)
+    _run_script("dataset.py", params=SimpleNamespace(settings=settings),
+                wildcards=SimpleNamespace(scenario="4", case="4"),
+                output=SimpleNamespace(csv=str(data)), log=[str(tmp_path / "d.log")])  # fmt: skip
     assert "wrote" in (tmp_path / "d.log").read_text()
+    whole = tmp_path / "whole.csv"
+    wf.dataset(cfg, 4, 4, str(whole))
+    assert data.read_bytes() == whole.read_bytes()
+    outs = [str(tmp_path / f"seed{s}.json") for s in (1, 2)]
+    _run_script("fit.py", params=SimpleNamespace(settings=config_mod.part(cfg, *wf.FIT_PARTS),
+                                                 seeds=[1, 2]),
+                input=SimpleNamespace(data=str(data)),
+                wildcards=SimpleNamespace(scenario="4", case="4", algorithm="avoa"),
+                output=outs)  # fmt: skip
+    ref = [str(tmp_path / f"ref{s}.json") for s in (1, 2)]
+    wf.fit_batch(cfg, str(data), 4, 4, "avoa", [1, 2], ref)
+    for a, b in zip(outs, ref, strict=True):
+        ra, rb = (json.loads(Path(p).read_text()) for p in (a, b))
+        for key in ("best_params", "best_ise", "nfe", "iterations", "job_key"):
+            assert ra[key] == rb[key], key
+        for key in ("best_ise", "nfe"):
+            assert ra["history"][key] == rb["history"][key], key
 
 
 def test_a_job_stops_when_its_snakemake_is_killed(tmp_path):

@@ -189,7 +189,7 @@ def test_kill_9_leaves_nothing_running_and_a_plain_rerun_completes(runs, tmp_pat
 
     wd = fresh_copy(tmp_path / "killed")
     env = {**os.environ, "XDG_CACHE_HOME": str(wd / ".cache")}
-    for marker in ("job.py", "papermill"):
+    for marker in ("fit.py", "papermill"):
         proc = subprocess.Popen(
             [sys.executable, "-m", "snakemake", "-j2", "--configfile", "config/tiny.yaml"],
             cwd=wd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

@@ -10,7 +10,7 @@ rule aggregate_case:
     threads: 1
     priority: 5  # a finished pair's aggregate and report run between fits, not after the last
     script:
-        "../scripts/job.py"
+        "../scripts/aggregate_case.py"
 
 
 rule aggregate_all:
@@ -25,4 +25,4 @@ rule aggregate_all:
         "logs/aggregate/all.log",
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/aggregate_all.py"

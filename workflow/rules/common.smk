@@ -1,6 +1,7 @@
 import sys
 from pathlib import Path
 
+import avoa_pipeline.config as avoa_config
 import avoa_pipeline.workflow as wf
 from avoa_pipeline import snakemake_compat
 from avoa_pipeline.model.battery import CASES
@@ -10,6 +11,17 @@ from avoa_pipeline.model.battery import CASES
 for _lock in snakemake_compat.clear_stale_locks_of(workflow):
     print(f"removed stale Snakemake lock .snakemake/locks/{_lock} (no live run here)",
           file=sys.stderr)
+
+# The schema (Snakefile) checks shapes; these are the checks it cannot state. The whole config is
+# checked here once, and each job gets only the parts its rule passes (config_part).
+avoa_config.check(config, "snakemake config")
+
+
+def config_part(*paths):
+    """The parts of the config at ``paths`` (avoa_pipeline.config.part): what a rule passes to
+    its job as a ``params`` entry, and all of the config the job sees."""
+    return avoa_config.part(config, *paths)
+
 
 SCENARIOS = [int(s) for s in config["scenarios"]]
 CASE_LIST = [int(c) for c in config["cases"]]
@@ -150,14 +162,6 @@ def pan_imports():
         return list(PANASONIC)
     return [n for n in PANASONIC
             if n.split("/")[0] in PAN_EXP_TEMPS or pan_canon(n) == PAN_OCV_RECORD]
-
-
-def pan_fit_settings(temp):
-    """What a paper-model fit at ``temp`` depends on beyond its data (its params: a change
-    reruns it): the experiment's settings and that temperature's training cycle, not the
-    other temperatures, the list of optimizers, the figure or the gap switch."""
-    skip = ("train", "temperatures", "algorithms", "figure_cycle", "gap")
-    return {**{k: v for k, v in PAN_EXP.items() if k not in skip}, "train": PAN_EXP["train"][temp]}
 
 
 def pan_hppc(w):

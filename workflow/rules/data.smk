@@ -5,14 +5,12 @@ rule dataset:
         meta="results/data/s{scenario}/c{case}.json",
     log:
         "logs/data/s{scenario}/c{case}.log",
-    params:
-        data=config["data"],
-        truth=config["true_params"],
-        profile=config["profile"],
+    params:  # what the dataset is made from (workflow.DATASET_PARTS); its job reads no more
+        settings=config_part(*wf.DATASET_PARTS),
     threads: 1
     priority: 10  # before any fit: the fits of a pair wait for its dataset
     script:
-        "../scripts/job.py"
+        "../scripts/dataset.py"
 
 
 rule effective_config:
@@ -26,4 +24,4 @@ rule effective_config:
     threads: 1
     priority: 10  # every notebook reads it: run first, so reports need not wait for it
     script:
-        "../scripts/job.py"
+        "../scripts/effective_config.py"

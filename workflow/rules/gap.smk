@@ -9,6 +9,19 @@ GAP_PLAN = gap_eval.plan(GAP, real_present=REAL_PRESENT)
 GAP_OUTPUTS = GAP_PLAN["outputs"]
 
 
+def gap_grid(w, *keys):
+    """The part of `gap:` one base cell's datasets are made from: ``keys`` and whether this
+    cell carries the effect grid (``replicates`` holds it alone, so that adding a replicate
+    reruns no other cell's datasets)."""
+    grid = {k: GAP[k] for k in keys}
+    grid["replicates"] = [int(w.replicate)] if int(w.replicate) in GAP["replicates"] else []
+    return grid
+
+
+def gap_dir(w):
+    return f"results/gap/data/{w.profile}/r{w.replicate}"
+
+
 if GAP:
 
     rule gap_data:
@@ -22,11 +35,12 @@ if GAP:
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
-            grid={k: GAP[k] for k in ("noise_mv", "magnitudes")},
+            grid=lambda w: gap_grid(w, "noise_mv", "magnitudes"),
             base_seed=config["base_seed"],
+            out_dir=gap_dir,
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_data.py"
 
     rule gap_controls:
         """The `none` controls of a base cell that carries no effect datasets."""
@@ -39,11 +53,12 @@ if GAP:
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
-            noise=GAP["noise_mv"],
+            grid=lambda w: gap_grid(w, "noise_mv"),
             base_seed=config["base_seed"],
+            out_dir=gap_dir,
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_data.py"
 
     if GAP_PLAN["pair_names"]:
 
@@ -58,12 +73,12 @@ if GAP:
             log:
                 "logs/gap/data/{profile}/r{replicate}.pairs.log",
             params:
-                pairs=GAP["pairs"],
-                grid={k: GAP[k] for k in ("noise_mv", "magnitudes")},
+                grid=lambda w: gap_grid(w, "noise_mv", "magnitudes", "pairs"),
                 base_seed=config["base_seed"],
+                out_dir=gap_dir,
             threads: 1
             script:
-                "../scripts/job.py"
+                "../scripts/gap_pair_data.py"
 
         rule gap_pairs_table:
             """Two effects at once: per record, both named? anything extra? (pairs.csv)."""
@@ -79,7 +94,7 @@ if GAP:
                 "logs/gap/pairs.log",
             threads: 1
             script:
-                "../scripts/job.py"
+                "../scripts/gap_pairs_table.py"
 
     rule gap_paper_data:
         """A paper scenario × case as the main workflow simulates it, to be diagnosed."""
@@ -91,13 +106,11 @@ if GAP:
             case="[1-4]",
         log:
             "logs/gap/data/paper/s{scenario}c{case}.log",
-        params:
-            data=config["data"],
-            truth=config["true_params"],
-            profile=config["profile"],
+        params:  # what the dataset is made from (workflow.DATASET_PARTS)
+            settings=config_part(*wf.DATASET_PARTS),
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_paper_data.py"
 
     rule gap_pybamm_data:
         """A PyBaMM record (DFN or SPMe, lumped thermal, ...): made once, then a cached file."""
@@ -112,7 +125,7 @@ if GAP:
             base_seed=config["base_seed"],
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_pybamm_data.py"
 
     rule gap_diagnose:
         """One diagnosis (the CSV only, as a user runs it) of one record."""
@@ -130,7 +143,7 @@ if GAP:
         resources:
             group_lane=1,  # profiles/slurm: a group's members run one after another
         script:
-            "../scripts/job.py"
+            "../scripts/gap_diagnose.py"
 
     rule gap_diagnose_real:
         """One diagnosis of a canonical real record (CSV only; its sidecar is not read)."""
@@ -148,7 +161,7 @@ if GAP:
         resources:
             group_lane=1,  # profiles/slurm: a group's members run one after another
         script:
-            "../scripts/job.py"
+            "../scripts/gap_diagnose.py"
 
     rule gap_real_table:
         """Verdicts on real records: what the paper's model misses on measured cells."""
@@ -161,7 +174,7 @@ if GAP:
             "logs/gap/real.log",
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_real_table.py"
 
     rule gap_evaluate:
         """Confusion matrix, accuracy, detection limit, shrink, target check (with the pairs')."""
@@ -178,7 +191,7 @@ if GAP:
             "logs/gap/evaluate.log",
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_evaluate.py"
 
     rule gap_paper_table:
         """What the paper's scenarios look like to a model without load or fade."""
@@ -194,7 +207,7 @@ if GAP:
             "logs/gap/paper_scenarios.log",
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_paper_table.py"
 
     rule gap_pybamm_table:
         """Verdicts on the PyBaMM records against the effects each holds."""
@@ -207,7 +220,7 @@ if GAP:
             "logs/gap/pybamm.log",
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/gap_pybamm_table.py"
 
     rule gap_notebook:
         """Figures: confusion matrix, accuracy, shrink, detection limit."""

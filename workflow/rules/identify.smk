@@ -30,11 +30,8 @@ for _block, _seeds in FIT_BLOCKS.items():
              for s in _seeds],
         log:
             f"logs/fits/s{{scenario}}/c{{case}}/{{algorithm}}/block{_block}.log",
-        params:  # what a fit depends on beyond its data: changing any of it reruns the block
-            budget=config["budget"],
-            bounds=config["bounds_used"],
-            constants=config["constants"],
-            base_seed=config["base_seed"],
+        params:  # what a fit reads beyond its data (workflow.FIT_PARTS): a change reruns the block
+            settings=config_part(*wf.FIT_PARTS),
             seeds=_seeds,
         threads: 1
         resources:
@@ -44,4 +41,4 @@ for _block, _seeds in FIT_BLOCKS.items():
         group:
             "fits"  # used by cluster executors only (profiles/slurm); ignored locally
         script:
-            "../scripts/job.py"
+            "../scripts/fit.py"

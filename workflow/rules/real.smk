@@ -24,11 +24,12 @@ rule panasonic_import:
     wildcard_constraints:
         ptemp="|".join(PAN_TEMPS) or "none",
         ptest="|".join(PAN_TESTS) or "none",
-    params:
-        sources=lambda w: {k: REAL["sources"][k] for k in PANASONIC[f"{w.ptemp}/{w.ptest}"]["keys"]},
+    params:  # real.panasonic without its experiment: a change there reruns no import
+        cfg=config_part("real.root", "real.sources",
+                        *(f"real.panasonic.{k}" for k in REAL.get("panasonic", {}) if k != "experiment")),
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_import.py"
 
 
 if PAN_EXP_TEMPS:
@@ -49,7 +50,7 @@ rule panasonic_ocv:
         "logs/real/panasonic/ocv_c20.log",
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_ocv.py"
 
 
 rule panasonic_fit_paper:
@@ -67,7 +68,7 @@ rule panasonic_fit_paper:
         pmodel="|".join(real_dc.PAPER_MODELS),
         algorithm="|".join(PAN_EXP.get("algorithms", [])) or "none",
     params:
-        exp=lambda w: pan_fit_settings(w.ptemp),
+        exp=lambda w: real_dc.fit_settings(config, w.ptemp),
         base_seed=config["base_seed"],
         tests=lambda w: pan_tests(w.ptemp),
     group:
@@ -76,7 +77,7 @@ rule panasonic_fit_paper:
     resources:
         group_lane=1,  # profiles/slurm: a group's members run one after another
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_fit_paper.py"
 
 
 rule panasonic_fit_c20:
@@ -98,7 +99,7 @@ rule panasonic_fit_c20:
         tests=lambda w: pan_tests(w.ptemp),
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_fit_c20.py"
 
 
 rule panasonic_diagnose:
@@ -125,7 +126,7 @@ rule panasonic_diagnose:
         tests=lambda w: pan_tests(w.ptemp),
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_diagnose.py"
 
 
 rule panasonic_fit_gap:
@@ -145,7 +146,7 @@ rule panasonic_fit_gap:
         tests=lambda w: pan_tests(w.ptemp),
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_fit_gap.py"
 
 
 rule panasonic_cross_cycle:
@@ -165,9 +166,10 @@ rule panasonic_cross_cycle:
         ptemp="|".join(PAN_EXP_TEMPS) or "none",
     params:
         cycles=lambda w: {PAN_EXP["train"][w.ptemp]: pan_train(w), **pan_tests(w.ptemp)},
+        ambient_c=lambda w: REAL["panasonic"]["temperatures"][w.ptemp]["ambient_c"],
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_cross_cycle.py"
 
 
 rule panasonic_drive_cycle_table:
@@ -184,12 +186,13 @@ rule panasonic_drive_cycle_table:
     log:
         "logs/real/panasonic/drive_cycle_table.log",
     params:
+        cfg=config_part("real.panasonic.temperatures", "real.panasonic.experiment") if PAN_EXP else {},
         diagnoses=pan_diagnoses(),
         tests={f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
                for c in real_dc.unseen_cycles(config, t)},
     threads: 1
     script:
-        "../scripts/job.py"
+        "../scripts/panasonic_drive_cycle_table.py"
 
 
 rule panasonic_drive_cycles_notebook:
@@ -216,7 +219,7 @@ rule panasonic_drive_cycles_notebook:
 # ------------------------------------------------------------------------------------------------
 # Samsung 30Q and NASA B0005: their rules go below this line (they add to REAL_TARGETS).
 # ------------------------------------------------------------------------------------------------
-# Script rules calling avoa_pipeline.real.cells_cli through avoa_pipeline.jobs. A config without
+# Script rules calling avoa_pipeline.real.cells_cli (one script per rule). A config without
 # real.samsung or real.nasa
 # leaves that dataset's rules out. docs/real-data.md, sections "Samsung INR18650-30Q", "NASA B0005".
 import avoa_pipeline.real.cells_cli as real_cells
@@ -243,12 +246,12 @@ if SAMSUNG_CFG:
             stemp="|".join(SAMSUNG_TEMPS),
         log:
             "logs/real/canonical/samsung_hppc_{stemp}.log",
-        params:
-            samsung=SAMSUNG_CFG,
-            sha256=lambda w: REAL["sources"][SAMSUNG_CFG["hppc"][w.stemp]["file"]],
+        params:  # the Samsung settings, the root and this file's sha256
+            cfg=lambda w: config_part("real.root", "real.samsung",
+                                      ("real", "sources", SAMSUNG_CFG["hppc"][w.stemp]["file"])),
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/real_samsung_import.py"
 
     rule real_samsung_arrhenius:
         """Experiment 2: R0, Rtr, tau per 1C HPPC pulse at each temperature; Arrhenius fits."""
@@ -260,11 +263,11 @@ if SAMSUNG_CFG:
         log:
             "logs/real/samsung_arrhenius.log",
         params:
-            samsung=SAMSUNG_CFG,
+            cfg=config_part("real.samsung"),
             temperatures=SAMSUNG_TEMPS,
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/real_samsung_arrhenius.py"
 
 
 if NASA_CFG:
@@ -279,12 +282,12 @@ if NASA_CFG:
             meta=f"{REAL_CANON}/nasa_b0005.json",
         log:
             "logs/real/canonical/nasa_b0005.log",
-        params:
-            nasa=NASA_CFG,
-            sha256=real_cells.nasa_source_sha256(config),
+        params:  # the NASA settings, the root and the sha256 of the index and every discharge
+            cfg=config_part("real.root", "real.nasa",
+                            *(("real", "sources", k) for k in real_cells.nasa_source_sha256(config))),
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/real_nasa_import.py"
 
     rule real_nasa_fade:
         """Experiment 3: capacity and 20-s resistance per ageing state; fade laws (eqs. 7-9)."""
@@ -296,10 +299,10 @@ if NASA_CFG:
         log:
             "logs/real/nasa_fade.log",
         params:
-            nasa=NASA_CFG,
+            cfg=config_part("real.nasa"),
         threads: 1
         script:
-            "../scripts/job.py"
+            "../scripts/real_nasa_fade.py"
 
 
 if SAMSUNG_CFG and NASA_CFG:

@@ -60,7 +60,8 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
         for model in dc.PAPER_MODELS:
             for alg in exp["algorithms"]:
                 fits.append(out_dir / "fits" / temp / model / f"{alg}.json")
-                jobs.paper_fit_one(cfg, temp, model, alg, train, tests, fits[-1])
+                jobs.paper_fit_one(dc.fit_settings(cfg, temp), cfg["base_seed"], temp, model,
+                                   alg, train, tests, fits[-1])  # fmt: skip
         fits.append(out_dir / "fits" / temp / "c20.json")
         jobs.c20_fit_one(temp, train, tests, ocv, fits[-1])
         diagnoses["diagnosis"][temp] = out_dir / "diagnosis" / temp
@@ -69,7 +70,8 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
         if "gap" in diagnoses:
             diagnoses["gap"][temp] = out_dir / "gap" / temp
             jobs.diagnose_one([train], tests, diagnoses["gap"][temp])
-        jobs.cross_cycle_one(cfg, temp, diagnoses["diagnosis"][temp] / "model.json",
+        ambient = cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]
+        jobs.cross_cycle_one(ambient, temp, diagnoses["diagnosis"][temp] / "model.json",
                              {exp["train"][temp]: train, **tests}, ocv,
                              out_dir / "cross_cycle" / f"{temp}.csv")  # fmt: skip
     out = out_dir / "drive_cycle_rmse.csv"

@@ -90,6 +90,7 @@ def figure(pred: pd.DataFrame, rmse: pd.DataFrame, ambient: dict[str, float], st
 def demo(cfg: dict, out_dir=None) -> dict:
     """A reduced experiment 1 (25 °C, LA92 → US06, Nelder–Mead seed 1 at 10 × 30, the C/20
     circuits) written to ``out_dir``; the notebook's inputs when the workflow's are not given."""
+    from . import drive_cycles as dc
     from . import jobs, panasonic
 
     out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))
@@ -114,8 +115,8 @@ def demo(cfg: dict, out_dir=None) -> dict:
     jobs.panasonic_ocv(paths["25degC/ocv_c20"], ocv)
     tests = {"us06": paths["25degC/us06"]}
     fits = [out / "paper_rc.json", out / "c20.json"]
-    jobs.paper_fit_one(cfg, "25degC", "paper_rc", "nelder_mead", paths["25degC/la92"], tests,
-                       fits[0])  # fmt: skip
+    jobs.paper_fit_one(dc.fit_settings(cfg, "25degC"), cfg["base_seed"], "25degC", "paper_rc",
+                       "nelder_mead", paths["25degC/la92"], tests, fits[0])  # fmt: skip
     jobs.c20_fit_one("25degC", paths["25degC/la92"], tests, ocv, fits[1])
     res = {"rmse_csv": out / "drive_cycle_rmse.csv", "runs_csv": out / "drive_cycle_runs.csv",
            "predictions": out / "figure_predictions.parquet", "train": exp["train"]}  # fmt: skip

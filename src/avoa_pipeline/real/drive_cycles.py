@@ -172,14 +172,24 @@ def errors_mv(model_v: np.ndarray, frame: pd.DataFrame) -> dict:
 # --- fits ------------------------------------------------------------------------------------
 
 
-def paper_fit(cfg: dict, temp: str, model: str, algorithm: str, train: pd.DataFrame,
-              tests: dict[str, pd.DataFrame]) -> dict:  # fmt: skip
-    """All seeds of one optimizer on one paper model → a JSON-able record with predictions."""
+def fit_settings(cfg: dict, temp: str) -> dict:
+    """What a paper-model fit at ``temp`` depends on beyond its data: the experiment's settings
+    (bounds, budget, seeds, qdis_ah) and that temperature's training cycle, not the other
+    temperatures, the list of optimizers, the figure or the gap switch (a change to those
+    neither reaches nor reruns it)."""
+    exp = experiment(cfg)
+    skip = ("train", "temperatures", "algorithms", "figure_cycle", "gap")
+    return {**{k: v for k, v in exp.items() if k not in skip}, "train": exp["train"][temp]}
+
+
+def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
+              train: pd.DataFrame, tests: dict[str, pd.DataFrame]) -> dict:  # fmt: skip
+    """All seeds of one optimizer on one paper model → a JSON-able record with predictions.
+    ``exp``: :func:`fit_settings` of ``temp``."""
     if algorithm not in ALGORITHMS:
         raise ConfigError(f"unknown algorithm {algorithm!r}; choose from {', '.join(ALGORITHMS)}")
     if model not in PAPER_MODELS:
         raise ConfigError(f"unknown paper model {model!r}; choose from {', '.join(PAPER_MODELS)}")
-    exp = experiment(cfg)
     dynamics = PAPER_MODELS[model]
     names = PARAM_NAMES if dynamics else ("vnom", "q", "vdis", "r0")
     box = exp["bounds"]
@@ -199,7 +209,7 @@ def paper_fit(cfg: dict, temp: str, model: str, algorithm: str, train: pd.DataFr
     prob.objective(((prob.lb + prob.ub) / 2)[None, :])  # compile/load before the clock starts
     runs = []
     for seed in exp["seeds"]:
-        rng = seeds.stream(cfg["base_seed"], "real-panasonic", temp, model, algorithm, int(seed))
+        rng = seeds.stream(int(base_seed), "real-panasonic", temp, model, algorithm, int(seed))
         res = minimize(algorithm, prob.objective, prob.lb, prob.ub, budget, rng,
                        objective_one=prob.objective_one)  # fmt: skip
         params = dict(zip(names, map(float, res.best_x), strict=True))

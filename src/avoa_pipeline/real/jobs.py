@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import config as config_mod
 from ..io import write_log
 
 
@@ -21,9 +20,7 @@ def canonical_name(name: str) -> str:
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
     from . import panasonic
 
-    cfg = dict(cfg)
-    config_mod.validate(cfg, source="snakemake config")
-    side = panasonic.import_named(cfg, name, out_csv)
+    side = panasonic.import_named(dict(cfg), name, out_csv)
     write_log(
         log,
         f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah out "
@@ -87,7 +84,9 @@ def read_ocv(ocv_csv):
         raise DataError(f"{meta_path}: field {exc.args[0]!r}: missing") from None
 
 
-def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=None) -> None:
+def paper_fit_one(exp, base_seed, temp, model, algorithm, train_csv, tests, out_json,
+                  log=None) -> None:  # fmt: skip
+    """``exp``: ``drive_cycles.fit_settings(cfg, temp)``."""
     import numba
 
     from ..io import write_json
@@ -95,7 +94,8 @@ def paper_fit_one(cfg, temp, model, algorithm, train_csv, tests, out_json, log=N
 
     numba.set_num_threads(1)
     train = _frames({"train": train_csv})["train"]
-    rec = drive_cycles.paper_fit(cfg, temp, model, algorithm, train, _frames(tests))
+    rec = drive_cycles.paper_fit(exp, base_seed, temp, model, algorithm, train,
+                                 _frames(tests))  # fmt: skip
     rec["train_record"] = str(train_csv)
     write_json(rec, out_json)
     med = drive_cycles.median_run(rec["runs"])
@@ -160,8 +160,10 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
                       out_predictions, log=None) -> None:  # fmt: skip
     """``drive_cycle_rmse.csv``, the per-seed rows, and the figure cycles' predicted voltages.
 
-    ``fit_jsons``: the paper-model and C/20 records; ``diagnoses``: prefix → temperature → the
-    folder of a diagnosis (diagnosis.json, model.json); ``tests``: ``<temp>/<cycle>`` → CSV."""
+    ``cfg``: ``real.panasonic.temperatures`` and ``real.panasonic.experiment`` (the rule passes
+    no more); ``fit_jsons``: the paper-model and C/20 records; ``diagnoses``: prefix →
+    temperature → the folder of a diagnosis (diagnosis.json, model.json); ``tests``:
+    ``<temp>/<cycle>`` → CSV."""
     import json
 
     import pandas as pd
@@ -217,7 +219,7 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
     write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} records")
 
 
-def cross_cycle_one(cfg, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
+def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
     """The cross-cycle diagnostic (``cross_cycle.fit_each_run_all``) of the base circuit
     ``c20_2rc_lowsoc`` and of the configuration the diagnosis selected (its elements and OCV
     table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
@@ -234,8 +236,7 @@ def cross_cycle_one(cfg, temp, model_json, cycles, ocv_csv, out_csv, log=None) -
         "diagnosis_selected": FittedModel.load(model_json).config,
     }
     df = pd.DataFrame(cross_cycle.fit_each_run_all(temp, _frames(cycles), models))
-    ambient = cfg["real"]["panasonic"]["temperatures"][temp]["ambient_c"]
-    df.insert(0, "temperature_c", float(ambient))
+    df.insert(0, "temperature_c", float(ambient_c))
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
     diag = df[df["in_sample"]].groupby("model")["rmse_mv"].median()

@@ -1,0 +1,10 @@
+"""Rule `panasonic_import` (rules/real.smk): one Panasonic test → canonical CSV + sidecar."""
+
+from avoa_pipeline import jobs
+
+log = jobs.start(snakemake)
+
+from avoa_pipeline.real.jobs import panasonic_import
+
+w = snakemake.wildcards
+panasonic_import(snakemake.params.cfg, f"{w.ptemp}/{w.ptest}", snakemake.output.csv, log)
