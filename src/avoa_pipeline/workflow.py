@@ -93,35 +93,55 @@ def fit_batch(cfg, data_csv: str, scenario, case, algorithm: str, seeds, out_jso
     A record already on disk whose ``job_key`` is this fit's current :func:`fit_key` is kept
     (Snakemake's ``update`` flag leaves it in place): adding seeds to a batch computes only the
     new ones, while a changed budget, dataset or code recomputes all. Returns the counts."""
+    return fit_algorithms(cfg, data_csv, scenario, case, [algorithm], seeds, out_jsons, log)
+
+
+def fit_algorithms(cfg, data_csv: str, scenario, case, algorithms, seeds, out_jsons,
+                   log: str | None = None) -> dict:  # fmt: skip
+    """:func:`fit_batch` for several algorithms in one process (the workflow's fit job: one per
+    scenario × case × block of seeds, so that the process start, imports and kernel load are
+    paid once for all algorithms, not once per algorithm). ``out_jsons`` is algorithm-major:
+    the records of ``seeds`` for ``algorithms[0]``, then for ``algorithms[1]``, ... Each
+    algorithm's seeds are stepped together as in :func:`fit_batch`; the records are the same.
+    Returns the counts over all algorithms."""
     numba.set_num_threads(1)
     seeds, out_jsons = [int(s) for s in seeds], [str(p) for p in out_jsons]
-    if len(seeds) != len(out_jsons):
-        raise ValueError(f"{len(seeds)} seeds for {len(out_jsons)} records")
+    algorithms = [str(a) for a in algorithms]
+    if len(seeds) * len(algorithms) != len(out_jsons):
+        raise ValueError(f"{len(seeds)} seeds × {len(algorithms)} algorithms for "
+                         f"{len(out_jsons)} records")  # fmt: skip
     budget = fit.budget_from(cfg)
-    todo = []  # (seed, record path, job_key) of the records to compute
-    for seed, out in zip(seeds, out_jsons, strict=True):
-        key = fit_key(cfg, data_csv, scenario, case, algorithm, seed)
-        try:
-            old = json.loads(Path(out).read_text())
-        except (FileNotFoundError, json.JSONDecodeError, UnicodeDecodeError):
-            old = None
-        if not (isinstance(old, dict) and old.get("job_key") == key):
-            todo.append((seed, out, key))
-    kept, lines = len(seeds) - len(todo), []
-    if todo:  # one problem (dataset read, kernels loaded); the seeds stepped together
-        prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
-        with threadpool_limits(1):  # L-BFGS-B's BLAS threads would spin (Snakemake's jobs
-            # get OPENBLAS_NUM_THREADS=threads anyway; this covers the other callers)
-            recs = fit.run_seeds(cfg, prob, algorithm, [s for s, _, _ in todo], budget)
-        for (seed, out, key), rec in zip(todo, recs, strict=True):
-            rec["job_key"] = key
-            write_json(rec, out)
-            ise, nfe, wall = rec["best_ise"], rec["nfe"], rec["wall_s"]
-            lines.append(f"{algorithm} s{scenario} c{case} seed {seed}: ISE {ise:.6g}, "
-                         f"nfe {nfe}, {wall:.3f} s")  # fmt: skip
-    lines.append(f"{len(todo)} computed, {kept} kept (current job_key)")
+    prob, lines, computed = None, [], 0
+    for k, algorithm in enumerate(algorithms):
+        outs = out_jsons[k * len(seeds) : (k + 1) * len(seeds)]
+        todo = []  # (seed, record path, job_key) of the records to compute
+        for seed, out in zip(seeds, outs, strict=True):
+            key = fit_key(cfg, data_csv, scenario, case, algorithm, seed)
+            try:
+                old = json.loads(Path(out).read_text())
+            except (FileNotFoundError, json.JSONDecodeError, UnicodeDecodeError):
+                old = None
+            if not (isinstance(old, dict) and old.get("job_key") == key):
+                todo.append((seed, out, key))
+        if todo:  # one problem (dataset read, kernels loaded); the seeds stepped together
+            if prob is None:
+                prob = problem.build(cfg, int(scenario), int(case), data=data_csv)
+            with threadpool_limits(1):  # L-BFGS-B's BLAS threads would spin (Snakemake's jobs
+                # get OPENBLAS_NUM_THREADS=threads anyway; this covers the other callers)
+                recs = fit.run_seeds(cfg, prob, algorithm, [s for s, _, _ in todo], budget)
+            for (seed, out, key), rec in zip(todo, recs, strict=True):
+                rec["job_key"] = key
+                write_json(rec, out)
+                ise, nfe, wall = rec["best_ise"], rec["nfe"], rec["wall_s"]
+                lines.append(f"{algorithm} s{scenario} c{case} seed {seed}: ISE {ise:.6g}, "
+                             f"nfe {nfe}, {wall:.3f} s")  # fmt: skip
+        computed += len(todo)
+        if len(algorithms) > 1:
+            lines.append(f"{algorithm}: {len(todo)} computed, {len(seeds) - len(todo)} kept")
+    kept = len(out_jsons) - computed
+    lines.append(f"{computed} computed, {kept} kept (current job_key)")
     write_log(log, "\n".join(lines))
-    return {"computed": len(todo), "kept": kept}
+    return {"computed": computed, "kept": kept}
 
 
 def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None) -> None:

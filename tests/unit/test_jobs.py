@@ -173,9 +173,9 @@ def _run_script(name: str, **job) -> None:
 
 
 def test_the_dataset_and_fit_scripts_run_without_snakemake_on_their_rules_parts(cfg, tmp_path):
-    """The dataset and a fit block from the parts their rules pass equal those from the whole
-    config, record for record (timings aside; the same job_key, so a run's records stay
-    current): the jobs read nothing else."""
+    """The dataset and a fit block (two algorithms in one job) from the parts their rules pass
+    equal those from the whole config and one algorithm per call, record for record (timings
+    aside; the same job_key, so a run's records stay current): the jobs read nothing else."""
     from avoa_pipeline import config as config_mod
     from avoa_pipeline import workflow as wf
 
@@ -189,14 +189,15 @@ def test_the_dataset_and_fit_scripts_run_without_snakemake_on_their_rules_parts(
     whole = tmp_path / "whole.csv"
     wf.dataset(cfg, 4, 4, str(whole))
     assert data.read_bytes() == whole.read_bytes()
-    outs = [str(tmp_path / f"seed{s}.json") for s in (1, 2)]
+    algorithms = ["avoa", "nelder_mead"]
+    outs = [str(tmp_path / a / f"seed{s}.json") for a in algorithms for s in (1, 2)]
     _run_script("fit.py", params=SimpleNamespace(settings=config_mod.part(cfg, *wf.FIT_PARTS),
-                                                 seeds=[1, 2]),
+                                                 algorithms=algorithms, seeds=[1, 2]),
                 input=SimpleNamespace(data=str(data)),
-                wildcards=SimpleNamespace(scenario="4", case="4", algorithm="avoa"),
-                output=outs)  # fmt: skip
-    ref = [str(tmp_path / f"ref{s}.json") for s in (1, 2)]
-    wf.fit_batch(cfg, str(data), 4, 4, "avoa", [1, 2], ref)
+                wildcards=SimpleNamespace(scenario="4", case="4"), output=outs)  # fmt: skip
+    ref = [str(tmp_path / "ref" / a / f"seed{s}.json") for a in algorithms for s in (1, 2)]
+    for k, alg in enumerate(algorithms):
+        wf.fit_batch(cfg, str(data), 4, 4, alg, [1, 2], ref[2 * k : 2 * k + 2])
     for a, b in zip(outs, ref, strict=True):
         ra, rb = (json.loads(Path(p).read_text()) for p in (a, b))
         for key in ("best_params", "best_ise", "nfe", "iterations", "job_key"):

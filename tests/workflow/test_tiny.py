@@ -128,23 +128,24 @@ def test_restyling_a_figure_reruns_no_fit(runs):
 
 
 def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
-    """The new seed joins block 1 (seeds 1-30): its 12 jobs run, keep the 24 records they find
-    (current job_key, untouched on disk) and compute one fit each."""
+    """The new seed joins block 1 (seeds 1-30): its 4 jobs (one per scenario × case, every
+    algorithm) run, keep the 24 records they find (current job_key, untouched on disk) and
+    compute one fit per algorithm each."""
     wd = fresh_copy(tmp_path / "more")
     shutil.copytree(runs["2"] / "results", wd / "results")
     shutil.copytree(runs["2"] / ".snakemake", wd / ".snakemake")
     (wd / "more_seeds.yaml").write_text("seeds: [1, 2, 3]\n")
     configs = ("config/tiny.yaml", "more_seeds.yaml")
     plan = _planned(snakemake(wd, "-n", "paper", configs=configs))
-    assert plan.get("fit_1") == 2 * 2 * 3  # 2 scenarios × 2 cases × 3 algorithms
+    assert plan.get("fit_1") == 2 * 2  # 2 scenarios × 2 cases (3 algorithms in each job)
     before = {p: p.read_bytes() for p in (wd / "results/fits").rglob("*.json")}
     assert len(before) == 24
     proc = snakemake(wd, "-j2", "paper", configs=configs)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert all(p.read_bytes() == b for p, b in before.items())
     logs = list((wd / "logs/fits").rglob("block1.log"))
-    assert len(logs) == 12
-    assert all("1 computed, 2 kept" in p.read_text() for p in logs)
+    assert len(logs) == 4
+    assert all("3 computed, 6 kept" in p.read_text() for p in logs)
     assert len(list((wd / "results/fits").rglob("seed3.json"))) == 12
 
 

@@ -1,12 +1,12 @@
-"""Rules `fit_<block>` (rules/identify.smk): one block of seeds of a scenario × case ×
-algorithm, stepped together, one record per seed."""
+"""Rules `fit_<block>` (rules/identify.smk): one block of seeds of a scenario × case, every
+configured algorithm, each algorithm's seeds stepped together, one record per algorithm × seed."""
 
 from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.workflow import fit_batch
+from avoa_pipeline.workflow import fit_algorithms
 
 w, p = snakemake.wildcards, snakemake.params
-fit_batch(p.settings, snakemake.input.data, w.scenario, w.case, w.algorithm, p.seeds,
-          list(snakemake.output), log)  # fmt: skip
+fit_algorithms(p.settings, snakemake.input.data, w.scenario, w.case, p.algorithms, p.seeds,
+               list(snakemake.output), log)  # fmt: skip
