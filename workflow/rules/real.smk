@@ -26,7 +26,8 @@ rule panasonic_import:
         ptest="|".join(PAN_TESTS) or "none",
     params:  # real.panasonic without its experiment: a change there reruns no import
         cfg=config_part("real.root", "real.sources",
-                        *(f"real.panasonic.{k}" for k in REAL.get("panasonic", {}) if k != "experiment")),
+                        *(f"real.panasonic.{k}" for k in REAL["panasonic"] if k != "experiment"))
+            if PANASONIC else {},
     threads: 1
     script:
         "../scripts/panasonic_import.py"
