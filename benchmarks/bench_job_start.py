@@ -18,9 +18,9 @@ runs is printed. Stages:
   import (``avoa_pipeline.report``), with the ``avoa-pipeline`` kernel: papermill's start, the
   kernel's start and the imports.
 
-Then the start-up cost of the paper grid's jobs: the fit jobs' start-up × their number, with
-one job per scenario × case × algorithm (112, before issue 20) and one per scenario × case
-(16).
+Then the start-up cost of the paper grid's fit jobs (``config/config.yaml``, one block of seeds
+per job): the fit job's start-up × their number, with one job per scenario × case × algorithm
+(before issue 20) and with one per scenario × case.
 """
 
 from __future__ import annotations
@@ -96,9 +96,10 @@ def main() -> None:
     args = ap.parse_args()
     from avoa_pipeline import config, workflow
 
+    cfg = config.load()
     tmp = Path(tempfile.mkdtemp(prefix="bench_job_start_"))
     data = tmp / "s4c4.csv"
-    workflow.dataset(config.load(), 4, 4, str(data))
+    workflow.dataset(cfg, 4, 4, str(data))
     nb = tmp / "start.ipynb"
     nb.write_text(json.dumps(NOTEBOOK))
     fit_cmd = [PY, "-c", FIT_CHILD, str(data)]
@@ -123,10 +124,14 @@ def main() -> None:
         print(f"{job:<15} {stage:<45} {s:7.3f}")
     fit_start = pre + fit_wall  # interpreter, preamble, imports, kernel load, exit
     diag_start = pre + diag_wall - diag.get("diagnosis", 0.0)
-    print(f"\nstart-up before the first useful instruction (wall, one process): fit job "
-          f"{fit_start:.2f} s, diagnosis job {diag_start:.2f} s, notebook job {nb_wall:.2f} s")
-    for n in (112, 16):
-        print(f"paper grid, {n} fit jobs: {n * fit_start:.0f} s of fit-job start-up")
+    print(
+        f"\nstart-up before the first useful instruction (wall, one process): fit job "
+        f"{fit_start:.2f} s, diagnosis job {diag_start:.2f} s, notebook job {nb_wall:.2f} s"
+    )
+    pairs = len(cfg["scenarios"]) * len(cfg["cases"])
+    for n, per in ((pairs * len(cfg["algorithms"]), "scenario × case × algorithm"),
+                   (pairs, "scenario × case")):  # fmt: skip
+        print(f"paper grid, {n} fit jobs (one per {per}): {n * fit_start:.0f} s of start-up")
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ import yaml
 from threadpoolctl import threadpool_limits
 
 from . import aggregate, config, fit, problem, synthetic
-from .io import atomic_path, write_json, write_log
+from .io import atomic_path, sha256, write_json, write_log
 
 
 def effective_config(cfg, out_yaml: str) -> None:
@@ -42,17 +42,16 @@ FIT_PARTS = ("budget", "bounds_used", "constants", "base_seed", "true_params")
 """The parts of the config a fit of the paper grid reads beyond its dataset."""
 
 
-def fit_key(cfg, data_csv, scenario, case, algorithm: str, seed) -> str:
-    """What a fit record depends on, as one hash: the dataset's bytes, the budget, the bounds,
-    the constants, the base seed, the run's wildcards, and the package's numerical code (its
-    optimizer, model and problem sources). A batch job keeps an existing record whose key is
-    the current one and computes every other (:func:`fit_batch`)."""
+def fit_key(cfg, data_sha256: str, scenario, case, algorithm: str, seed) -> str:
+    """What a fit record depends on, as one hash: the dataset's bytes (their sha256, computed
+    once per job), the budget, the bounds, the constants, the base seed, the run's wildcards,
+    and the package's numerical code (its optimizer, model and problem sources). A batch job
+    keeps an existing record whose key is the current one and computes every other
+    (:func:`fit_algorithms`)."""
     import hashlib
 
-    from .io import sha256
-
     parts = {
-        "data": sha256(data_csv),
+        "data": data_sha256,
         "budget": cfg["budget"],
         "bounds": cfg.get("bounds_used"),
         "constants": cfg.get("constants"),
@@ -111,12 +110,13 @@ def fit_algorithms(cfg, data_csv: str, scenario, case, algorithms, seeds, out_js
         raise ValueError(f"{len(seeds)} seeds × {len(algorithms)} algorithms for "
                          f"{len(out_jsons)} records")  # fmt: skip
     budget = fit.budget_from(cfg)
+    data_sha256 = sha256(data_csv)
     prob, lines, computed = None, [], 0
     for k, algorithm in enumerate(algorithms):
         outs = out_jsons[k * len(seeds) : (k + 1) * len(seeds)]
         todo = []  # (seed, record path, job_key) of the records to compute
         for seed, out in zip(seeds, outs, strict=True):
-            key = fit_key(cfg, data_csv, scenario, case, algorithm, seed)
+            key = fit_key(cfg, data_sha256, scenario, case, algorithm, seed)
             try:
                 old = json.loads(Path(out).read_text())
             except (FileNotFoundError, json.JSONDecodeError, UnicodeDecodeError):

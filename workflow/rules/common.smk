@@ -181,3 +181,21 @@ def pan_diagnoses():
     if PAN_GAP:
         out["gap"] = {t: f"{PAN_OUT}/gap/{t}" for t in PAN_EXP_TEMPS}
     return out
+
+
+# --- the gap check (gap.smk) ----------------------------------------------------------------------
+
+
+def gap_grid(w, *keys):
+    """The part of `gap:` one base cell's datasets are made from: ``keys`` and whether this
+    cell carries the effect grid (``replicates`` holds it alone, so that adding a replicate
+    reruns no other cell's datasets)."""
+    gap = config["gap"]
+    grid = {k: gap[k] for k in keys}
+    grid["replicates"] = [int(w.replicate)] if int(w.replicate) in gap["replicates"] else []
+    return grid
+
+
+def gap_dir(w):
+    """The folder of one base cell's datasets."""
+    return f"results/gap/data/{w.profile}/r{w.replicate}"

@@ -9,19 +9,6 @@ GAP_PLAN = gap_eval.plan(GAP, real_present=REAL_PRESENT)
 GAP_OUTPUTS = GAP_PLAN["outputs"]
 
 
-def gap_grid(w, *keys):
-    """The part of `gap:` one base cell's datasets are made from: ``keys`` and whether this
-    cell carries the effect grid (``replicates`` holds it alone, so that adding a replicate
-    reruns no other cell's datasets)."""
-    grid = {k: GAP[k] for k in keys}
-    grid["replicates"] = [int(w.replicate)] if int(w.replicate) in GAP["replicates"] else []
-    return grid
-
-
-def gap_dir(w):
-    return f"results/gap/data/{w.profile}/r{w.replicate}"
-
-
 if GAP:
 
     rule gap_data:

@@ -91,7 +91,7 @@ def pybamm(base_seed, name, out_csv, log=None) -> None:
 
 def paper_job(cfg, scenario, case, out_csv, log=None) -> None:
     """``cfg``: the parts a paper dataset is made from (``workflow.DATASET_PARTS``)."""
-    info = paper_dataset(dict(cfg), int(scenario), int(case), out_csv)
+    info = paper_dataset(cfg, int(scenario), int(case), out_csv)
     write_log(log, f"{out_csv}: {info}")
 
 

@@ -20,7 +20,7 @@ def canonical_name(name: str) -> str:
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
     from . import panasonic
 
-    side = panasonic.import_named(dict(cfg), name, out_csv)
+    side = panasonic.import_named(cfg, name, out_csv)
     write_log(
         log,
         f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah out "
