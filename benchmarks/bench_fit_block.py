@@ -32,9 +32,9 @@ from pathlib import Path  # noqa: E402
 
 import numba  # noqa: E402
 from bench_kernel import ns_per_candidate_sample  # noqa: E402
-from compare_records import same_numbers  # noqa: E402
 
 from avoa_pipeline import config, problem, workflow  # noqa: E402
+from avoa_pipeline.fit import same_record  # noqa: E402
 from avoa_pipeline.names import ALGORITHMS  # noqa: E402
 
 
@@ -82,7 +82,7 @@ def main() -> None:
             if args.compare is not None:
                 for k, r in zip(seeds, recs, strict=True):
                     ref = json.loads((args.compare / f"s{s}/c{c}/{alg}/seed{k}.json").read_text())
-                    if not same_numbers(r, ref):
+                    if same_record(r, ref):
                         mismatched.append(f"{alg} seed {k}")
         bound = total["cs"] * ns * 1e-9
         print(f"{'total':14s} {total['wall']:8.2f} {total['cpu']:8.2f} {total['cs']:13.3e} "

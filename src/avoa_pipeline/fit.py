@@ -13,6 +13,41 @@ from .errors import ConfigError
 from .optimizers import ALGORITHMS, Budget, minimize_together
 from .problem import Problem
 
+ISE_RTOL = 1e-9
+PATH_RTOL = 1e-4
+"""A record is bit for bit the same on one machine (same CPU, same libraries); across machines
+records agree to these relative tolerances. The objective's last bits depend on the CPU's
+floating-point path (vector width, fused multiply-add in numpy's and numba's code); L-BFGS-B's
+finite-difference gradient divides such a difference by its step (about 1e-8), so on another
+x86-64 CPU its path moves: measured on an AMD EPYC against references made on an AVX-512 Intel
+(tests/unit/test_lockstep.py), best ISE by at most 5e-11 relative, the parameters by 1.2e-6, the
+best-so-far history by 7.4e-6; the other six algorithms were equal bit for bit. The best ISE is a
+minimum, first-order flat, hence ISE_RTOL; the path (parameters, history) gets PATH_RTOL, an order
+above the largest difference seen and still two below what a change of an optimizer's moves does
+to a record (percent). Counts (evaluations, iterations) are exact on any machine."""
+
+
+def same_record(a: dict, b: dict, *, exact: bool = True) -> list[str]:
+    """The numbers in which two records of one seed differ (empty: the same), timings and
+    provenance aside: bit for bit (``exact``, one machine) or to ISE_RTOL / PATH_RTOL."""
+    pairs = {
+        "best_params": ([a["best_params"][k] for k in a["param_names"]],
+                        [b["best_params"][k] for k in b["param_names"]], PATH_RTOL),
+        "best_ise": (a["best_ise"], b["best_ise"], ISE_RTOL),
+        "history.best_ise": (a["history"]["best_ise"], b["history"]["best_ise"], PATH_RTOL),
+    }  # fmt: skip
+    bad = [k for k in ("nfe", "iterations") if a[k] != b[k]]
+    if a["param_names"] != b["param_names"] or a["history"]["nfe"] != b["history"]["nfe"]:
+        bad.append("param_names or history.nfe")
+        return bad
+    for key, (x, y, rtol) in pairs.items():
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        same = np.array_equal(x, y) if exact else (
+            x.shape == y.shape and np.allclose(x, y, rtol=rtol, atol=0.0))  # fmt: skip
+        if not same:
+            bad.append(key)
+    return bad
+
 
 def versions() -> dict:
     out = {
