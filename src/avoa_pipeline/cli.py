@@ -220,6 +220,8 @@ def cmd_fit(args) -> None:
     prob = problem.build(cfg, args.scenario, args.case, args.data, noise=not args.noise_free)
     record = fit.run(cfg, prob, args.algorithm, args.seed, budget)
     write_json(record, args.out)
+    for note in prob.notes:
+        print(f"warning: {note}", file=sys.stderr)
 
 
 def cmd_generate(args) -> None:
@@ -337,6 +339,11 @@ def _model_and_record(args, data):
     if data is None:
         return model, None
     rec = inputs.read_record(data, cycler=args.cycler, current_sign=args.current_sign)
+    from . import records
+    from .model.ecm import IDX
+
+    # the model's capacity tells the units the record alone cannot (minutes, mA)
+    records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]))
     needs_t = {"thermal", "bv_arrhenius"} & set(model.config.effects)
     if needs_t and "temperature_c" not in rec.frame.columns:
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "

@@ -73,12 +73,12 @@ def _read(path, cycler: str | None, current_sign: str) -> Read:
     frame = records.validate(raw, str(path))
     if current_sign == CURRENT_SIGNS[1]:
         frame = frame.assign(current_a=-frame["current_a"])
-    records.check_scale(frame, str(path))
+    notes = records.check_scale(frame, str(path))
     side = path.with_suffix(".json")
     origin = {"read_as": "canonical CSV", "current_sign": current_sign}
     if side.is_file():
         origin["sidecar"] = str(side)
-    return Read(path, frame, records.frame_sign(frame), True, (), origin)
+    return Read(path, frame, records.frame_sign(frame), True, notes, origin)
 
 
 def _judge(reads: list[Read], current_sign: str) -> list[records.Checked]:

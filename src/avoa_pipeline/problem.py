@@ -7,7 +7,6 @@ at the cell's known values.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -17,10 +16,10 @@ import numpy as np
 from . import config as config_mod
 from . import synthetic
 from .errors import DataError
-from .io import read_csv, uniform_step
+from .io import read_csv, read_json, sha256, uniform_step
 from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
-from .records import validate
+from .records import check_scale, validate
 
 
 @dataclass
@@ -36,6 +35,7 @@ class Problem:
     time_s: np.ndarray
     current_a: np.ndarray
     voltage_v: np.ndarray
+    notes: tuple[str, ...] = ()  # what the data could not tell (records.check_scale's warnings)
 
     @property
     def ts(self) -> float:
@@ -94,17 +94,20 @@ def build(
         df = validate(read_csv(data), str(data), min_samples=3)
         t, i, v = (df[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
         uniform_step(data, t)
-        side = synthetic.sidecar(data)
-        meta = json.loads(side.read_text()) if side.exists() else {}
+        meta = _sidecar(data)
         if meta and (meta.get("scenario"), meta.get("case")) != (scenario, case):
             raise DataError(
-                f"{side}: field scenario/case: is {meta.get('scenario')}/"
+                f"{synthetic.sidecar(data)}: field scenario/case: is {meta.get('scenario')}/"
                 f"{meta.get('case')}, the fit asked for {scenario}/{case}"
             )
     truth_cfg = cfg["true_params"][c.temperature]
     truth = vector(meta["true_params"]) if "true_params" in meta else None
     fixed = truth.copy() if truth is not None else vector(truth_cfg)
     names, lb, ub = config_mod.bounds(cfg, case)
+    if data is not None:  # ms, mA, mV, minutes: refused before any fit, against the largest
+        # capacity the fit may find (records.check_scale: a known capacity tells the units)
+        q_max = ub[names.index("q")] if "q" in names else fixed[PARAM_NAMES.index("q")]
+        notes = check_scale(df, str(data), float(q_max))
     spec = ModelSpec.for_scenario_case(cfg["constants"], scenario, case)
     return Problem(
         scenario,
@@ -118,4 +121,25 @@ def build(
         np.asarray(t),
         np.asarray(i),
         np.asarray(v),
+        notes if data is not None else (),
     )
+
+
+def _sidecar(data) -> dict:
+    """The dataset's JSON sidecar (``synthetic.write``), or {} without one; refused when it is not
+    a JSON object or no longer describes the CSV beside it (its ``csv_sha256``)."""
+    side = synthetic.sidecar(data)
+    if not side.exists():
+        return {}
+    if side.is_dir():
+        raise DataError(f"{side}: a folder where the sidecar of {data} belongs")
+    meta = read_json(side, what=f"sidecar of {data}")
+    if not isinstance(meta, dict):
+        raise DataError(f"{side}: not a JSON object (sidecar of {data})")
+    digest = meta.get("csv_sha256")
+    if digest is not None and digest != sha256(data):
+        raise DataError(
+            f"{side}: field 'csv_sha256': does not match {data} (the CSV changed after the "
+            "sidecar was written: regenerate it, or remove the sidecar to fit the CSV alone)"
+        )
+    return meta

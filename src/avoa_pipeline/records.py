@@ -43,8 +43,14 @@ STEP_FRACTION = 0.1
 """A current step: a change of |ΔI| above this fraction of the 99th-percentile |I| (the pulse
 edges and load changes of a test, not the ripple of a controlled current)."""
 
-MAX_CURRENT_A = 100.0
-"""|I| (99th percentile) above this is taken for milliamperes: the pipeline models single cells."""
+AMBIGUOUS_CURRENT_A = 30.0
+"""Without a capacity, a 99th-percentile |I| above this gets a warning, not a refusal. Cells of up
+to about 5 Ah (cylindrical, pouch, coin) are tested below 6 C, so below 30 A; a larger current is
+a large-format cell (a 280 Ah LFP prismatic runs its drive cycles at 224 A) or milliamperes of a
+small one (50 mA pulses of a 0.1 Ah cell written as 50). The records cannot tell the two apart:
+a current k times too large makes every fitted resistance k times smaller and the capacity k
+times larger, and the voltage the model predicts is the same. Only a capacity decides it
+(MAX_C_RATE, MIN_C_RATE), so the warning names what is assumed and asks for it."""
 MAX_C_RATE = 50.0
 """With a known capacity, a 99th-percentile current above 50 C is taken for milliamperes (no
 lithium-ion cell is tested above that)."""
@@ -62,11 +68,25 @@ VOLTAGE_RANGE_V = (0.5, 6.0)
 MIN_TIME_STEP_S = 1e-3
 """Cyclers and BMS loggers sample at 1 kHz at most: a median step below 1 ms means the time is
 not in seconds (1-s logging written in hours gives 0.28 ms)."""
+FAST_TIME_STEP_S = 0.05
+"""A median step below 50 ms (above 20 Hz) gets a warning: cyclers log at 10 Hz at most outside
+short pulse tests, and 1-s logging written in minutes gives 16.7 ms. Without a capacity the
+records cannot tell minutes from a fast logger (a time 60 times too short makes the capacity and
+every time constant 60 times smaller, and the voltage the same); with one, the rests can
+(OCV_SLOPE_MAX)."""
+TEMPERATURE_RANGE_C = (-60.0, 150.0)
+"""Cell temperatures in °C: lithium-ion cells are tested from -40 °C (chamber limits reach -60)
+to about 85 °C, and a cell above 150 °C is in thermal runaway, which no model here describes.
+Kelvin (233-423 for the same range) lies above it: that is the unit slip this catches."""
 MAX_GAP_S = 3600.0
 GAP_STEPS = 100
 """A logging gap longer than an hour, and than 100 of the record's median steps, hides what the
 cell did (a charge not exported, a test paused): charge is counted within the stretches between
-such gaps only. (The second condition keeps a record whose time is in ms from being all gaps.)"""
+such gaps only. (The second condition keeps a record whose time is in ms from being all gaps.)
+A record whose row before such a gap carries a current (above the rest line) is refused: the
+zero-order hold would have the model draw that current through the whole gap (2 A over two
+hours is 4 Ah, more than an 18650 holds), so every fitted parameter would answer a charge that
+never flowed."""
 
 OCV_SLOPE_MAX = 5.0
 """The steepest mean slope of a lithium-ion OCV between two rests, in V per unit SOC (the ends of
@@ -115,6 +135,9 @@ def validate(
     for col in required:
         if col not in frame.columns:
             raise DataError(f"{source}: missing column {col!r} (need {', '.join(required)})")
+    for col in COLUMNS:  # pandas names a repeated header 'x.1': which one is meant is unknown
+        if col in frame.columns and f"{col}.1" in frame.columns:
+            raise DataError(f"{source}: two columns named {col!r}; keep one")
     if len(frame) < min_samples:
         raise DataError(f"{source}: {len(frame)} samples; need at least {min_samples}")
     out = {}
@@ -188,27 +211,26 @@ def check_scale(
     capacity_ah: float | None = None,
     *,
     names: dict[str, str] | None = None,
-) -> None:
-    """One cell's record in seconds, amperes and volts: DataError naming the column (``names``
-    maps a canonical column to the raw export's own, for messages about a raw file).
+) -> tuple[str, ...]:
+    """One cell's record in seconds, amperes, volts and °C: DataError naming the column (``names``
+    maps a canonical column to the raw export's own, for messages about a raw file); returns the
+    warnings where the record cannot tell a unit (what was assumed and what would show it).
 
-    - time: a median step of at least MIN_TIME_STEP_S, and no stretch moving more charge than
-      the cell can hold (CAPACITY_MARGIN × a known capacity, else 1/MIN_C_RATE hours of the
-      record's 99th-percentile current): milliseconds and hours are caught;
-    - current: a 99th-percentile |I| above zero, within MAX_CURRENT_A and, with a known
-      capacity, within MAX_C_RATE;
-    - voltage: within VOLTAGE_RANGE_V.
+    - time: a median step of at least MIN_TIME_STEP_S (a warning below FAST_TIME_STEP_S), no
+      stretch moving more charge than the cell can hold (CAPACITY_MARGIN × a known capacity,
+      else 1/MIN_C_RATE hours of the record's 99th-percentile current): milliseconds and hours
+      are caught; with a known capacity, minutes too (the rests, OCV_SLOPE_MAX); no logging gap
+      (MAX_GAP_S) under load;
+    - current: a 99th-percentile |I| above zero and, with a known capacity, between MIN_C_RATE
+      and MAX_C_RATE; without one, above AMBIGUOUS_CURRENT_A a warning;
+    - voltage: within VOLTAGE_RANGE_V; temperature within TEMPERATURE_RANGE_C.
     """
     col = {c: c for c in COLUMNS} | (names or {})
     t = frame["time_s"].to_numpy(dtype=float)
     i = frame["current_a"].to_numpy(dtype=float)
     v = frame["voltage_v"].to_numpy(dtype=float)
+    notes = []
     scale = current_scale(i)
-    if scale > MAX_CURRENT_A:
-        raise DataError(
-            f"{source}: column {col['current_a']!r}: 99th-percentile |I| {scale:g} > "
-            f"{MAX_CURRENT_A:g} A; looks like mA (need A)"
-        )
     if capacity_ah is not None and scale > MAX_C_RATE * capacity_ah:
         raise DataError(
             f"{source}: column {col['current_a']!r}: 99th-percentile |I| {scale:g} A "
@@ -219,12 +241,21 @@ def check_scale(
         raise DataError(
             f"{source}: column {col['current_a']!r}: no current flows; nothing to identify"
         )
+    if capacity_ah is None and scale > AMBIGUOUS_CURRENT_A:
+        notes.append(
+            f"{source}: column {col['current_a']!r}: 99th-percentile |I| {scale:.4g} taken as "
+            f"amperes (a large-format cell); if it is mA, every fitted resistance is 1000 times "
+            "too small and the capacity 1000 times too large: give the capacity to check"
+        )
     lo, hi = VOLTAGE_RANGE_V
     if v.min() < lo or v.max() > hi:
         raise DataError(
             f"{source}: column {col['voltage_v']!r}: values {v.min():g}..{v.max():g} "
             f"outside {lo:g}..{hi:g} V of one cell (mV given?)"
         )
+    if "temperature_c" in frame.columns:
+        _check_temperature(frame["temperature_c"].to_numpy(dtype=float), source,
+                           col["temperature_c"])  # fmt: skip
     if t.size > 1:
         step = float(np.median(np.diff(t)))
         if step < MIN_TIME_STEP_S:
@@ -233,7 +264,16 @@ def check_scale(
                 f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes "
                 "(need s)?"
             )
-    _check_rest_slope(t, i, v, scale, source, col["time_s"])
+        _check_gaps(t, i, scale, source, col)
+    decided = _check_rest_slope(t, i, v, scale, source, col["time_s"], capacity_ah)
+    if t.size > 1 and np.median(np.diff(t)) < FAST_TIME_STEP_S and not (decided and capacity_ah):
+        step = float(np.median(np.diff(t)))
+        notes.append(
+            f"{source}: column {col['time_s']!r}: median step {step:.3g} s ({1 / step:.3g} Hz) "
+            "taken as seconds; if the time is in minutes, the capacity and every time constant "
+            "come out 60 times too small (rests between loads, with the capacity given, "
+            "would show it)"
+        )
     swing = charge_swing_ah(t, i)
     limit = CAPACITY_MARGIN * capacity_ah if capacity_ah is not None else scale / MIN_C_RATE
     if swing > limit:
@@ -246,33 +286,68 @@ def check_scale(
             f"{source}: column {col['time_s']!r}: the record moves {swing:.4g} Ah in "
             f"one stretch, more than {why}; is the time in ms (need s)?"
         )
+    return tuple(notes)
 
 
-def _check_rest_slope(t, i, v, scale: float, source: str, column: str) -> None:
+def _check_temperature(temp, source: str, column: str) -> None:
+    lo, hi = TEMPERATURE_RANGE_C
+    if temp.min() >= lo and temp.max() <= hi:
+        return
+    kelvin = temp.min() >= lo + 273.15 and temp.max() <= hi + 273.15
+    hint = "looks like kelvin (need °C)" if kelvin else f"outside {lo:g}..{hi:g} °C of a cell"
+    raise DataError(f"{source}: column {column!r}: values {temp.min():g}..{temp.max():g}; {hint}")
+
+
+def _check_gaps(t, i, scale: float, source: str, col: dict) -> None:
+    """No logging gap (MAX_GAP_S and GAP_STEPS) after a row that carries a current."""
+    dt = np.diff(t)
+    gap = max(MAX_GAP_S, GAP_STEPS * float(np.median(dt)))
+    under_load = (dt > gap) & (np.abs(i[:-1]) > REST_FRACTION * scale)
+    if under_load.any():
+        k = int(np.flatnonzero(under_load)[0])
+        raise DataError(
+            f"{source}: column {col['time_s']!r} row {k + 2}: a {dt[k]:.0f}-s logging gap after "
+            f"a row at {i[k]:.4g} A; the current over it is unknown (the model would draw "
+            f"{abs(i[k]) * dt[k] / 3600:.3g} Ah there): split the record at the gap"
+        )
+
+
+def _check_rest_slope(
+    t, i, v, scale: float, source: str, column: str, capacity_ah: float | None = None
+) -> bool:
     """The time unit from the rests: between consecutive rests (two intervals or more) that the
     current moved at least 1 % of the record's swing apart, the rested voltage changes by ΔV over
     the counted charge Δq; their median |ΔV/Δq| (V/Ah) times the capacity is the OCV's slope, at
-    most OCV_SLOPE_MAX, so the capacity is at least slope/OCV_SLOPE_MAX and the current's C-rate
-    at most MAX_C_RATE. Needs three such pairs (a GITT or HPPC test has dozens)."""
+    most OCV_SLOPE_MAX: with a known capacity that is the check (a time in minutes makes it 60
+    times steeper), without one the capacity is at least slope/OCV_SLOPE_MAX and the current's
+    C-rate at most MAX_C_RATE. Needs three such pairs (a GITT or HPPC test has dozens): returns
+    whether it had them."""
     if t.size < 4:
-        return
+        return False
     dt = np.diff(t)
     q = np.r_[0.0, np.cumsum(i[:-1] * dt)] / 3600.0
     ends = [b for a, b in runs_of(np.abs(i[:-1]) <= REST_FRACTION * scale) if b - a >= 2]
     if len(ends) < 4:
-        return
+        return False
     qe, ve = q[np.array(ends) - 1], v[np.array(ends) - 1]
     dq, dv = np.diff(qe), np.diff(ve)
     moved = np.abs(dq) >= 0.01 * max(float(np.ptp(q)), 1e-12)
     if moved.sum() < 3:
-        return
+        return False
     slope = float(np.median(np.abs(dv[moved] / dq[moved])))
+    if capacity_ah is not None and slope * capacity_ah > OCV_SLOPE_MAX:
+        raise DataError(
+            f"{source}: column {column!r}: the rested voltage changes {slope:.3g} V per Ah "
+            f"counted, {slope * capacity_ah:.3g} V per unit SOC of {capacity_ah:g} Ah (an OCV "
+            f"changes {OCV_SLOPE_MAX:g} at most); is the time in minutes or hours (need s)?"
+        )
     if scale * slope / OCV_SLOPE_MAX > MAX_C_RATE:
         raise DataError(
             f"{source}: column {column!r}: the rested voltage changes {slope:.3g} V per Ah "
             f"counted, which makes the current over {MAX_C_RATE:g} C for any cell; is the time "
             "in hours or minutes (need s)?"
         )
+    return True
 
 
 def check_capacity(capacity_ah: float, swing_ah: float, scale_a: float, what: str) -> None:
@@ -498,11 +573,12 @@ def check(
     :func:`check_scale` and :func:`sign_evidence`; a contradicted sign is a DataError, a sign
     the record cannot tell a warning."""
     clean = validate(frame, source, first_row=first_row)
-    check_scale(clean, source, capacity_ah)
+    notes = check_scale(clean, source, capacity_ah)
     ev = require_sign(
         clean["time_s"], clean["current_a"], clean["voltage_v"], source, "column 'current_a'"
     )
-    notes = () if ev.verdict != CANNOT_TELL else (sign_unclear(source, "column 'current_a'", ev),)
+    if ev.verdict == CANNOT_TELL:
+        notes = (*notes, sign_unclear(source, "column 'current_a'", ev))
     return Checked(clean, source, ev, notes, dict(origin or {"read_as": "frame"}))
 
 

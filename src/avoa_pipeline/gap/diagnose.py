@@ -84,7 +84,8 @@ def check_options(train: list[Checked], validate: list[Checked], capacity_ah, so
     if capacity_ah is not None:
         records.check_capacity(capacity_ah, swing, scale, "--capacity-ah")
     q_ocv = getattr(ocv_table, "capacity_ah", None)
-    if q_ocv:
+    if q_ocv:  # the slow test's charge is a capacity in its own units: the units must agree
+        records.check_capacity(q_ocv, 0.0, scale, f"{ocv_table.source}: the slow branch's")
         if swing > records.CAPACITY_MARGIN * q_ocv:
             raise DataError(f"{ocv_table.source}: the slow branch moves {q_ocv:.4g} Ah, less than "
                             f"the {swing:.4g} Ah the records move; it does not span the cell "
@@ -93,6 +94,10 @@ def check_options(train: list[Checked], validate: list[Checked], capacity_ah, so
             raise DataError(f"{ocv_table.source}: the slow branch moves {q_ocv:.4g} Ah, less than "
                             f"--capacity-ah {capacity_ah:g} Ah; its SOC 0-1 would cover part of "
                             "the cell only")  # fmt: skip
+    known = capacity_ah if capacity_ah is not None else q_ocv
+    if known:  # a known capacity tells units the records alone cannot (records.check_scale)
+        for c in every:
+            records.check_scale(c.frame, c.source, known)
 
 
 def sanity(base_rmse_v: float, v: np.ndarray, sources) -> None:

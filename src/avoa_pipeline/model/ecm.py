@@ -135,7 +135,7 @@ NAMES = tuple(PARAMS)
 LIMITS: dict[str, tuple[float, float]] = {
     "vnom": (1.5, 5.0),
     "lc": (-2.0, 0.9999),  # β: OCV rising with SOC
-    "lq": (1e-3, 1e4),  # 1 mAh to records.MAX_CURRENT_A / records.MIN_C_RATE
+    "lq": (1e-3, 1e4),  # 1 mAh to 100 A / records.MIN_C_RATE (the largest cells)
     "soc0": (0.0, 1.0),
     "r0": (0.0, 2.0),
     "r1": (0.0, 2.0),
@@ -154,7 +154,7 @@ LIMITS: dict[str, tuple[float, float]] = {
     "bvg": (0.0, 1e5),  # 1/i0: an exchange current of 10 µA at least
     "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
     "th1": (0.0, 12000.0),
-    "ioff": (-10.0, 10.0),  # a tenth of records.MAX_CURRENT_A
+    "ioff": (-10.0, 10.0),  # a current sensor's offset: far below any test current
     "voff": (-0.3, 0.3),
     "eta": (0.7, 1.0),
     "rho": (-1.5, 1.5),  # R0 while charging 0.22-4.5 times R0 while discharging

@@ -112,6 +112,24 @@ def _describe(runs) -> str:
     )
 
 
+def _why_not_slow(runs) -> str:
+    """What a run that is not slow of its own charge may be: a time in minutes (each run 60 times
+    shorter, so 60 times faster of its own charge) or a test over part of the cell (its own
+    charge a fraction of the capacity)."""
+    big = min((r for r in runs if r[3] > 0 and r[4] > 0), key=lambda r: r[4] / r[3], default=None)
+    if big is None:  # the slowest run of its own charge: the one the test meant as slow
+        return ""
+    rate = big[4] / big[3]
+    hints = []
+    if rate / 60.0 <= SLOW_C_RATE:
+        hints.append(f"if the time is in minutes (need s), it is C/{60 / rate:.2g}")
+    hints.append(
+        f"if it covers part of the cell only, the cell is larger than its {big[3]:.4g} Ah and a "
+        "slow test must run across its whole range"
+    )
+    return "; " + "; ".join(hints)
+
+
 def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
     """The OCV table of a slow test (see the module docstring)."""
     t = frame["time_s"].to_numpy(dtype=float)
@@ -127,7 +145,7 @@ def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
         found = _describe(runs) or "no current beyond the rest line"
         raise DataError(
             f"{source}: column 'current_a': no slow branch (a discharge or charge at "
-            f"≤ C/{1 / SLOW_C_RATE:g} of its own charge); found {found}"
+            f"≤ C/{1 / SLOW_C_RATE:g} of its own charge); found {found}{_why_not_slow(runs)}"
         )
     curves = {}
     for name, (a, b, sign, _, _) in branches.items():
