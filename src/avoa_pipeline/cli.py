@@ -303,6 +303,7 @@ def cmd_diagnose(args) -> None:
     report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
                                          ocv_table=read.ocv, validate=read.validate,
                                          warnings=read.warnings)  # fmt: skip
+    report["at_bounds"] = model.at_bounds()  # values the bounds set, not the records
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either
@@ -315,6 +316,11 @@ def cmd_diagnose(args) -> None:
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
     inputs.warn(read.warnings)  # once the command succeeded: an error stays one line
+    inputs.warn(
+        f"{out / 'model.json'}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
+        f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
+        for f in report["at_bounds"]
+    )
     v = report["verdict"]
     print(
         f"{', '.join(args.data)}: verdict {v['effect']}"

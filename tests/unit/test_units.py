@@ -122,3 +122,31 @@ def test_a_slow_test_that_is_not_slow_says_why_it_may_not_be():
     part = slow[slow["time_s"] < 19680.0 + 0.1 * 3600 * 2.0 / 0.08]
     with pytest.raises(DataError, match="if it covers part of the cell only"):
         ocv.from_slow_test(part, "part")
+
+
+def test_parameters_at_their_bounds_are_flagged(tmp_path, capsys):
+    import json
+
+    from test_ecm import TRUTH, profile_frame, with_voltage
+
+    from avoa_pipeline.model.ecm import IDX
+    from avoa_pipeline.model.fitted import FittedModel
+
+    path = tmp_path / "rec.csv"
+    with_voltage(profile_frame(), TRUTH, noise_v=1e-3, seed=3).to_csv(path, index=False)
+    out = tmp_path / "out"
+    assert main(["diagnose", str(path), "--out", str(out)]) == 0
+    report = json.loads((out / "diagnosis.json").read_text())
+    err = capsys.readouterr().err
+    # every flag is a warning line naming model.json and the parameter
+    for f in report["at_bounds"]:
+        assert f"{f['parameter']} = " in err
+    model = FittedModel.load(out / "model.json")
+    flagged = {f["parameter"] for f in model.at_bounds()}
+    assert flagged == {f["parameter"] for f in report["at_bounds"]}
+    lo, hi = model.bounds["lq"]
+    model.x[IDX["lq"]] = hi - 0.001 * (hi - lo)  # pressed against the upper bound
+    (cap,) = [f for f in model.at_bounds() if f["parameter"] == "capacity_ah"]
+    assert cap["bound"] == "upper"
+    model.x[IDX["lq"]] = 0.5 * (lo + hi)
+    assert "capacity_ah" not in {f["parameter"] for f in model.at_bounds()}

@@ -24,6 +24,12 @@ FORMAT = "avoa-pipeline-model"
 FORMAT_VERSION = 1
 
 
+AT_BOUND = 0.01
+"""A fitted parameter within 1 % of its searched range (in the optimizer's internal coordinates)
+of a bound is pressed against it: least squares stops there because the bound stops it, not the
+data, so the value is not a finding (the records would have taken it further)."""
+
+
 @dataclass
 class FittedModel:
     config: Config
@@ -86,6 +92,26 @@ class FittedModel:
                             f" V, outside one cell's {lo:g}..{hi:g} V: its parameters do not "
                             "describe a cell")  # fmt: skip
         return v
+
+    def at_bounds(self) -> list[dict]:
+        """The cell's parameters pressed against a bound of their fit: within AT_BOUND of the
+        searched range (internal coordinates, the optimizer's own) from either end."""
+        flags = []
+        for n in self.names:
+            lo, hi = self.bounds[n]
+            span = hi - lo
+            if not span > 0:
+                continue
+            x = float(self.x[IDX[n]])
+            near = {"lower": x - lo, "upper": hi - x}
+            side = min(near, key=near.get)
+            if near[side] <= AT_BOUND * span:
+                rep = ecm.PARAMS[n].report
+                value = self.parameters()[rep]
+                plo, phi = self._physical_bounds(n)
+                flags.append({"parameter": rep, "value": value, "bound": side,
+                              "bounds": [plo, phi]})  # fmt: skip
+        return flags
 
     # ------------------------------------------------------------------------------------------
 
