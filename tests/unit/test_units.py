@@ -145,7 +145,7 @@ def test_parameters_at_their_bounds_are_flagged(tmp_path, capsys):
     flagged = {f["parameter"] for f in model.at_bounds()}
     assert flagged == {f["parameter"] for f in report["at_bounds"]}
     lo, hi = model.bounds["lq"]
-    model.x[IDX["lq"]] = hi - 0.001 * (hi - lo)  # pressed against the upper bound
+    model.x[IDX["lq"]] = hi - 1e-6 * (hi - lo)  # pressed against the upper bound
     (cap,) = [f for f in model.at_bounds() if f["parameter"] == "capacity_ah"]
     assert cap["bound"] == "upper"
     model.x[IDX["lq"]] = 0.5 * (lo + hi)
