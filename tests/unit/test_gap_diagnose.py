@@ -113,7 +113,9 @@ def _bad_inputs():
         "NaN": (nan, [], "voltage_v"),
         "time backwards": (back, [], "time_s"),
         "too short": (g.iloc[:1500], [], "samples"),
-        "current in mA": (ma, [], "mA"),
+        # mA without a capacity: a warning, not a refusal (test_units: the records cannot tell
+        # mA of a small cell from A of a large one); with the capacity, refused
+        "current in mA": (ma, ["--capacity-ah", "2.57"], "mA"),
         "voltage in mV": (mv, [], "voltage_v"),
         "capacity <= 0": (g, ["--capacity-ah", "0"], "capacity"),
         "capacity not a number": (g, ["--capacity-ah", "x"], "capacity"),
