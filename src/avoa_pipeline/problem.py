@@ -7,7 +7,6 @@ at the cell's known values.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -17,7 +16,7 @@ import numpy as np
 from . import config as config_mod
 from . import synthetic
 from .errors import DataError
-from .io import read_csv, uniform_step
+from .io import read_csv, read_sidecar, uniform_step
 from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
 from .records import validate
@@ -95,7 +94,7 @@ def build(
         t, i, v = (df[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
         uniform_step(data, t)
         side = synthetic.sidecar(data)
-        meta = json.loads(side.read_text()) if side.exists() else {}
+        meta = read_sidecar(data)
         if meta and (meta.get("scenario"), meta.get("case")) != (scenario, case):
             raise DataError(
                 f"{side}: field scenario/case: is {meta.get('scenario')}/"
