@@ -467,4 +467,12 @@ def main(argv=None) -> int:
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # a file the user named that the system refuses (a name too long, a symlink loop) where
+        # no reader checked it first: still one line naming it; an OSError naming no file is a
+        # bug and keeps its traceback
+        if exc.filename is None:
+            raise
+        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     return 0

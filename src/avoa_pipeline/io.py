@@ -173,12 +173,10 @@ def _not_csv(head: bytes) -> str | None:
             return why
     if b"\x00" in head:
         # UTF-16 without a byte-order mark: ASCII text with a NUL beside every character
-        pairs = head[: 2 * (len(head) // 2)]
-        if (
-            pairs[1::2].count(0) > 0.9 * len(pairs) / 2
-            or pairs[0::2].count(0) > 0.9 * len(pairs) / 2
-        ):
-            return "UTF-16 text: save as UTF-8"
+        even, odd = head[0::2], head[1::2]
+        for nul, text in ((odd, even), (even, odd)):
+            if nul.count(0) > 0.9 * len(nul) and text.count(0) < 0.1 * len(text):
+                return "UTF-16 text: save as UTF-8"
         return "binary, not a CSV"
     line = head.split(b"\n", 1)[0]
     if len(line) == len(head) == HEADER_BYTES:
