@@ -219,12 +219,12 @@ def _csv_and_sidecar(out, inputs):
 
     from .io import check_output, sidecar_of
 
-    check_output(out, inputs=inputs)
     out = Path(out)
     if out.suffix.lower() != ".csv":
         raise UserError(
             f"--out {out}: must end .csv (its JSON sidecar {out.stem}.json goes beside it)"
         )
+    check_output(out, inputs=inputs)
     check_output(sidecar_of(out), inputs=inputs, what="--out's sidecar")
     return out, sidecar_of(out)
 
@@ -266,9 +266,9 @@ def cmd_recovery(args) -> None:
     from .io import atomic_paths, check_output
 
     out = Path(args.out)
-    check_output(out, inputs=[_config_path(args)])
     if out.suffix.lower() != ".csv":
         raise UserError(f"--out {out}: must end .csv (its summary {out.stem}.md goes beside it)")
+    check_output(out, inputs=[_config_path(args)])
     check_output(out.with_suffix(".md"), inputs=[_config_path(args)], what="--out's summary")
     cfg = config.load(args.config)
     if args.seeds < 1:
