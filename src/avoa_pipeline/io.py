@@ -345,8 +345,9 @@ def _same(a: Path, b: Path) -> bool:
 
 
 LOCK_SUFFIX = ".avoa-lock"
-"""The lock of an output ``x`` is the hidden file ``.x.avoa-lock`` beside it (a folder output's
-too: the folder need not exist to be locked)."""
+"""The lock of a file output ``x`` is the hidden file ``.x.avoa-lock`` beside it; a folder
+output's is ``.avoa-lock`` inside it (beside it would need the folder above to be writable, which
+``--out .`` in a home folder does not give)."""
 
 
 @contextlib.contextmanager
@@ -354,15 +355,15 @@ def output_lock(path: str | Path, *, folder: bool = False, command: str = ""):
     """Hold the lock of the output ``path`` while a command writes it: a second run on the same
     output is refused in one line naming the running one (pid, host, start, command).
 
-    The lock is an ``fcntl.flock`` on a file beside the output (:data:`LOCK_SUFFIX`) holding the
-    holder's pid, host, start and command. The kernel drops it when its process ends, however it
-    ends, so a lock file left by a killed run is stale by construction and the next run takes it
-    over (Snakemake's ``--unlock`` is not needed); a run that ends removes it, also on an error.
-    A file system that cannot lock (NFS mounted ``nolock``) runs unlocked. The output path is
+    The lock is an ``fcntl.flock`` on a file beside or in the output (:data:`LOCK_SUFFIX`) that
+    holds the holder's pid, host, start and command. The kernel drops it when its process ends,
+    however it ends, so a lock file left by a killed run is stale by construction and the next
+    run takes it over (Snakemake's ``--unlock`` is not needed); a run that ends removes it, also
+    on an error. A file system that cannot lock (NFS mounted ``nolock``) runs unlocked. The path is
     checked first (:func:`check_output`); folders made for the lock are removed if left empty."""
     check_output(path, folder=folder)
     path = Path(os.path.abspath(path))
-    lock = path.parent / f".{path.name}{LOCK_SUFFIX}" if path.name else path / LOCK_SUFFIX
+    lock = path / LOCK_SUFFIX if folder else path.parent / f".{path.name}{LOCK_SUFFIX}"
     made = _make_folders(lock.parent)
     try:
         fd = _take_lock(lock, path, command)

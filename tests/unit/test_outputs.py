@@ -306,12 +306,12 @@ def holder():
 def test_a_second_run_on_a_locked_output_is_refused_naming_the_first(tmp_path, capsys, holder):
     out = tmp_path / "d"
     proc = holder(out, folder=True)
-    started = json.loads((tmp_path / ".d.avoa-lock").read_text())["start"]
+    started = json.loads((out / ".avoa-lock").read_text())["start"]
     assert main(["diagnose", "/dev/null", "--out", str(out)]) == 2
     _error(capsys, f"another run is writing it (pid {proc.pid} on ")
     assert main(["diagnose", "/dev/null", "--out", str(out)]) == 2
     assert started in capsys.readouterr().err
-    assert not out.exists()
+    assert [p.name for p in out.iterdir()] == [".avoa-lock"]  # the holder's, nothing else
 
 
 def test_the_lock_of_a_killed_run_is_taken_over(tmp_path, capsys, holder):
