@@ -87,7 +87,8 @@ def _temporary(path: Path):
 
 def _keep(path: Path) -> Path | None:
     """A hard link to the file at ``path`` (None if there is none, or the file system links no
-    files): what :func:`atomic_paths` puts back if a later rename fails."""
+    files): what :func:`atomic_paths` puts back if a later rename fails (without one, the new
+    file is removed)."""
     backup = path.with_name(f".{path.name}.{os.getpid()}.bak.tmp")
     try:
         os.link(path, backup)
@@ -107,11 +108,14 @@ def read_json(path: str | Path, what: str = ""):
     path = Path(path)
     label = f" ({what})" if what else ""
     try:
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise DataError(f"{path}: a folder, not a JSON file{label}")
+        if not stat.S_ISREG(mode):  # a device or a pipe: /dev/zero would be read without end
+            raise DataError(f"{path}: not a regular file (a device or a pipe){label}")
         return json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise DataError(f"{path}: no such file{label}") from None
-    except IsADirectoryError:
-        raise DataError(f"{path}: a folder, not a JSON file{label}") from None
     except OSError as exc:  # a symlink loop, a name too long, no permission
         raise DataError(f"{path}: cannot read{label} ({exc.strerror or exc})") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -417,9 +421,11 @@ def _take_lock(lock: Path, out: Path, command: str) -> int | None:
             raise UserError(f"--out {out}: another run is writing it ({holder}); wait for it to "
                             "end, or choose another --out") from None  # fmt: skip
         except OSError as exc:
-            if exc.errno not in (errno.ENOLCK, errno.EINVAL, errno.EOPNOTSUPP, errno.ENOSYS):
-                raise
             os.close(fd)
+            if exc.errno not in (errno.ENOLCK, errno.EINVAL, errno.EOPNOTSUPP, errno.ENOSYS):
+                raise UserError(
+                    f"--out {out}: cannot lock {lock} ({exc.strerror or exc})"
+                ) from None
             with contextlib.suppress(OSError):
                 os.unlink(lock)
             return None  # the file system cannot lock: unlocked, as before locks existed

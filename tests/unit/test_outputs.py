@@ -224,6 +224,12 @@ def test_a_device_is_refused_without_reading_it(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_device_as_model_is_refused_without_reading_it(tmp_path, capsys, data):
+    assert main(["simulate", "/dev/zero", str(data), "--out", str(tmp_path / "p.csv")]) == 2
+    _error(capsys, "/dev/zero: not a regular file")
+    assert not (tmp_path / "p.csv").exists()
+
+
 def test_the_header_is_read_within_its_bound(tmp_path):
     junk = tmp_path / "junk.csv"
     junk.write_bytes(b"7" * (io.HEADER_BYTES + 1))
