@@ -205,12 +205,39 @@ def _float(name: str):
     return parse
 
 
+def _config_path(args):
+    """The config file a command reads (an input: no output may replace it)."""
+    from . import config
+
+    return args.config if args.config is not None else config.DEFAULT_CONFIG
+
+
+def _csv_and_sidecar(out, inputs):
+    """A command writing a CSV and its JSON sidecar: ``--out`` ends .csv, and neither file is an
+    input (nor an input's sidecar) or unwritable. Both paths, checked before any work."""
+    from pathlib import Path
+
+    from .io import check_output, sidecar_of
+
+    out = Path(out)
+    if out.suffix.lower() != ".csv":
+        raise UserError(
+            f"--out {out}: must end .csv (its JSON sidecar {out.stem}.json goes beside it)"
+        )
+    check_output(out, inputs=inputs)
+    check_output(sidecar_of(out), inputs=inputs, what="--out's sidecar")
+    return out, sidecar_of(out)
+
+
 def cmd_fit(args) -> None:
     import numba
 
     from . import config, fit, problem
-    from .io import write_json
+    from .io import check_output, write_json
 
+    if args.seed < 0:
+        raise UserError(f"--seed must be 0 or more, got {args.seed}")
+    check_output(args.out, inputs=[args.data, _config_path(args)])
     cfg = config.load(args.config)
     budget = fit.budget_from(cfg, args.pop_size, args.iterations, args.max_nfe)
     if args.threads is not None:
@@ -227,9 +254,10 @@ def cmd_fit(args) -> None:
 def cmd_generate(args) -> None:
     from . import config, synthetic
 
+    out, _ = _csv_and_sidecar(args.out, [_config_path(args)])
     cfg = config.load(args.config)
     synthetic.write(
-        synthetic.generate(cfg, args.scenario, args.case, noise=not args.noise_free), args.out
+        synthetic.generate(cfg, args.scenario, args.case, noise=not args.noise_free), out
     )
 
 
@@ -237,8 +265,13 @@ def cmd_recovery(args) -> None:
     from pathlib import Path
 
     from . import config, fit, recovery
-    from .io import atomic_path
+    from .io import atomic_paths, check_output
 
+    out = Path(args.out)
+    if out.suffix.lower() != ".csv":
+        raise UserError(f"--out {out}: must end .csv (its summary {out.stem}.md goes beside it)")
+    check_output(out, inputs=[_config_path(args)])
+    check_output(out.with_suffix(".md"), inputs=[_config_path(args)], what="--out's summary")
     cfg = config.load(args.config)
     if args.seeds < 1:
         raise UserError(f"--seeds must be positive, got {args.seeds}")
@@ -246,10 +279,9 @@ def cmd_recovery(args) -> None:
     runs = recovery.run(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
     table = recovery.summary(runs)
     md = recovery.to_markdown(table)
-    with atomic_path(args.out) as tmp:
-        runs.to_csv(tmp, index=False)
-    with atomic_path(Path(args.out).with_suffix(".md")) as tmp:
-        tmp.write_text(md + "\n")
+    with atomic_paths(out, out.with_suffix(".md")) as (csv_tmp, md_tmp):
+        runs.to_csv(csv_tmp, index=False)
+        md_tmp.write_text(md + "\n")
     print(md)
 
 
@@ -290,14 +322,14 @@ def cmd_diagnose(args) -> None:
 
     from . import inputs
     from .gap import diagnose, figure
-    from .io import atomic_path, check_output
+    from .io import atomic_paths, check_output
 
     out = Path(args.out)
     given = [*args.data, *args.validate, *([args.ocv] if args.ocv else [])]
     # every input and output is checked before any fit, so bad input costs no time
+    check_output(out, inputs=given, folder=True)
     for name in ("diagnosis.json", "diagnosis.png", "model.json"):
         check_output(out / name, inputs=given)
-    check_output(out, inputs=given, folder=True)
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
     report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
@@ -306,12 +338,9 @@ def cmd_diagnose(args) -> None:
     report["at_bounds"] = model.at_bounds()  # values the bounds set, not the records
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
-    # leaves no JSON either
-    with (
-        atomic_path(out / "diagnosis.png") as png,
-        atomic_path(out / "diagnosis.json") as js,
-        atomic_path(out / "model.json") as mj,
-    ):
+    # leaves no JSON either, and a failed rename puts back the files renamed before it
+    names = ("diagnosis.png", "diagnosis.json", "model.json")
+    with atomic_paths(*(out / n for n in names)) as (png, js, mj):
         figure.render(report, arrays, png)
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
@@ -429,6 +458,9 @@ def cmd_export(args) -> None:
 
 
 def main(argv=None) -> int:
+    from .io import output_lock
+
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(argv)
         commands = {
@@ -440,8 +472,20 @@ def main(argv=None) -> int:
             "simulate": cmd_simulate,
             "export": cmd_export,
         }
-        commands[args.command](args)
+        # one run at a time per output: the lock is held from before the first check to the
+        # last rename (io.output_lock); diagnose's --out is a folder, every other one a file
+        command = " ".join(["avoa_pipeline", *argv])
+        with output_lock(args.out, folder=args.command == "diagnose", command=command):
+            commands[args.command](args)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        # a file the user named that the system refuses (a name too long, a symlink loop) where
+        # no reader checked it first: still one line naming it; an OSError naming no file is a
+        # bug and keeps its traceback
+        if exc.filename is None:
+            raise
+        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     return 0

@@ -8,9 +8,15 @@ so an error never leaves half a file; :func:`check_output` is called before any 
 from __future__ import annotations
 
 import contextlib
+import csv
+import datetime
+import errno
+import fcntl
 import hashlib
 import json
 import os
+import socket
+import stat
 import tempfile
 import warnings
 from pathlib import Path
@@ -27,7 +33,45 @@ os.umask(_UMASK)
 @contextlib.contextmanager
 def atomic_path(path: str | Path):
     """Yield a temporary path beside ``path``; on success rename it onto ``path``."""
-    path = Path(path)
+    with atomic_paths(path) as (tmp,):
+        yield tmp
+
+
+@contextlib.contextmanager
+def atomic_paths(*paths: str | Path):
+    """Yield temporary paths beside ``paths``; on success rename them all onto ``paths``, or
+    none: where a later rename fails (a target became a folder), the targets already renamed get
+    their earlier content back (kept through a hard link while the renames run)."""
+    with contextlib.ExitStack() as stack:
+        tmps = [stack.enter_context(_temporary(Path(p))) for p in paths]
+        yield tmps
+        backups, done = [], []
+        try:
+            for p, tmp in zip(map(Path, paths), tmps, strict=True):
+                backups.append(_keep(p))
+                os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp creates 0600; outputs are ordinary
+                try:
+                    os.replace(tmp, p)
+                except OSError as exc:
+                    raise UserError(f"{p}: cannot write ({exc.strerror or exc})") from None
+                done.append(p)
+        except BaseException:
+            for p, backup in zip(done, backups, strict=False):
+                if backup is None:
+                    os.unlink(p)
+                else:
+                    os.replace(backup, p)
+            raise
+        finally:
+            for backup in backups:
+                if backup is not None:
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(backup)
+
+
+@contextlib.contextmanager
+def _temporary(path: Path):
+    """A temporary file beside ``path`` (its folder made if missing), removed on the way out."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -36,14 +80,21 @@ def atomic_path(path: str | Path):
     os.close(fd)
     try:
         yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp creates 0600; outputs are ordinary files
-        try:
-            os.replace(tmp, path)
-        except OSError as exc:  # e.g. the target became a folder
-            raise UserError(f"{path}: cannot write ({exc.strerror or exc})") from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+
+
+def _keep(path: Path) -> Path | None:
+    """A hard link to the file at ``path`` (None if there is none, or the file system links no
+    files): what :func:`atomic_paths` puts back if a later rename fails (without one, the new
+    file is removed)."""
+    backup = path.with_name(f".{path.name}.{os.getpid()}.bak.tmp")
+    try:
+        os.link(path, backup)
+    except OSError:
+        return None
+    return backup
 
 
 def write_json(obj, path: str | Path) -> None:
@@ -52,16 +103,41 @@ def write_json(obj, path: str | Path) -> None:
 
 
 def read_json(path: str | Path, what: str = ""):
-    """A JSON file's content; a missing or unreadable file is a one-line DataError naming it
-    (``what`` says whose file it is, e.g. "sidecar of x.csv")."""
+    """A JSON file's content; a missing, unreadable or malformed file is a one-line DataError
+    naming it (``what`` says whose file it is, e.g. "sidecar of x.csv")."""
     path = Path(path)
     label = f" ({what})" if what else ""
     try:
-        return json.loads(path.read_text())
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise DataError(f"{path}: a folder, not a JSON file{label}")
+        if not stat.S_ISREG(mode):  # a device or a pipe: /dev/zero would be read without end
+            raise DataError(f"{path}: not a regular file (a device or a pipe){label}")
+        return json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise DataError(f"{path}: no such file{label}") from None
+    except OSError as exc:  # a symlink loop, a name too long, no permission
+        raise DataError(f"{path}: cannot read{label} ({exc.strerror or exc})") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: not readable JSON{label} ({exc})") from None
+
+
+def sidecar_of(csv_path: str | Path) -> Path:
+    """The JSON sidecar beside a record CSV (``g.csv`` → ``g.json``): its metadata, an input of
+    every command that reads the CSV."""
+    return Path(csv_path).with_suffix(".json")
+
+
+def read_sidecar(csv_path: str | Path) -> dict:
+    """A CSV's sidecar as a mapping ({} if there is none); a folder in its place, a malformed
+    file or JSON that is not an object is a one-line DataError naming the sidecar."""
+    side = sidecar_of(csv_path)
+    if not _lexists(side):
+        return {}
+    meta = read_json(side, f"sidecar of {csv_path}")
+    if not isinstance(meta, dict):
+        raise DataError(f"{side}: not a JSON object (sidecar of {csv_path})")
+    return meta
 
 
 def write_log(path: str | Path | None, text: str) -> None:
@@ -79,32 +155,107 @@ def sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+HEADER_BYTES = 1 << 16
+"""What is read of a CSV before pandas sees it (64 KiB): the header line of any cycler export fits
+many times over, and a device, a binary file or junk without line ends (``/dev/zero``) must not be
+read into memory whole to find that it has no header."""
+
+_MAGIC = (
+    (b"\x1f\x8b", "gzip-compressed: decompress first"),
+    (b"PK\x03\x04", "a zip archive (an .xlsx workbook?): export it as CSV"),
+    (b"\xff\xfe", "UTF-16 text: save as UTF-8"),
+    (b"\xfe\xff", "UTF-16 text: save as UTF-8"),
+)
+
+
+def _not_csv(head: bytes) -> str | None:
+    """Why the first bytes of a file cannot start a CSV (None if they can)."""
+    if not head.strip():
+        return "empty file" if not head else "no header (blank first line)"
+    for magic, why in _MAGIC:
+        if head.startswith(magic):
+            return why
+    if b"\x00" in head:
+        # UTF-16 without a byte-order mark: ASCII text with a NUL beside every character
+        even, odd = head[0::2], head[1::2]
+        for nul, text in ((odd, even), (even, odd)):
+            if nul.count(0) > 0.9 * len(nul) and text.count(0) < 0.1 * len(text):
+                return "UTF-16 text: save as UTF-8"
+        return "binary, not a CSV"
+    line = head.split(b"\n", 1)[0]
+    if len(line) == len(head) == HEADER_BYTES:
+        return f"no line end in the first {HEADER_BYTES // 1024} KiB: binary or not a CSV"
+    try:
+        line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        return (
+            f"header not UTF-8 (byte {line[exc.start]:#04x} at offset {exc.start}): save as UTF-8"
+        )
+    if any(b < 32 and b not in b"\t\r\x0c" for b in line):
+        return "binary, not a CSV"
+    return None
+
+
+def _header(path: Path) -> list[str]:
+    """The file's column names, read from at most :data:`HEADER_BYTES`; DataError if the file
+    cannot be a comma-separated text file (naming what it is instead)."""
+    try:
+        mode = os.stat(path).st_mode
+        if stat.S_ISDIR(mode):
+            raise DataError(f"{path}: a folder, not a CSV file")
+        if not stat.S_ISREG(mode):
+            raise DataError(
+                f"{path}: not a regular file (a device or a pipe): save it to a file first"
+            )
+        with open(path, "rb") as f:
+            head = f.read(HEADER_BYTES)
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise DataError(f"{path}: a folder, not a CSV file") from None
+    except OSError as exc:  # a symlink loop, a name too long, no permission
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    why = _not_csv(head)
+    if why:
+        raise DataError(f"{path}: {why}")
+    header = head.split(b"\n", 1)[0].decode("utf-8").removeprefix("\ufeff")
+    if "," not in header:
+        if "\t" in header:
+            raise DataError(f"{path}: tab-separated: need ',' between fields")
+        if ";" in header:
+            raise DataError(
+                f"{path}: fields separated by ';' (need ',' between fields and '.' in numbers)"
+            )
+    names = [c.strip() for c in next(csv.reader([header]), [])]
+    twice = sorted({c for c in names if names.count(c) > 1})
+    if twice:
+        raise DataError(
+            f"{path}: column {twice[0]!r} appears {names.count(twice[0])} times in the header"
+        )
+    return names
+
+
 def read_csv(path: str | Path) -> pd.DataFrame:
     """A CSV with stripped column names; a missing, unreadable or mis-delimited file is a one-line
-    DataError (a semicolon-separated file, or decimal commas in a comma-separated one, would
-    otherwise be read as one column or as shifted values)."""
+    DataError. The header is looked at first (bounded, :data:`HEADER_BYTES`): a compressed,
+    UTF-16, binary, tab- or semicolon-separated file is named as such (pandas would read it as
+    one column, as shifted values, or fail on a codec), and a column given twice is refused
+    (pandas would rename the second one and read the first silently)."""
     path = Path(path)
-    if path.is_dir():
-        raise DataError(f"{path}: a folder, not a CSV file")
-    try:
-        with open(path, encoding="utf-8", errors="replace") as f:
-            header = f.readline()
-    except OSError:
-        header = ""  # pandas names the problem below
-    if ";" in header and "," not in header:
-        raise DataError(
-            f"{path}: fields separated by ';' (need ',' between fields and '.' in numbers)"
-        )
+    _header(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error", pd.errors.ParserWarning)
-            df = pd.read_csv(path, index_col=False)
+            df = pd.read_csv(path, index_col=False, encoding="utf-8-sig")
     except FileNotFoundError:
         raise DataError(f"{path}: no such file") from None
     except pd.errors.ParserWarning:
         raise DataError(f"{path}: rows have more fields than the header (decimal commas? need "
                         "',' between fields and '.' in numbers)") from None  # fmt: skip
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not UTF-8 text past the header (byte offset {exc.start}): "
+                        "save as UTF-8") from None  # fmt: skip
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise DataError(f"{path}: not a readable CSV ({msg})") from None
     except OSError as exc:
@@ -113,20 +264,68 @@ def read_csv(path: str | Path) -> pd.DataFrame:
     return df
 
 
+def _lexists(path: Path) -> bool:
+    """Whether anything (a dangling symlink too) stands at ``path``; False where the path cannot
+    name a file at all (too long): :func:`check_output` names that."""
+    try:
+        os.lstat(path)
+    except OSError:
+        return False
+    return True
+
+
+def _kind(path: Path, what: str) -> str:
+    """The kind of an output path: "file", "folder" or "missing"; UserError for a path that
+    cannot be written to as given (a symlink loop, a dangling symlink, a name too long)."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        if _lexists(path):
+            target = os.readlink(path)
+            raise UserError(f"{what} {path}: a symlink to {target}, which does not exist") from None
+        return "missing"
+    except NotADirectoryError:
+        return "missing"  # a file on the way: the probe below names it
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise UserError(f"{what} {path}: a symlink loop") from None
+        if exc.errno == errno.ENAMETOOLONG:
+            shown = (
+                str(path)
+                if len(str(path)) <= 100
+                else f"{str(path)[:60]}...({len(str(path))} characters)"
+            )
+            raise UserError(
+                f"{what} {shown}: file name or path too long for the file system"
+            ) from None
+        raise UserError(f"{what} {path}: cannot reach ({exc.strerror or exc})") from None
+    return "folder" if stat.S_ISDIR(st.st_mode) else "file"
+
+
 def check_output(path: str | Path, *, inputs=(), folder: bool = False, what: str = "--out"):
-    """Before any work: an output path that can be written and is none of the inputs. ``folder``:
-    the path is a folder the command writes into (it may exist); else a file (it may exist and
-    is replaced, but not by a folder). Nothing is created: the nearest existing folder on the
-    way is probed with a temporary file, removed at once. UserError naming the option."""
+    """Before any work: an output path that can be written and is none of the inputs, nor the
+    sidecar of an input CSV (:func:`sidecar_of`). ``folder``: the path is a folder the command
+    writes into (it may exist); else a file (it may exist and is replaced, but not by a folder).
+    Nothing is created: the nearest existing folder on the way is probed with a temporary file,
+    removed at once. UserError naming the option."""
+    if not os.fspath(path).strip():
+        raise UserError(f"{what}: empty path")
     path = Path(path)
+    kind = _kind(path, what)
     for p in inputs:
-        if p is not None and _same(path, Path(p)):
+        if p is None:
+            continue
+        p = Path(p)
+        if _same(path, p):
             raise UserError(f"{what} {path}: is an input of this command; it would be overwritten")
-    if path.exists() and path.is_dir() != folder:
-        kind = "a folder" if path.is_dir() else "a file"
-        raise UserError(f"{what} {path}: is {kind}; need {'a folder' if folder else 'a file'}")
-    probe = path if folder and path.is_dir() else path.parent
-    while not probe.exists():
+        if p.suffix.lower() == ".csv" and _same(path, sidecar_of(p)):
+            raise UserError(
+                f"{what} {path}: is the sidecar of the input {p}; it would be overwritten"
+            )
+    if kind != "missing" and (kind == "folder") != folder:
+        raise UserError(f"{what} {path}: is a {kind}; need {'a folder' if folder else 'a file'}")
+    probe = path if folder and kind == "folder" else path.parent
+    while not _lexists(probe):
         probe = probe.parent
     if not probe.is_dir():
         raise UserError(f"{what} {path}: {probe} is a file, not a folder")
@@ -139,10 +338,126 @@ def check_output(path: str | Path, *, inputs=(), folder: bool = False, what: str
 
 
 def _same(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (by path, through symlinks, or by inode). ``realpath``
+    rather than ``Path.resolve``: it does not raise on a symlink loop (``_kind`` names that)."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
     try:
-        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
-    except OSError:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
         return False
+
+
+LOCK_SUFFIX = ".avoa-lock"
+"""The lock of a file output ``x`` is the hidden file ``.x.avoa-lock`` beside it; a folder
+output's is ``.avoa-lock`` inside it (beside it would need the folder above to be writable, which
+``--out .`` in a home folder does not give)."""
+
+
+@contextlib.contextmanager
+def output_lock(path: str | Path, *, folder: bool = False, command: str = ""):
+    """Hold the lock of the output ``path`` while a command writes it: a second run on the same
+    output is refused in one line naming the running one (pid, host, start, command).
+
+    The lock is an ``fcntl.flock`` on a file beside or in the output (:data:`LOCK_SUFFIX`) that
+    holds the holder's pid, host, start and command. The kernel drops it when its process ends,
+    however it ends, so a lock file left by a killed run is stale by construction and the next
+    run takes it over (Snakemake's ``--unlock`` is not needed); a run that ends removes it, also
+    on an error. A file system that cannot lock (NFS mounted ``nolock``) runs unlocked. The path is
+    checked first (:func:`check_output`); folders made for the lock are removed if left empty."""
+    check_output(path, folder=folder)
+    path = Path(os.path.abspath(path))
+    lock = path / LOCK_SUFFIX if folder else path.parent / f".{path.name}{LOCK_SUFFIX}"
+    made = _make_folders(lock.parent)
+    try:
+        fd = _take_lock(lock, path, command)
+        try:
+            yield lock
+        finally:
+            if fd is not None:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(lock)  # while still held: no other run holds this file
+                os.close(fd)
+    finally:
+        for d in reversed(made):
+            with contextlib.suppress(OSError):
+                d.rmdir()  # only if empty: a failed run leaves no folder behind
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """Make ``folder`` and its missing parents; the ones made, outermost first."""
+    missing = []
+    while not _lexists(folder):
+        missing.append(folder)
+        folder = folder.parent
+    made = []
+    for d in reversed(missing):
+        try:
+            d.mkdir()
+        except FileExistsError:
+            continue  # another run made it meanwhile
+        except OSError as exc:
+            for m in reversed(made):
+                with contextlib.suppress(OSError):
+                    m.rmdir()
+            raise UserError(f"--out: cannot make {d} ({exc.strerror or exc})") from None
+        made.append(d)
+    return made
+
+
+def _take_lock(lock: Path, out: Path, command: str) -> int | None:
+    """The open, locked descriptor of ``lock`` with this run's details written in it."""
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_UMASK)
+        except OSError as exc:
+            raise UserError(f"--out {out}: cannot write in {lock.parent} "
+                            f"({exc.strerror or exc})") from None  # fmt: skip
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(fd)
+            os.close(fd)
+            raise UserError(f"--out {out}: another run is writing it ({holder}); wait for it to "
+                            "end, or choose another --out") from None  # fmt: skip
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno not in (errno.ENOLCK, errno.EINVAL, errno.EOPNOTSUPP, errno.ENOSYS):
+                raise UserError(
+                    f"--out {out}: cannot lock {lock} ({exc.strerror or exc})"
+                ) from None
+            with contextlib.suppress(OSError):
+                os.unlink(lock)
+            return None  # the file system cannot lock: unlocked, as before locks existed
+        # the holder may have removed the file between our open and our lock: then we locked a
+        # file no longer at that path, and try again on the one that is
+        try:
+            st, now = os.fstat(fd), os.stat(lock)
+            current = (st.st_dev, st.st_ino) == (now.st_dev, now.st_ino)
+        except FileNotFoundError:
+            current = False
+        if not current:
+            os.close(fd)
+            continue
+        info = {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "start": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "command": command,
+        }
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+        return fd
+
+
+def _holder(fd: int) -> str:
+    """The running holder of a lock, as its file tells it."""
+    try:
+        info = json.loads(os.pread(fd, 1 << 14, 0).decode())
+        return (f"pid {info['pid']} on {info['host']}, started {info['start']}: "
+                f"{info['command']}")  # fmt: skip
+    except (ValueError, KeyError, TypeError):
+        return "a run that has not yet written its details"
 
 
 def uniform_step(path, time_s: np.ndarray, rtol: float = 1e-6) -> float:

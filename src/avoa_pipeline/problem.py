@@ -16,7 +16,7 @@ import numpy as np
 from . import config as config_mod
 from . import synthetic
 from .errors import DataError
-from .io import read_csv, read_json, sha256, uniform_step
+from .io import read_csv, read_sidecar, sha256, uniform_step
 from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
 from .records import check_scale, validate
@@ -126,20 +126,14 @@ def build(
 
 
 def _sidecar(data) -> dict:
-    """The dataset's JSON sidecar (``synthetic.write``), or {} without one; refused when it is not
-    a JSON object or no longer describes the CSV beside it (its ``csv_sha256``)."""
-    side = synthetic.sidecar(data)
-    if not side.exists():
-        return {}
-    if side.is_dir():
-        raise DataError(f"{side}: a folder where the sidecar of {data} belongs")
-    meta = read_json(side, what=f"sidecar of {data}")
-    if not isinstance(meta, dict):
-        raise DataError(f"{side}: not a JSON object (sidecar of {data})")
+    """The dataset's JSON sidecar (``synthetic.write``; ``io.read_sidecar`` reads it), or {}
+    without one; refused when it no longer describes the CSV beside it (its ``csv_sha256``)."""
+    meta = read_sidecar(data)
     digest = meta.get("csv_sha256")
     if digest is not None and digest != sha256(data):
         raise DataError(
-            f"{side}: field 'csv_sha256': does not match {data} (the CSV changed after the "
-            "sidecar was written: regenerate it, or remove the sidecar to fit the CSV alone)"
+            f"{synthetic.sidecar(data)}: field 'csv_sha256': does not match {data} (the CSV "
+            "changed after the sidecar was written: regenerate it, or remove the sidecar to fit "
+            "the CSV alone)"
         )
     return meta

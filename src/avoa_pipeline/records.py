@@ -135,9 +135,6 @@ def validate(
     for col in required:
         if col not in frame.columns:
             raise DataError(f"{source}: missing column {col!r} (need {', '.join(required)})")
-    for col in COLUMNS:  # pandas names a repeated header 'x.1': which one is meant is unknown
-        if col in frame.columns and f"{col}.1" in frame.columns:
-            raise DataError(f"{source}: two columns named {col!r}; keep one")
     if len(frame) < min_samples:
         raise DataError(f"{source}: {len(frame)} samples; need at least {min_samples}")
     out = {}

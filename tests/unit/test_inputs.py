@@ -211,7 +211,7 @@ def test_bad_ocv_inputs_are_refused_or_warned(tmp_path):
     from avoa_pipeline.gap import diagnose
 
     read = inputs.read_inputs([_csv(tmp_path, _good(), "good.csv")], ocv=ma)
-    with pytest.raises(UserError, match="the slow branch's .* is the capacity in mAh"):
+    with pytest.raises(UserError, match=r"the slow branch's .* is the capacity in mAh"):
         diagnose.check_options(read.train, read.validate, None, None, read.ocv)
 
 
