@@ -382,6 +382,23 @@ def test_a_counter_dip_is_a_negative_increment_and_a_fall_to_near_zero_a_restart
     assert (dips > 0).sum() == 1
 
 
+def test_a_per_step_counter_after_a_short_step_restarts_at_the_step_change(tmp_path):
+    """Maccor's per-step counter: 5 s at 3 A (4.2 mAh), then a 1-A step whose first row comes
+    10 s in (2.8 mAh, two thirds of the previous count): not near zero, but no more than that
+    interval could count, at a change of step: a restart."""
+    from cycler_fixtures import write_maccor
+
+    protocol = [(60.0, 0.0, 10.0), (5.0, -3.0, 1.0), (60.0, 1.0, 10.0), (60.0, 0.0, 10.0)]
+    truth = simulate_logged(protocol)
+    path = write_maccor(truth, tmp_path / "m.csv")
+    counter = pd.read_csv(path, skiprows=2)["Capacity"].to_numpy()
+    k = int(np.flatnonzero(truth.step == 3)[0])
+    assert 0.5 < counter[k] / counter[k - 1] < 1.0  # the case a fraction alone takes for a dip
+    frame, info = cycler.convert(path, "maccor")
+    np.testing.assert_allclose(frame["current_a"][:-1], truth.interval_mean_discharge(), atol=1e-6)
+    assert info["current"]["counters"]["dips"] == 0
+
+
 HPPC_RESTART_STEP = 17  # the first step after the EIS: a new cycle, both counters restart
 
 

@@ -73,7 +73,16 @@ while the value before it held a step's or a cycle's count (a 10-s interval of a
 counter reads 4.685807 then 4.685794 Ah during a discharge pulse: its offset corrected, or a
 reverse trickle counted), a millionth of the value. Half lies orders of magnitude from both.
 A dip is kept as a (negative) increment, so it cancels when the counter recovers; taking it for
-a restart would count the whole counter (4.69 Ah) into one 0.25-s interval."""
+a restart would count the whole counter (4.69 Ah) into one 0.25-s interval. At a change of step
+a fall is a restart also when the new value is no more than the interval could have counted
+(COUNT_MARGIN): a per-step counter after a short step (5 s at 3 A, 4.2 mAh) whose next step's
+first row comes 10 s in (1 A, 2.8 mAh)."""
+
+COUNT_MARGIN = 2.0
+"""The most an interval can count: the larger |channel current| at its two rows × its length ×
+this. The channel may lag the true current at a step edge (a filter of about a second against
+logging intervals of 1-10 s at a step's start); twice its reading covers a channel at half its
+final value. A dip is a millionth of the counter, far below."""
 
 SNIFF_BYTES = 65536
 """How much of a text file the sniffer reads for a header: BioLogic's header block, the longest
@@ -749,14 +758,19 @@ def _resolution(c: np.ndarray) -> float:
     return float(d.min()) if d.size else 0.0
 
 
-def _increments(c: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+def _increments(c: np.ndarray, countable: np.ndarray | None = None
+                ) -> tuple[np.ndarray, int, np.ndarray]:  # fmt: skip
     """Per-interval count of an unsigned counter that may restart, the number of restarts, and
     the dips (falls that are not restarts). A restart is a fall (by more than its quantum) from a
-    positive value to at most RESTART_FRACTION of it: the interval then counted the new value.
-    Any other fall is a dip, kept as a negative increment (RESTART_FRACTION says why)."""
+    positive value to at most RESTART_FRACTION of it, or to at most what the interval could count
+    (``countable``, Ah; 0 where the step does not change): the interval then counted the new
+    value. Any other fall is a dip, kept as a negative increment (RESTART_FRACTION says why)."""
     d = np.diff(c)
     fall = d < -max(_resolution(c), 1e-12)
-    restart = fall & (c[:-1] > 0) & (c[1:] <= RESTART_FRACTION * c[:-1])
+    near_zero = c[1:] <= RESTART_FRACTION * c[:-1]
+    if countable is not None:
+        near_zero |= c[1:] <= countable
+    restart = fall & (c[:-1] > 0) & near_zero
     dips = np.where((d < 0) & ~restart, -d, 0.0)
     return np.where(restart, c[1:], d), int(restart.sum()), dips
 
@@ -765,19 +779,27 @@ def net_charge(arrays: dict, kind: str) -> tuple[np.ndarray, dict]:
     """Cumulative charge into the cell (Ah, charge positive) at each row, from the counters."""
     cs = arrays["counters"]
     dips = np.zeros(max(cs[0].size - 1, 0))
+    # at a change of step, what the interval could have counted (COUNT_MARGIN)
+    i = np.abs(arrays["current"])
+    countable = np.where(
+        np.diff(arrays["step"]) != 0,
+        COUNT_MARGIN * np.maximum(i[:-1], i[1:]) * np.diff(arrays["time"]) / 3600.0,
+        0.0,
+    )
     if kind == "pair":
-        up, r1, d1 = _increments(cs[0])
-        down, r2, d2 = _increments(cs[1])
+        up, r1, d1 = _increments(cs[0], countable)
+        down, r2, d2 = _increments(cs[1], countable)
         inc, restarts, dips = up - down, r1 + r2, np.maximum(d1, d2)
     elif kind == "step":
-        count, restarts, dips = _increments(cs[0])
+        count, restarts, dips = _increments(cs[0], countable)
         inc = count * np.sign(arrays["current"][1:])  # the direction of the interval's step
     else:  # signed: a running count, every change an increment
         inc, restarts = np.diff(cs[0]), 0
     q = np.concatenate([[0.0], np.cumsum(inc)])
     return q, {
         "restarts": restarts,
-        "restart_rule": f"a fall to at most {RESTART_FRACTION:g} of the previous value",
+        "restart_rule": f"a fall to at most {RESTART_FRACTION:g} of the previous value, or at "
+        f"a change of step to at most {COUNT_MARGIN:g} x |I| x the interval",
         "dips": int((dips > 0).sum()),
         "largest_dip_ah": float(dips.max()) if dips.size else 0.0,
         "resolution_ah": [_resolution(c) for c in cs],
@@ -843,8 +865,9 @@ def _join(path, parts: list[tuple[dict, dict]]):
                     ends = zip(prev["counters"], arrays["counters"], strict=True)
                     pair = {
                         "counters": [np.r_[c0[-1], c1[0]] for c0, c1 in ends],
-                        "current": np.r_[prev["current"][-1], arrays["current"][0]],
-                    }
+                        **{k: np.r_[prev[k][-1], arrays[k][0]]
+                           for k in ("current", "time", "step")},
+                    }  # fmt: skip
                     join_q = float(net_charge(pair, kind)[0][1])
             else:
                 dt = np.diff(t)
@@ -1015,8 +1038,11 @@ def convert(
         )
 
     # the scale of one cell, the records layer's limits, named by the raw columns
-    records.check_scale(out, str(path), names={"time_s": name["time"], "current_a": name["current"],
-                                               "voltage_v": name["voltage"]})  # fmt: skip
+    # (and the temperature's, where records checks it: named by the raw column as the others)
+    raw_names = {"time_s": name["time"], "current_a": name["current"], "voltage_v": name["voltage"]}
+    if "temperature" in columns:
+        raw_names["temperature_c"] = columns["temperature"]["column"]
+    records.check_scale(out, str(path), names=raw_names)
 
     # the sign, from the voltage's answer to the channel: its reading is the current at the
     # voltage's instant (the interval means of a coarse or stalled counter are checked again
