@@ -399,6 +399,21 @@ def test_a_per_step_counter_after_a_short_step_restarts_at_the_step_change(tmp_p
     assert info["current"]["counters"]["dips"] == 0
 
 
+def test_a_dip_at_a_step_change_is_not_a_restart():
+    """Arbin's charge counter at 37.5 mAh (three charge pulses into a new cycle) dips by 13 µAh
+    on the first row after an 18-A discharge pulse, logged 10 s later: at a change of step the
+    interval could have counted 0.1 Ah, but of discharge: the charge counter counts none."""
+    arrays = {
+        "time": np.array([0.0, 10.0, 20.0]),
+        "step": np.array([4, 5, 5]),
+        "current": np.array([-18.0, 0.0, 0.0]),
+        "counters": [np.array([0.0375, 0.037487, 0.037487]), np.array([4.2, 4.25, 4.25])],
+    }
+    q, info = cycler.net_charge(arrays, "pair")
+    np.testing.assert_allclose(q, [0.0, -0.05 - 13e-6, -0.05 - 13e-6], atol=1e-12)
+    assert (info["restarts"], info["dips"]) == (0, 1)
+
+
 HPPC_RESTART_STEP = 17  # the first step after the EIS: a new cycle, both counters restart
 
 

@@ -80,9 +80,11 @@ first row comes 10 s in (1 A, 2.8 mAh)."""
 
 COUNT_MARGIN = 2.0
 """The most an interval can count: the larger |channel current| at its two rows × its length ×
-this. The channel may lag the true current at a step edge (a filter of about a second against
-logging intervals of 1-10 s at a step's start); twice its reading covers a channel at half its
-final value. A dip is a millionth of the counter, far below."""
+this, in the counter's own direction (a charge counter counts charging current only). The
+channel may lag the true current at a step edge (a filter of about a second against logging
+intervals of 1-10 s at a step's start); twice its reading covers a channel at half its final
+value. A dip comes while the current flows against the counter's direction, where its
+direction's current, and so what it could count, is zero."""
 
 SNIFF_BYTES = 65536
 """How much of a text file the sniffer reads for a header: BioLogic's header block, the longest
@@ -779,19 +781,19 @@ def net_charge(arrays: dict, kind: str) -> tuple[np.ndarray, dict]:
     """Cumulative charge into the cell (Ah, charge positive) at each row, from the counters."""
     cs = arrays["counters"]
     dips = np.zeros(max(cs[0].size - 1, 0))
-    # at a change of step, what the interval could have counted (COUNT_MARGIN)
-    i = np.abs(arrays["current"])
-    countable = np.where(
-        np.diff(arrays["step"]) != 0,
-        COUNT_MARGIN * np.maximum(i[:-1], i[1:]) * np.diff(arrays["time"]) / 3600.0,
-        0.0,
-    )
-    if kind == "pair":
-        up, r1, d1 = _increments(cs[0], countable)
-        down, r2, d2 = _increments(cs[1], countable)
+    change = np.diff(arrays["step"]) != 0
+
+    def countable(i):  # at a change of step, what the interval could count (COUNT_MARGIN)
+        big = np.maximum(i[:-1], i[1:]) * np.diff(arrays["time"]) / 3600.0
+        return np.where(change, COUNT_MARGIN * big, 0.0)
+
+    current = arrays["current"]
+    if kind == "pair":  # each counts one direction only (a dip comes in the other one)
+        up, r1, d1 = _increments(cs[0], countable(np.clip(current, 0.0, None)))
+        down, r2, d2 = _increments(cs[1], countable(np.clip(-current, 0.0, None)))
         inc, restarts, dips = up - down, r1 + r2, np.maximum(d1, d2)
     elif kind == "step":
-        count, restarts, dips = _increments(cs[0], countable)
+        count, restarts, dips = _increments(cs[0], countable(np.abs(current)))
         inc = count * np.sign(arrays["current"][1:])  # the direction of the interval's step
     else:  # signed: a running count, every change an increment
         inc, restarts = np.diff(cs[0]), 0
