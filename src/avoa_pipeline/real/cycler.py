@@ -4,7 +4,9 @@
 cyclers' exports into one column set, with their header lines, time columns and unit prefixes.
 A cycler may have several column layouts (Arbin: the newer ``Test Time (s)`` one PyProBE maps,
 and MITS Pro's classic ``Test_Time(s)`` one that most public Arbin datasets use); the others come
-in through PyProBE's own extra column importers, and a workbook's data sheet is found by name.
+in through PyProBE's own extra column importers. A workbook's data sheets are found by their
+columns and named; one is read, or each, or all in order (``choose_sheets``, ``_join``), never
+silently the first.
 It was chosen over cellpy (its current release pins pandas < 3, which this environment has
 passed) and battery-data-toolkit (no Neware or Basytec reader). This module uses its cycler
 classes and their column maps, and adds the raw charge counters as extra column importers (its
@@ -20,10 +22,11 @@ answer (docs/cyclers.md):
 - *Current from the charge counters*: the mean current over each interval [t_k, t_k+1) (the
   model's zero-order hold: row k's current is held until row k+1), ΔQ/Δt of the cell's net charge.
   The counters do not lag at pulse edges as a filtered current channel does, and charge is
-  conserved by construction. Counters that restart (per step, per cycle) are handled: a drop
-  means the counter restarted during the interval, so the interval's charge is the new value.
-  (PyProBE's own ``Capacity [Ah]`` clips such a drop to zero and loses that charge.) Without
-  counters, or with ``current_from="channel"``, each sample of the channel is held.
+  conserved by construction. Counters restart (per step, per cycle) and dip: a fall to near
+  zero is a restart, the interval's charge the new value; a fall by a few quanta is a dip, a
+  negative increment (``RESTART_FRACTION``, ``COUNT_MARGIN``). (PyProBE's own ``Capacity [Ah]``
+  clips every drop to zero and loses that charge.) Without counters, or with
+  ``current_from="channel"``, each sample of the channel is held.
 - *Sign*: every supported cycler writes charge as positive; the output has discharge positive.
   The convention is confirmed against the voltage's answer to the current channel
   (``records.sign_evidence``, the one sign check of the package), and for cyclers with
@@ -32,6 +35,10 @@ answer (docs/cyclers.md):
 - *Units*: PyProBE converts prefixes (mA, mV, mAh, mA.h, ...). The counters' current and the
   channel's must agree within a factor of √1000: unit mistakes are factors of 1000 (a prefix) or
   3600 (A·s for Ah); lag and counter resolution are far below that.
+- *Temperature*: each layout's common headers; of several channels the first is used and the
+  others named in a warning; K converted, kelvin in a °C column refused (``KELVIN_RANGE``).
+- *Which cycler*: ``sniff`` matches a header against each cycler's columns, so a file given to
+  the wrong reader, or without ``--cycler``, is named ("it looks like an Arbin export").
 - *Voltage and temperature are never interpolated*: the output keeps the cycler's own samples.
   A repeated time stamp (a step's last row and the next step's first) keeps the later row.
 - *Rests*: optionally thinned (``rest_dt``), keeping existing samples only, at 10 per decade of
