@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from cycler_fixtures import (
+    CLASSIC_ARBIN_COLUMNS,
     WRITERS,
     counters_with_dips,
     export,
@@ -545,6 +546,21 @@ def test_a_workbook_sheet_each_sheet_or_all_sheets_in_order(drive_workbook, tmp_
                 for n in CYCLES)  # fmt: skip
     assert info["charge"]["discharged_ah_output"] == pytest.approx(total, abs=1e-9)
     assert info["sheets"]["joins"][0].startswith("time started over")
+
+
+def test_sheets_of_different_columns_are_not_joined(tmp_path):
+    from openpyxl import load_workbook
+
+    book = write_arbin_workbook({"A": simulate()}, tmp_path / "a.xlsx")
+    wb = load_workbook(book)
+    other = wb.copy_worksheet(wb["A"])
+    other.title = "B"
+    other.cell(1, len(CLASSIC_ARBIN_COLUMNS)).value = "Temperature (C)_1"
+    wb.save(book)
+    want = ("sheet 'B': its temperature column 'Temperature (C)_1' differs from sheet 'A''s "
+            "'Aux_Temperature_1(C)'")  # fmt: skip
+    with pytest.raises(DataError, match=re.escape(want)):
+        cycler.convert(book, "arbin", concat=True)
 
 
 def test_a_sheet_flag_on_a_text_export_is_refused(tmp_path):

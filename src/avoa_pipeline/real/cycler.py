@@ -846,10 +846,17 @@ def _join(path, parts: list[tuple[dict, dict]]):
         other = {k: columns[k] for k in columns if k not in ("sheet", "notes")}
         if other != first:
             diff = next(k for k in {*keys, *other} if first.get(k) != other.get(k))
+
+            def named(entry) -> str:  # the raw column names of a quantity, or "none"
+                if not isinstance(entry, dict):
+                    return "none" if entry is None else repr(entry)
+                cols = entry.get("columns", [entry])
+                return " + ".join(repr(c["column"]) for c in cols if "column" in c) or "none"
+
             raise DataError(
-                f"{where}: its {diff} columns differ from sheet {sheet_names[0]!r}'s "
-                f"({other.get(diff)} against {first.get(diff)}); sheets joined by "
-                "--sheets concat must have the same columns"
+                f"{where}: its {diff} column {named(other.get(diff))} differs from sheet "
+                f"{sheet_names[0]!r}'s {named(first.get(diff))}; sheets joined by --sheets "
+                "concat must have the same columns"
             )
         t = arrays["time"]
         if t.size < 2:
