@@ -343,7 +343,7 @@ def counters_with_dips(truth: Truth, restart_step: int, dips_ah=(13e-6, 1e-6, 2e
     both restarting at ``restart_step``, a new cycle), with the dips a real export shows: in
     each pulse against a counter's direction, from a row inside it on, the counter reads a few
     quanta low (4.685807 then 4.685794 Ah), and recovers at the pulse's end or stays corrected
-    (every other dip)."""
+    (every other dip); and over the pulse's inner rows it dithers by 0-2 quanta."""
     rng = np.random.default_rng(seed)
     restart = np.flatnonzero(truth.step == restart_step)[:1]
     chg, dch = _restart(truth.charged, restart), _restart(truth.discharged, restart)
@@ -357,6 +357,7 @@ def counters_with_dips(truth: Truth, restart_step: int, dips_ah=(13e-6, 1e-6, 2e
         k = a + int(rng.integers(2, b - a - 2))
         end = b - 1 if n % 2 == 0 else counter.size  # recovers at the pulse's last row, or not
         counter[k:end] -= dip
+        counter[a + 1 : b - 1] -= 10.0**-decimals * rng.integers(0, 3, b - a - 2)
         n += 1
     return np.round(chg, decimals), np.round(dch, decimals)
 

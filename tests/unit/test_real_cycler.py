@@ -430,9 +430,10 @@ def test_an_hppc_and_eis_export_with_dipping_counters_converts_to_its_charge(tmp
                                                                             edge_rows):  # fmt: skip
     """A classic Arbin HPPC + EIS export as MITS Pro writes it: 18-A pulses logged every
     0.25 s, 10-s logging elsewhere, a 57,000-s EIS step of two rows, a channel lagging by
-    0.5 s, counters to 6 decimals that dip by 1, 2 or 13 µAh in pulses against their direction
-    (half of them recovering), and a new cycle (both counters restart) after the EIS. Taking
-    each dip for a restart counted the whole 4.5-Ah counter into one 0.25-s interval."""
+    0.5 s, counters to 6 decimals that dither by 0-2 quanta and dip by 1, 2 or 13 µAh in pulses
+    against their direction (half of the dips recovering), and a new cycle (both counters
+    restart) after the EIS. Taking each fall for a restart counted the whole 4.5-Ah counter into
+    a 0.25-s interval, and the export was refused as "mixed units"."""
     path, truth = _hppc_export(tmp_path, edge_rows)
     assert np.diff(truth.t).max() == 57000.0  # the EIS step: no row between its ends
     frame, info = cycler.convert(path, "arbin")
@@ -444,8 +445,8 @@ def test_an_hppc_and_eis_export_with_dipping_counters_converts_to_its_charge(tmp
     assert np.abs(counted - wanted).max() < 5e-5
     counters = info["current"]["counters"]
     assert counters["restarts"] == 2
-    assert counters["dips"] == 8  # a fall in each of the 8 pulses, none taken for a restart
-    assert counters["largest_dip_ah"] == pytest.approx(13e-6, abs=1e-9)
+    assert counters["dips"] > 8 * 10  # falls in each of the 8 pulses, none taken for a restart
+    assert 13e-6 - 1e-9 < counters["largest_dip_ah"] < 15e-6 + 1e-9  # 13 µAh and the dither
     assert info["sign"]["voltage_check"]["confirmed"]
 
 
