@@ -419,19 +419,36 @@ def _hint(path, declared: str) -> str:
 # workbooks: every data sheet found and named, one read at a time
 
 
+_SHEETS: dict = {}  # the last workbook's sheets, read once: (path, mtime, size) -> {name: frame}
+
+
+def _sheets(path: Path) -> dict:
+    """Every sheet of a workbook as a polars frame (None where it holds no table), read once
+    per command: calamine parses a whole sheet even for its header, and PyProBE reads a file
+    twice (its columns, then its rows), so each sheet was parsed up to three times. Numbers as
+    numbers (PyProBE reads every cell as text, which keeps 9 digits: a counter then loses
+    1e-10 Ah, 0.16 mA over a 10-ms interval), the types inferred from every row."""
+    import fastexcel
+    import polars as pl
+
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    if key not in _SHEETS:
+        _SHEETS.clear()  # one workbook at a time: a sheet may be a gigabyte
+        out = {}
+        for name in fastexcel.read_excel(str(path)).sheet_names:
+            try:
+                out[name] = pl.read_excel(path, sheet_name=name, engine="calamine",
+                                          infer_schema_length=None)  # fmt: skip
+            except Exception:  # an empty, chart or ragged sheet holds no table
+                out[name] = None
+        _SHEETS[key] = out
+    return _SHEETS[key]
+
+
 def _sheet_headers(path: Path) -> dict[str, list[str]]:
     """Each sheet's first row (its column names), in the workbook's order."""
-    import fastexcel
-
-    book = fastexcel.read_excel(str(path))
-    out = {}
-    for name in book.sheet_names:
-        try:
-            sheet = book.load_sheet(name, n_rows=0)
-            out[name] = [str(c.name) for c in sheet.available_columns()]
-        except Exception:  # an empty or chart sheet holds no data
-            out[name] = []
-    return out
+    return {name: ([] if f is None else list(f.columns)) for name, f in _sheets(path).items()}
 
 
 def data_sheets(path: str | Path, cycler_name: str) -> list[str]:
@@ -519,15 +536,12 @@ def _reader(cycler: Cycler, sheet: str | None = None):
         def read_file(filepath, header_row_index: int = 0):
             if not str(filepath).lower().endswith(".xlsx"):
                 return base.read_file(filepath, header_row_index)
-            import polars as pl
-
-            # numbers as numbers (PyProBE reads every cell as text, which keeps 9 digits: a
-            # counter then loses 1e-10 Ah, 0.16 mA over a 10-ms interval), the types inferred
-            # from every row; lazy, as PyProBE's CSV path (its own .xlsx path, in 2.6.1, returns
-            # a DataFrame that its reader then fails to .collect())
-            return pl.read_excel(filepath, sheet_name=sheet, engine="calamine",
-                                 infer_schema_length=None,
-                                 read_options={"header_row": header_row_index}).lazy()  # fmt: skip
+            frame = _sheets(Path(filepath)).get(sheet)
+            if frame is None or header_row_index != 0:
+                raise ValueError(f"sheet {sheet!r} holds no table with its header in row 1")
+            # lazy, as PyProBE's CSV path (its own .xlsx path, in 2.6.1, returns a DataFrame
+            # that its reader then fails to .collect())
+            return frame.lazy()
 
         _READERS[base, sheet] = type(name, (base,), {"read_file": staticmethod(read_file)})
     return _READERS[base, sheet]
