@@ -280,7 +280,9 @@ def cmd_convert(args) -> None:
         "current_from": args.current_from,
     }
     if args.sheets == "each":  # one record per data sheet, each named after its sheet
-        names = cycler.data_sheets(args.raw, args.cycler) if Path(args.raw).is_file() else []
+        if not Path(args.raw).is_file():
+            raise UserError(f"{args.raw}: no such file")
+        names = cycler.data_sheets(args.raw, args.cycler)
         if not names:
             raise UserError(f"{args.raw}: --sheets each: not a workbook (.xlsx); it has no sheets")
         jobs = [(cycler.sheet_path(out, n), {"sheet": n}) for n in names]
