@@ -1072,7 +1072,7 @@ def convert(
     raw_names = {"time_s": name["time"], "current_a": name["current"], "voltage_v": name["voltage"]}
     if "temperature" in columns:
         raw_names["temperature_c"] = columns["temperature"]["column"]
-    records.check_scale(out, str(path), names=raw_names)
+    notes += list(records.check_scale(out, str(path), names=raw_names) or ())  # its warnings
 
     # the sign, from the voltage's answer to the channel: its reading is the current at the
     # voltage's instant (the interval means of a coarse or stalled counter are checked again
