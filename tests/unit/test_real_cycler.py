@@ -549,6 +549,31 @@ def test_a_workbook_sheet_each_sheet_or_all_sheets_in_order(drive_workbook, tmp_
     assert info["sheets"]["joins"][0].startswith("time started over")
 
 
+def test_a_test_split_over_sheets_joins_into_its_whole_record(tmp_path):
+    """MITS Pro splits a long test over sheets (``Channel_1-006``, ``Channel_1-006_1``): the
+    clock and the counters run on, so the join is counted as any interval; the record equals
+    the unsplit export's."""
+    from dataclasses import fields
+
+    from cycler_fixtures import Truth
+
+    truth = simulate()
+    k = 50  # the split falls mid-step, as a row limit falls: here under load (2 A)
+    assert truth.step[k - 1] == truth.step[k] == 2
+
+    def part(rows):
+        return Truth(*(getattr(truth, f.name)[rows] for f in fields(Truth)))
+
+    book = write_arbin_workbook({"Channel_1-006": part(slice(0, k)),
+                                 "Channel_1-006_1": part(slice(k, None))},
+                                tmp_path / "split.xlsx", restart_step=None)  # fmt: skip
+    whole, _ = cycler.convert(write_arbin_classic(truth, tmp_path / "whole.csv",
+                                                  restart_step=None), "arbin")  # fmt: skip
+    joined, info = cycler.convert(book, "arbin", concat=True)
+    assert info["sheets"]["joins"] == ["time continued"]
+    pd.testing.assert_frame_equal(joined, whole, check_exact=False, rtol=0, atol=1e-9)
+
+
 def test_sheets_of_different_columns_are_not_joined(tmp_path):
     from openpyxl import load_workbook
 

@@ -846,7 +846,7 @@ def _join(path, parts: list[tuple[dict, dict]]):
     """One record of the sheets read (each ``read_columns``'s arrays and columns), in order:
     (arrays, columns, net charge or None, counter info, step occurrences, sheets info).
 
-    Each sheet's charge is counted on its own rows. A sheet whose time starts after the
+    Each sheet's charge is counted on its own rows. A sheet whose time starts at or after the
     previous one's last row continues that test: its clock is kept, and the counters' change
     over the join is counted with the same rule as any interval's. A sheet whose time starts
     over (a test of its own) is placed one of its own median sampling intervals after the last
@@ -889,7 +889,7 @@ def _join(path, parts: list[tuple[dict, dict]]):
         offset, join_q = 0.0, 0.0
         if end_t is not None:
             prev = parts[j - 1][0]
-            if t[0] > end_t:
+            if t[0] >= end_t:  # (a row repeated across sheets: the later one stays)
                 joins.append("time continued")
                 if kind is not None:
                     ends = zip(prev["counters"], arrays["counters"], strict=True)
