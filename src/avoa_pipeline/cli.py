@@ -115,6 +115,20 @@ def build_parser() -> argparse.ArgumentParser:
         help="interval means from the charge counters (default, where the export has "
         "them) or the held current channel",
     )
+    which = c.add_mutually_exclusive_group()
+    which.add_argument(
+        "--sheet",
+        default=None,
+        metavar="NAME",
+        help="a workbook's data sheet to convert (needed when it has several)",
+    )
+    which.add_argument(
+        "--sheets",
+        choices=("each", "concat"),  # real.cycler.convert's two ways to read every data sheet
+        default=None,
+        help="every data sheet of a workbook: each to its own CSV (OUT's stem + '-' + the "
+        "sheet's name), or concat into one record in sheet order, time continued",
+    )
 
     d = sub.add_parser("diagnose", help="sim-to-real gap diagnosis of a cell's measured records")
     d.add_argument(
@@ -294,26 +308,43 @@ def cmd_convert(args) -> None:
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
         raise UserError(f"--out must be a .csv path, got {str(out)!r}")
-    check_output(out, inputs=[args.raw])
-    check_output(out.with_suffix(".json"), inputs=[args.raw], what="--out's sidecar")
-    frame, info = cycler.convert(
-        args.raw,
-        args.cycler,
-        steps=cycler.parse_steps(args.steps),
-        rest_dt=args.rest_dt,
-        current_from=args.current_from,
-    )
-    side = cycler.write(frame, info, args.out)
-    charge = info["charge"]["discharged_ah_output"]
-    check = info["sign"]["voltage_check"]
-    print(
-        f"{args.raw}: {len(frame)} samples over {frame['time_s'].iloc[-1]:.0f} s, current from "
-        f"the {info['current']['source']}, net discharge {charge:.4f} Ah, sign "
-        + ("confirmed" if check["confirmed"] else "not confirmable (see the warning)")
-        + f"; wrote {args.out}, {side}"
-    )
-    for note in info["warnings"]:
-        print(f"warning: {note}", file=sys.stderr)
+    options = {
+        "steps": cycler.parse_steps(args.steps),
+        "rest_dt": args.rest_dt,
+        "current_from": args.current_from,
+    }
+    if args.sheets == "each":  # one record per data sheet, each named after its sheet
+        if not Path(args.raw).is_file():
+            raise UserError(f"{args.raw}: no such file")
+        names = cycler.data_sheets(args.raw, args.cycler)
+        if not names:
+            raise UserError(f"{args.raw}: --sheets each: not a workbook (.xlsx); it has no sheets")
+        jobs = [(cycler.sheet_path(out, n), {"sheet": n}) for n in names]
+        if len({p for p, _ in jobs}) < len(jobs):
+            raise UserError(f"{args.raw}: sheets {', '.join(map(repr, names))} give the same "
+                            "file name; convert them one at a time with --sheet NAME")  # fmt: skip
+    else:
+        jobs = [(out, {"sheet": args.sheet, "concat": args.sheets == "concat"})]
+    for path, _ in jobs:
+        check_output(path, inputs=[args.raw])
+        check_output(path.with_suffix(".json"), inputs=[args.raw], what="--out's sidecar")
+    # every sheet converted before any is written: a bad sheet leaves no file
+    done = [(path, *cycler.convert(args.raw, args.cycler, **options, **which))
+            for path, which in jobs]  # fmt: skip
+    for path, frame, info in done:
+        side = cycler.write(frame, info, path)
+        charge = info["charge"]["discharged_ah_output"]
+        check = info["sign"]["voltage_check"]
+        sheets = info.get("sheets", {}).get("read")
+        print(
+            f"{args.raw}" + (f" (sheet {', '.join(map(repr, sheets))})" if sheets else "")
+            + f": {len(frame)} samples over {frame['time_s'].iloc[-1]:.0f} s, current from "
+            f"the {info['current']['source']}, net discharge {charge:.4f} Ah, sign "
+            + ("confirmed" if check["confirmed"] else "not confirmable (see the warning)")
+            + f"; wrote {path}, {side}"
+        )  # fmt: skip
+        for note in info["warnings"]:
+            print(f"warning: {note}", file=sys.stderr)
 
 
 def cmd_diagnose(args) -> None:

@@ -46,6 +46,21 @@ def is_canonical(path: str | Path) -> bool:
     return set(records.REQUIRED) <= header or set(TABLE_COLUMNS) <= header
 
 
+def _refuse_raw_export(path: Path) -> None:
+    """A cycler's raw export read as a canonical CSV would fail on a missing column or a codec:
+    say which cycler it looks like (``real.cycler.sniff``, the header alone) and the flag."""
+    if not path.is_file() or is_canonical(path):
+        return
+    from .real import cycler as cyc
+
+    hint = cyc.looks_like(path)
+    if hint:
+        raise DataError(f"{path}: {hint}")
+    if path.suffix.lower() in (".xlsx", ".xlsm", ".xls"):
+        raise DataError(f"{path}: a workbook; a record is a CSV ({', '.join(records.REQUIRED)}),"
+                        " or a cycler's export read with --cycler")  # fmt: skip
+
+
 @dataclass(frozen=True)
 class Read:
     """A file read but not yet judged for its sign (the set of files decides the advice)."""
@@ -69,6 +84,7 @@ def _read(path, cycler: str | None, current_sign: str) -> Read:
         ev = records.SignEvidence.from_dict(info["sign"]["voltage_check"])
         origin = {"read_as": f"{cycler} export", "conversion": info}
         return Read(path, frame, ev, False, tuple(info["warnings"]), origin)
+    _refuse_raw_export(path)
     raw = read_csv(path)
     frame = records.validate(raw, str(path))
     if current_sign == CURRENT_SIGNS[1]:
@@ -175,6 +191,7 @@ def _read_ocv(path, cycler, current_sign):
 
     path = Path(path)
     if cycler is None or is_canonical(path):
+        _refuse_raw_export(path)
         raw = read_csv(path)
         if set(TABLE_COLUMNS) <= set(raw.columns):
             frame = raw[list(TABLE_COLUMNS)]

@@ -107,7 +107,8 @@ def simulate_logged(protocol, *, dt_load: float = 1.0, dt_rest: float = 60.0,
                     soc0: float = 0.95, capacity_ah: float = CAPACITY_AH, r0: float = R0,
                     noise_v: float = 0.0, seed: int = 0, ocv=ocv_knee) -> Truth:  # fmt: skip
     """A cell (``ocv`` + R0 + one RC, charge positive) logged the way cyclers log long tests:
-    rows every ``dt_load`` s under current and every ``dt_rest`` s at rest (coarse rests),
+    rows every ``dt_load`` s under current and every ``dt_rest`` s at rest (coarse rests), or
+    every ``protocol[j][2]`` s where a step gives its own (0.25-s pulses, a two-row EIS step),
     each step's first row at its start; with ``edge_rows`` also a row at each step's exact end
     (its voltage under the step's current, the next step not yet on); without, the step ends
     between two rows and the interval after the last load row straddles the edge (a late-logged
@@ -116,12 +117,13 @@ def simulate_logged(protocol, *, dt_load: float = 1.0, dt_rest: float = 60.0,
     the current piecewise constant on it (vectorised)."""
     from scipy.signal import lfilter
 
-    durations = np.array([d for d, _ in protocol], dtype=float)
+    durations = np.array([p[0] for p in protocol], dtype=float)
+    set_current = np.array([p[1] for p in protocol], dtype=float)
     ends = np.cumsum(durations)
     n = round(ends[-1] / grid)
     tg = grid * np.arange(n + 1)
     seg = np.searchsorted(np.round(ends / grid), np.arange(n), side="right")
-    i = np.array([c for _, c in protocol], dtype=float)[seg]
+    i = set_current[seg]
     charged = np.r_[0.0, np.cumsum(np.clip(i, 0, None) * grid)] / 3600.0
     discharged = np.r_[0.0, np.cumsum(np.clip(-i, 0, None) * grid)] / 3600.0
     soc = soc0 + (charged - discharged) / capacity_ah
@@ -139,7 +141,8 @@ def simulate_logged(protocol, *, dt_load: float = 1.0, dt_rest: float = 60.0,
     rows, steps = [], []
     starts = np.r_[0.0, ends[:-1]]
     for j, (s, e) in enumerate(zip(starts, ends, strict=True)):
-        every = dt_rest if protocol[j][1] == 0 else dt_load
+        every = protocol[j][2] if len(protocol[j]) > 2 else (dt_rest if set_current[j] == 0
+                                                               else dt_load)  # fmt: skip
         ts = np.arange(s, e - 0.5 * grid, every)
         if edge_rows:
             ts = np.r_[ts, e]
@@ -147,7 +150,7 @@ def simulate_logged(protocol, *, dt_load: float = 1.0, dt_rest: float = 60.0,
         steps.append(np.full(ts.size, j + 1))
     k = np.unique(np.concatenate(rows))  # a step's end row and the next one's start: one row
     step_of = np.concatenate(steps)[np.unique(np.concatenate(rows), return_index=True)[1]]
-    cur = np.array([c for _, c in protocol])[step_of - 1]
+    cur = set_current[step_of - 1]
     temp = 25.0 + 0.1 * np.sin(tg[k] / 50.0)
     return Truth(tg[k], step_of, cur, channel[k].copy(), vg[k], charged[k], discharged[k], temp)
 
@@ -256,29 +259,47 @@ CLASSIC_ARBIN_COLUMNS = (
 )  # fmt: skip
 
 
-def _arbin_classic_rows(truth: Truth, restart_step: int | None) -> list[list]:
-    restart = np.flatnonzero(truth.step == restart_step)[:1] if restart_step else []
-    chg = _restart(truth.charged, restart)
-    dch = _restart(truth.discharged, restart)
+def _arbin_classic_rows(truth: Truth, restart_step: int | None, counters=None,
+                        temperatures: dict | None = None) -> list[list]:  # fmt: skip
+    """``counters``: (charge, discharge) as the export writes them (default: the truth's,
+    restarting at ``restart_step``); ``temperatures``: extra temperature columns' values."""
+    if counters is None:
+        restart = np.flatnonzero(truth.step == restart_step)[:1] if restart_step else []
+        counters = (_restart(truth.charged, restart), _restart(truth.discharged, restart))
+    chg, dch = counters
+    extra = list((temperatures or {}).values())
     starts = np.r_[0, _step_starts(truth.step)]
     step_t0 = truth.t[starts][np.searchsorted(starts, np.arange(truth.t.size), "right") - 1]
     return [[k + 1, float(f"{truth.t[k]:.4f}"), _stamp(truth, k, "%Y/%m/%d %H:%M:%S"),
              float(f"{truth.t[k] - step_t0[k]:.4f}"), int(truth.step[k]), 1,
              float(f"{truth.channel[k]:.9g}"), float(f"{truth.voltage[k]:.9g}"),
              float(f"{chg[k]:.12g}"), float(f"{dch[k]:.12g}"), 0.0, 0.0, 0.0, 0.0,
-             float(f"{truth.temperature[k]:.5f}")]
+             float(f"{truth.temperature[k]:.5f}"), *(float(f"{x[k]:.5f}") for x in extra)]
             for k in range(truth.t.size)]  # fmt: skip
 
 
-def write_arbin_classic(truth: Truth, path: Path, restart_step: int | None = 6) -> Path:
+def write_arbin_classic(truth: Truth, path: Path, restart_step: int | None = 6, counters=None,
+                        temperature: str = "Aux_Temperature_1(C)",
+                        temperatures: dict | None = None) -> Path:  # fmt: skip
     """Arbin MITS Pro's classic CSV export (``Test_Time(s)``, ``Current(A)``, ...): the layout
-    of most public Arbin datasets."""
-    return _write(path, [",".join(CLASSIC_ARBIN_COLUMNS)], _arbin_classic_rows(truth, restart_step))
+    of most public Arbin datasets. ``temperature``: the header of the truth's temperature;
+    ``temperatures``: more temperature columns (header → values)."""
+    cols = [*CLASSIC_ARBIN_COLUMNS[:-1], temperature, *(temperatures or {})]
+    rows = _arbin_classic_rows(truth, restart_step, counters, temperatures)
+    return _write(path, [",".join(cols)], rows)
 
 
 def write_arbin_classic_xlsx(truth: Truth, path: Path, restart_step: int | None = 6) -> Path:
     """The same as MITS Pro's workbook: a ``Global_Info`` sheet first, the rows in a
     ``Channel_<n>-<m>`` sheet, statistics after."""
+    return write_arbin_workbook({"Channel_1-006": truth}, path, restart_step)
+
+
+def write_arbin_workbook(sheets: dict, path: Path, restart_step: int | None = 6,
+                         temperature: str = "Aux_Temperature_1(C)") -> Path:  # fmt: skip
+    """A MITS Pro workbook: ``Global_Info`` first, a sheet of rows per entry of ``sheets``
+    (name → truth; e.g. one test's drive cycles on a sheet each, as CALCE publishes them, with
+    ``temperature`` = ``Temperature (C)_1``), a ``Statistics`` sheet (a row per cycle) last."""
     from openpyxl import Workbook
 
     wb = Workbook()
@@ -287,15 +308,58 @@ def write_arbin_classic_xlsx(truth: Truth, path: Path, restart_step: int | None 
     info.append(["TEST REPORT"])
     info.append(["Channel", "Start DateTime", "Schedule File Name"])
     info.append([1, START.strftime("%m/%d/%Y %H:%M:%S"), "fixture.sdx"])
-    data = wb.create_sheet("Channel_1-006")
-    data.append(list(CLASSIC_ARBIN_COLUMNS))
-    for row in _arbin_classic_rows(truth, restart_step):
-        data.append(row)
+    for name, truth in sheets.items():
+        data = wb.create_sheet(name)
+        data.append([*CLASSIC_ARBIN_COLUMNS[:-1], temperature])
+        for row in _arbin_classic_rows(truth, restart_step):
+            data.append(row)
     stats = wb.create_sheet("Statistics_1-006")
-    stats.append(["Cycle_Index", "Test_Time(s)"])
-    stats.append([1, float(truth.t[-1])])
+    stats.append(["Cycle_Index", "Test_Time(s)", "Step_Index", "Current(A)", "Voltage(V)"])
+    stats.append([1, float(max(t.t[-1] for t in sheets.values())), 1, 0.0, 3.7])
     wb.save(path)
     return Path(path)
+
+
+def hppc_eis_protocol(blocks: int = 4, pulse_a: float = 18.0) -> list[tuple[float, float, float]]:
+    """A classic Arbin HPPC + EIS test of a 5-Ah cell, logged as its schedule logs
+    (duration s, current A charge positive, logging interval s): a C/2 charge, then per block
+    an 18-A discharge and a 13.5-A charge pulse of 10 s logged every 0.25 s, rests and a
+    10 % discharge logged every 10 s; after the second block an EIS step of 57,000 s that
+    the cycler logs as two rows (its start and end)."""
+    charge = [(600.0, 0.0, 10.0), (32400.0, 0.5, 10.0), (3600.0, 0.0, 10.0)]
+    block = [(10.0, -pulse_a, 0.25), (40.0, 0.0, 10.0), (10.0, 0.75 * pulse_a, 0.25),
+             (40.0, 0.0, 10.0), (720.0, -2.5, 10.0), (1800.0, 0.0, 10.0)]  # fmt: skip
+    out = list(charge)
+    for b in range(blocks):
+        out += block
+        if b == 1:
+            out.append((57000.0, 0.0, 57000.0))
+    return out
+
+
+def counters_with_dips(truth: Truth, restart_step: int, dips_ah=(13e-6, 1e-6, 2e-6),
+                       decimals: int = 6, seed: int = 0):  # fmt: skip
+    """Arbin's charge and discharge counters as MITS Pro exports them (``decimals`` places,
+    both restarting at ``restart_step``, a new cycle), with the dips a real export shows: in
+    each pulse against a counter's direction, from a row inside it on, the counter reads a few
+    quanta low (4.685807 then 4.685794 Ah), and recovers at the pulse's end or stays corrected
+    (every other dip); and over the pulse's inner rows it dithers by 0-2 quanta."""
+    rng = np.random.default_rng(seed)
+    restart = np.flatnonzero(truth.step == restart_step)[:1]
+    chg, dch = _restart(truth.charged, restart), _restart(truth.discharged, restart)
+    starts = np.r_[0, _step_starts(truth.step), truth.t.size]
+    n = 0
+    for a, b in itertools.pairwise(starts):
+        if b - a < 8 or truth.current[a] == 0 or abs(truth.current[a]) < 5:
+            continue  # the pulses only
+        counter = chg if truth.current[a] < 0 else dch  # the counter not counting
+        dip = dips_ah[n % len(dips_ah)]
+        k = a + int(rng.integers(2, b - a - 2))
+        end = b - 1 if n % 2 == 0 else counter.size  # recovers at the pulse's last row, or not
+        counter[k:end] -= dip
+        counter[a + 1 : b - 1] -= 10.0**-decimals * rng.integers(0, 3, b - a - 2)
+        n += 1
+    return np.round(chg, decimals), np.round(dch, decimals)
 
 
 def write_maccor(truth: Truth, path: Path, duplicate_row: int | None = None,

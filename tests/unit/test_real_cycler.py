@@ -9,11 +9,25 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from cycler_fixtures import WRITERS, export, from_frame, simulate, write_arbin, write_basytec
+from cycler_fixtures import (
+    CLASSIC_ARBIN_COLUMNS,
+    WRITERS,
+    counters_with_dips,
+    export,
+    from_frame,
+    hppc_eis_protocol,
+    simulate,
+    simulate_logged,
+    write_arbin,
+    write_arbin_classic,
+    write_arbin_classic_xlsx,
+    write_arbin_workbook,
+    write_basytec,
+)
 from test_ecm import TRUTH, profile_frame, with_voltage
 
 from avoa_pipeline.cli import main
-from avoa_pipeline.errors import DataError
+from avoa_pipeline.errors import DataError, UserError
 from avoa_pipeline.io import sha256
 from avoa_pipeline.real import cycler
 
@@ -176,7 +190,7 @@ def test_bad_exports_are_one_line_errors_naming_file_and_column(tmp_path, capsys
         return path
 
     cases = [
-        (arbin, "maccor", "not a Maccor export (it reads as --cycler arbin)"),
+        (arbin, "maccor", "not a Maccor export; it looks like an Arbin export: use --cycler arbin"),
         (variant("no_i.csv", base.drop(columns="Current (A)")), "arbin", "no current column"),
         (variant("no_v.csv", base.drop(columns="Voltage (V)")), "arbin", "'Voltage (<unit>)'"),
         (
@@ -350,3 +364,339 @@ def test_the_cli_names_the_cyclers_read_here():
     from avoa_pipeline import names
 
     assert tuple(cycler.CYCLERS) == names.CYCLERS
+
+
+# ----------------------------------------------------------------------------------------------
+# real logs (issue 25): counters that dip, workbooks of several sheets, temperature channels,
+# files given to the wrong reader
+
+
+def test_a_counter_dip_is_a_negative_increment_and_a_fall_to_near_zero_a_restart():
+    """The numbers of a real MITS Pro export: Charge_Capacity(Ah) reads 4.685807 then 4.685794
+    during a discharge pulse (a dip of 13 µAh, then back), later falls to 0.000125 (a new
+    cycle: the count since the restart)."""
+    c = np.array([4.685801, 4.685807, 4.685794, 4.685794, 4.685807, 0.000125, 0.00025])
+    inc, restarts, dips = cycler._increments(c)
+    assert restarts == 1
+    np.testing.assert_allclose(inc, [6e-6, -13e-6, 0.0, 13e-6, 0.000125, 0.000125], atol=1e-12)
+    assert dips.max() == pytest.approx(13e-6)
+    assert (dips > 0).sum() == 1
+
+
+def test_a_per_step_counter_after_a_short_step_restarts_at_the_step_change(tmp_path):
+    """Maccor's per-step counter: 5 s at 3 A (4.2 mAh), then a 1-A step whose first row comes
+    10 s in (2.8 mAh, two thirds of the previous count): not near zero, but no more than that
+    interval could count, at a change of step: a restart."""
+    from cycler_fixtures import write_maccor
+
+    protocol = [(60.0, 0.0, 10.0), (5.0, -3.0, 1.0), (60.0, 1.0, 10.0), (60.0, 0.0, 10.0)]
+    truth = simulate_logged(protocol)
+    path = write_maccor(truth, tmp_path / "m.csv")
+    counter = pd.read_csv(path, skiprows=2)["Capacity"].to_numpy()
+    k = int(np.flatnonzero(truth.step == 3)[0])
+    assert 0.5 < counter[k] / counter[k - 1] < 1.0  # the case a fraction alone takes for a dip
+    frame, info = cycler.convert(path, "maccor")
+    np.testing.assert_allclose(frame["current_a"][:-1], truth.interval_mean_discharge(), atol=1e-6)
+    assert info["current"]["counters"]["dips"] == 0
+
+
+def test_a_dip_at_a_step_change_is_not_a_restart():
+    """Arbin's charge counter at 37.5 mAh (three charge pulses into a new cycle) dips by 13 µAh
+    on the first row after an 18-A discharge pulse, logged 10 s later: at a change of step the
+    interval could have counted 0.1 Ah, but of discharge: the charge counter counts none."""
+    arrays = {
+        "time": np.array([0.0, 10.0, 20.0]),
+        "step": np.array([4, 5, 5]),
+        "current": np.array([-18.0, 0.0, 0.0]),
+        "counters": [np.array([0.0375, 0.037487, 0.037487]), np.array([4.2, 4.25, 4.25])],
+    }
+    q, info = cycler.net_charge(arrays, "pair")
+    np.testing.assert_allclose(q, [0.0, -0.05 - 13e-6, -0.05 - 13e-6], atol=1e-12)
+    assert (info["restarts"], info["dips"]) == (0, 1)
+
+
+HPPC_RESTART_STEP = 17  # the first step after the EIS: a new cycle, both counters restart
+
+
+def _hppc_export(folder: Path, edge_rows: bool = True):
+    truth = simulate_logged(hppc_eis_protocol(), grid=0.25, lag_tau=0.5, soc0=0.05,
+                            capacity_ah=5.0, r0=0.015, edge_rows=edge_rows)  # fmt: skip
+    counters = counters_with_dips(truth, HPPC_RESTART_STEP)
+    return write_arbin_classic(truth, folder / "hppc_eis.csv", counters=counters), truth
+
+
+@pytest.mark.parametrize("edge_rows", [True, False])
+def test_an_hppc_and_eis_export_with_dipping_counters_converts_to_its_charge(tmp_path,
+                                                                            edge_rows):  # fmt: skip
+    """A classic Arbin HPPC + EIS export as MITS Pro writes it: 18-A pulses logged every
+    0.25 s, 10-s logging elsewhere, a 57,000-s EIS step of two rows, a channel lagging by
+    0.5 s, counters to 6 decimals that dither by 0-2 quanta and dip by 1, 2 or 13 µAh in pulses
+    against their direction (half of the dips recovering), and a new cycle (both counters
+    restart) after the EIS. Taking each fall for a restart counted the whole 4.5-Ah counter into
+    a 0.25-s interval, and the export was refused as "mixed units"."""
+    path, truth = _hppc_export(tmp_path, edge_rows)
+    assert np.diff(truth.t).max() == 57000.0  # the EIS step: no row between its ends
+    frame, info = cycler.convert(path, "arbin")
+    net = truth.discharged[-1] - truth.charged[-1]
+    assert info["charge"]["discharged_ah_output"] == pytest.approx(net, rel=0.005)  # the goal
+    # everywhere within the dips left uncorrected (13 + 2 + 1 + 13 µAh) and the rounding
+    counted = np.cumsum(np.diff(frame["time_s"]) * frame["current_a"][:-1]) / 3600.0
+    wanted = np.cumsum(np.diff(truth.t) * truth.interval_mean_discharge()) / 3600.0
+    assert np.abs(counted - wanted).max() < 5e-5
+    counters = info["current"]["counters"]
+    assert counters["restarts"] == 2
+    assert counters["dips"] > 8 * 10  # falls in each of the 8 pulses, none taken for a restart
+    assert 13e-6 - 1e-9 < counters["largest_dip_ah"] < 15e-6 + 1e-9  # 13 µAh and the dither
+    assert info["sign"]["voltage_check"]["confirmed"]
+
+
+def _drive(seed: int, steps: int = 40) -> list[tuple[float, float]]:
+    """A drive cycle: 5-20 s steps at -4..2 A (charge positive) after a rest, logged at 1 s."""
+    rng = np.random.default_rng(seed)
+    out = [(300.0, 0.0)]
+    for _ in range(steps):
+        out.append((float(rng.integers(5, 21)), float(rng.choice([-4.0, -2.5, -1.0, 0.5, 2.0]))))
+    return [*out, (300.0, 0.0)]
+
+
+CYCLES = ("DST", "US06", "FUDS")
+
+
+@pytest.fixture(scope="module")
+def drive_workbook(tmp_path_factory):
+    """One test's drive cycles on a sheet each (as CALCE publishes them), each its own test
+    (time and counters from 0), the channel's thermocouple as ``Temperature (C)_1``; and each
+    sheet as a classic CSV of its own."""
+    folder = tmp_path_factory.mktemp("drive")
+    truths = {name: simulate_logged(_drive(j), dt_rest=10.0, soc0=0.9 - 0.2 * j, seed=j)
+              for j, name in enumerate(CYCLES)}  # fmt: skip
+    book = write_arbin_workbook(truths, folder / "drive.xlsx", restart_step=None,
+                                temperature="Temperature (C)_1")  # fmt: skip
+    csvs = {name: write_arbin_classic(truth, folder / f"{name}.csv", restart_step=None,
+                                      temperature="Temperature (C)_1")
+            for name, truth in truths.items()}  # fmt: skip
+    return book, truths, csvs
+
+
+def test_a_workbook_of_several_data_sheets_is_never_read_silently(drive_workbook, tmp_path,
+                                                                  capsys):  # fmt: skip
+    book, _, _ = drive_workbook
+    assert cycler.data_sheets(book, "arbin") == list(CYCLES)  # not Global_Info, Statistics
+    names = "'DST', 'US06', 'FUDS'"
+    with pytest.raises(
+        UserError, match=f"3 data sheets \\({names}\\); choose with convert --sheet"
+    ):
+        cycler.convert(book, "arbin")
+    out = tmp_path / "out" / "drive.csv"
+    for argv in (["convert", str(book), "--cycler", "arbin", "--out", str(out)],
+                 ["diagnose", str(book), "--cycler", "arbin", "--out", str(tmp_path / "d")],
+                 ["convert", str(book), "--cycler", "arbin", "--out", str(out), "--sheet",
+                  "Global_Info"]):  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1, err
+        assert names in err, err
+        assert str(book) in err, err
+    assert not out.parent.exists()
+    assert not (tmp_path / "d").exists()
+
+
+def test_a_workbook_sheet_each_sheet_or_all_sheets_in_order(drive_workbook, tmp_path, capsys):
+    """--sheet NAME is that sheet's record (the same as its CSV export, with its
+    ``Temperature (C)_1``); --sheets each writes one per sheet; --sheets concat one record in
+    sheet order, each test placed one sampling interval after the last, a rest between."""
+    book, truths, csvs = drive_workbook
+    alone = {name: cycler.convert(csv, "arbin")[0] for name, csv in csvs.items()}
+    for name, truth in truths.items():
+        np.testing.assert_allclose(alone[name]["temperature_c"], truth.temperature, atol=1e-5)
+    got, info = cycler.convert(book, "arbin", sheet="US06")
+    pd.testing.assert_frame_equal(got, alone["US06"])
+    assert info["sheets"]["read"] == ["US06"]
+    assert info["columns"]["temperature"]["column"] == "Temperature (C)_1"
+
+    out = tmp_path / "cell.csv"
+    assert main(["convert", str(book), "--cycler", "arbin", "--out", str(out), "--sheets",
+                 "each"]) == 0  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        f"cell-{n}.{e}" for n in CYCLES for e in ("csv", "json")
+    )
+    for name in CYCLES:
+        pd.testing.assert_frame_equal(pd.read_csv(tmp_path / f"cell-{name}.csv"), alone[name],
+                                      check_exact=False, rtol=1e-12)  # fmt: skip
+    assert capsys.readouterr().out.count("wrote") == 3
+
+    joined, info = cycler.convert(book, "arbin", concat=True)
+    sizes = [len(alone[n]) for n in CYCLES]
+    assert len(joined) == sum(sizes)
+    assert info["sheets"]["read"] == list(CYCLES)
+    assert (np.diff(joined["time_s"]) > 0).all()
+    starts = np.r_[0, np.cumsum(sizes)]
+    for k, name in enumerate(CYCLES):
+        part = joined.iloc[starts[k] : starts[k + 1]].reset_index(drop=True)
+        # its own record, shifted in time, but for its last row: the join, counted as a rest
+        np.testing.assert_allclose(part["time_s"] - part["time_s"][0], alone[name]["time_s"])
+        # (to rounding: the charge and time carried over from the sheets before)
+        np.testing.assert_allclose(part["current_a"][:-1], alone[name]["current_a"][:-1],
+                                   atol=1e-9)  # fmt: skip
+        np.testing.assert_array_equal(part["voltage_v"], alone[name]["voltage_v"])
+        if k < len(CYCLES) - 1:
+            assert part["current_a"].iloc[-1] == 0.0
+            gap = joined["time_s"][starts[k + 1]] - part["time_s"].iloc[-1]
+            assert gap == pytest.approx(np.median(np.diff(truths[CYCLES[k + 1]].t)))
+    total = sum(cycler.convert(csvs[n], "arbin")[1]["charge"]["discharged_ah_output"]
+                for n in CYCLES)  # fmt: skip
+    assert info["charge"]["discharged_ah_output"] == pytest.approx(total, abs=1e-9)
+    assert info["sheets"]["joins"][0].startswith("time started over")
+
+
+def test_a_test_split_over_sheets_joins_into_its_whole_record(tmp_path):
+    """MITS Pro splits a long test over sheets (``Channel_1-006``, ``Channel_1-006_1``): the
+    clock and the counters run on, so the join is counted as any interval; the record equals
+    the unsplit export's."""
+    from dataclasses import fields
+
+    from cycler_fixtures import Truth
+
+    truth = simulate()
+    k = 50  # the split falls mid-step, as a row limit falls: here under load (2 A)
+    assert truth.step[k - 1] == truth.step[k] == 2
+
+    def part(rows):
+        return Truth(*(getattr(truth, f.name)[rows] for f in fields(Truth)))
+
+    book = write_arbin_workbook({"Channel_1-006": part(slice(0, k)),
+                                 "Channel_1-006_1": part(slice(k, None))},
+                                tmp_path / "split.xlsx", restart_step=None)  # fmt: skip
+    whole, _ = cycler.convert(write_arbin_classic(truth, tmp_path / "whole.csv",
+                                                  restart_step=None), "arbin")  # fmt: skip
+    joined, info = cycler.convert(book, "arbin", concat=True)
+    assert info["sheets"]["joins"] == ["time continued"]
+    pd.testing.assert_frame_equal(joined, whole, check_exact=False, rtol=0, atol=1e-9)
+
+
+def test_sheets_of_different_columns_are_not_joined(tmp_path):
+    from openpyxl import load_workbook
+
+    book = write_arbin_workbook({"A": simulate()}, tmp_path / "a.xlsx")
+    wb = load_workbook(book)
+    other = wb.copy_worksheet(wb["A"])
+    other.title = "B"
+    other.cell(1, len(CLASSIC_ARBIN_COLUMNS)).value = "Temperature (C)_1"
+    wb.save(book)
+    want = ("sheet 'B': its temperature column 'Temperature (C)_1' differs from sheet 'A''s "
+            "'Aux_Temperature_1(C)'")  # fmt: skip
+    with pytest.raises(DataError, match=re.escape(want)):
+        cycler.convert(book, "arbin", concat=True)
+
+
+def test_a_sheet_flag_on_a_text_export_is_refused(tmp_path):
+    path, _ = export("arbin", tmp_path)
+    with pytest.raises(UserError, match="--sheet X: not a workbook"):
+        cycler.convert(path, "arbin", sheet="X")
+
+
+@pytest.mark.parametrize(
+    ("name", "columns", "chosen"),
+    [
+        ("arbin", ["Temperature (C)_1", "dV/dt(V/s)_1"], "Temperature (C)_1"),
+        ("arbin", ["Temperature (C)_2", "Aux_Temperature_1(C)"], "Aux_Temperature_1(C)"),
+        ("arbin", ["Aux_Temperature_2 (C)", "Aux_Temperature_1 (C)"], "Aux_Temperature_1 (C)"),
+        ("arbin", ["Temperature(C)"], "Temperature(C)"),
+        ("maccor", ["Temp 2", "Temp 1"], "Temp 1"),
+        ("neware", ["T1(℃)"], "T1(℃)"),
+        ("neware", ["Auxiliary temperature(℃)"], "Auxiliary temperature(℃)"),
+        ("biologic", ["Temperature/°C"], "Temperature/°C"),
+        ("basytec", ["T1[°C]"], "T1[°C]"),
+        ("basytec", ["T[K]"], "T[K]"),
+    ],
+)
+def test_each_cyclers_temperature_headers_are_found(name, columns, chosen):
+    layouts = cycler.CYCLERS[name].layouts
+    found = [c for c, _ in cycler._temperatures("f", layouts[-1], ["x", *columns])]
+    assert found[0] == chosen
+    assert sorted(found) == sorted(columns if "dV/dt" not in columns[-1] else columns[:1])
+
+
+def test_several_temperature_channels_the_first_used_the_others_named(tmp_path):
+    truth = simulate()
+    path = write_arbin_classic(
+        truth,
+        tmp_path / "two.csv",
+        temperature="Temperature (C)_1",
+        temperatures={"Temperature (C)_2": truth.temperature + 3.0},
+    )
+    frame, info = cycler.convert(path, "arbin")
+    np.testing.assert_allclose(frame["temperature_c"], truth.temperature, atol=1e-5)
+    (note,) = [w for w in info["warnings"] if "temperature columns" in w]
+    assert "column 'Temperature (C)_1' is used, 'Temperature (C)_2' not" in note
+
+
+def test_a_temperature_in_kelvin(tmp_path, capsys):
+    """Labelled K: converted. Labelled °C with 250-350 in it: refused, never read as 298 °C."""
+    truth = simulate()
+    kelvin = truth.temperature + 273.15
+    path = write_arbin_classic(truth, tmp_path / "k.csv", temperature="Aux_Temperature_9(x)",
+                               temperatures={"Aux_Temperature_1(K)": kelvin})  # fmt: skip
+    with pytest.raises(DataError, match="'Aux_Temperature_9\\(x\\)': temperature unit 'x'"):
+        cycler.convert(path, "arbin")
+    path = write_arbin_classic(truth, tmp_path / "k.csv", temperature="Aux_Temperature_1(K)")
+    raw = pd.read_csv(path)
+    raw["Aux_Temperature_1(K)"] = kelvin
+    raw.to_csv(path, index=False)
+    frame, _ = cycler.convert(path, "arbin")
+    np.testing.assert_allclose(frame["temperature_c"], truth.temperature, atol=1e-9)
+    raw = raw.rename(columns={"Aux_Temperature_1(K)": "Temperature (C)_1"})
+    raw.to_csv(path, index=False)
+    # (named by the raw column, whether cycler.py or records.check_scale refuses it)
+    _cli_error(tmp_path, capsys, path, "arbin", "column 'Temperature (C)_1': ")
+    _cli_error(tmp_path, capsys, path, "arbin", "looks like kelvin")
+
+
+def test_each_cyclers_export_is_recognised_by_its_header(tmp_path):
+    for name in CYCLERS:
+        path, _ = export(name, tmp_path)
+        assert cycler.sniff(path) == name
+        assert cycler.sniff(path, exclude=name) == ""
+    assert cycler.sniff(write_arbin_classic_xlsx(simulate(), tmp_path / "c.xlsx")) == "arbin"
+    assert cycler.sniff(tmp_path / "missing.csv") == ""
+
+
+def test_a_raw_export_without_cycler_is_named(tmp_path, capsys):
+    """diagnose, simulate and --ocv without --cycler: which cycler it looks like and the flag,
+    not "missing column 'time_s'" or a codec error."""
+    from avoa_pipeline import inputs
+
+    csv, _ = export("arbin", tmp_path)
+    book = write_arbin_classic_xlsx(simulate(), tmp_path / "c.xlsx")
+    mpt, _ = export("biologic", tmp_path)
+    for path, label, name in ((csv, "an Arbin", "arbin"), (book, "an Arbin", "arbin"),
+                              (mpt, "a BioLogic", "biologic")):  # fmt: skip
+        want = f"{path}: this looks like {label} export: add --cycler {name}"
+        with pytest.raises(DataError, match=re.escape(want)):
+            inputs.read_record(path)
+        with pytest.raises(DataError, match=re.escape(want)):
+            inputs.read_ocv(path)
+    assert main(["diagnose", str(csv), "--out", str(tmp_path / "d")]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: {csv}: this looks like an Arbin export: add --cycler arbin\n"
+    # a workbook no cycler's header matches: still not a codec error
+    from openpyxl import Workbook
+
+    wb = Workbook()
+    wb.active.append(["a", "b"])
+    wb.save(tmp_path / "other.xlsx")
+    with pytest.raises(DataError, match="a workbook; a record is a CSV"):
+        inputs.read_record(tmp_path / "other.xlsx")
+
+
+@pytest.mark.parametrize("wrong", ["basytec", "biologic", "maccor", "neware"])
+def test_a_reader_failure_names_the_cycler_expected_and_the_one_it_looks_like(tmp_path, capsys,
+                                                                              wrong):  # fmt: skip
+    """PyProBE's Basytec reader on an Arbin CSV fails with "cannot access local variable
+    'start_time_line'": one line instead, naming the file, the cycler and its look."""
+    path, _ = export("arbin", tmp_path)
+    label = cycler.CYCLERS[wrong].label
+    _cli_error(tmp_path, capsys, path, wrong, f"{cycler.CYCLERS[wrong].article} {label} export")
+    _cli_error(tmp_path, capsys, path, wrong, "it looks like an Arbin export: use --cycler arbin")
+    main(["convert", str(path), "--cycler", wrong, "--out", str(tmp_path / "o.csv")])
+    assert "start_time_line" not in capsys.readouterr().err
