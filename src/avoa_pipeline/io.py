@@ -196,17 +196,26 @@ def _not_csv(head: bytes) -> str | None:
     return None
 
 
+def regular_file(path: Path, kind: str = "a CSV file") -> None:
+    """DataError naming what ``path`` is when it is not a readable regular file: missing, a
+    folder, a device or a pipe, a symlink loop, a name too long (``kind`` says what was wanted)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such file") from None
+    except OSError as exc:  # a symlink loop, a name too long, no permission
+        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):
+        raise DataError(f"{path}: a folder, not {kind}")
+    if not stat.S_ISREG(mode):
+        raise DataError(f"{path}: not a regular file (a device or a pipe): save it to a file first")
+
+
 def _header(path: Path) -> list[str]:
     """The file's column names, read from at most :data:`HEADER_BYTES`; DataError if the file
     cannot be a comma-separated text file (naming what it is instead)."""
+    regular_file(path)
     try:
-        mode = os.stat(path).st_mode
-        if stat.S_ISDIR(mode):
-            raise DataError(f"{path}: a folder, not a CSV file")
-        if not stat.S_ISREG(mode):
-            raise DataError(
-                f"{path}: not a regular file (a device or a pipe): save it to a file first"
-            )
         with open(path, "rb") as f:
             head = f.read(HEADER_BYTES)
     except FileNotFoundError:

@@ -36,7 +36,7 @@ answer (docs/cyclers.md):
   channel's must agree within a factor of √1000: unit mistakes are factors of 1000 (a prefix) or
   3600 (A·s for Ah); lag and counter resolution are far below that.
 - *Temperature*: each layout's common headers; of several channels the first is used and the
-  others named in a warning; K converted, kelvin in a °C column refused (``KELVIN_RANGE``).
+  others named in a warning; K converted, kelvin in a °C column refused by the records layer.
 - *Which cycler*: ``sniff`` matches a header against each cycler's columns, so a file given to
   the wrong reader, or without ``--cycler``, is named ("it looks like an Arbin export").
 - *Voltage and temperature are never interpolated*: the output keeps the cycler's own samples.
@@ -65,7 +65,7 @@ import pandas as pd
 
 from .. import records
 from ..errors import DataError, UserError
-from ..io import atomic_path, sha256
+from ..io import atomic_path, regular_file, sha256
 from ..names import CURRENT_FROM
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)
@@ -96,10 +96,6 @@ direction's current, and so what it could count, is zero."""
 SNIFF_BYTES = 65536
 """How much of a text file the sniffer reads for a header: BioLogic's header block, the longest
 of the five cyclers', is about a hundred lines of at most a few hundred characters."""
-
-KELVIN_RANGE = (250.0, 350.0)
-"""A temperature column labelled °C whose median lies here is in kelvin: cells are tested
-between −40 and 80 °C (233-353 K), and no cell under test is at 250-350 °C."""
 
 DEGREE_MARKS = " °º℃o\ufffdÂ"
 """What may stand before the C of a unit in °C (``°C``, ``℃``, ``degC``, ``oC``), including
@@ -577,8 +573,7 @@ def read_columns(path: str | Path, cycler_name: str,
         raise UserError(f"unknown cycler {cycler_name!r}; choose from {', '.join(CYCLERS)}")
     cycler = CYCLERS[cycler_name]
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    regular_file(path, f"{cycler_name}'s export")
     if path.suffix.lower() not in cycler.extensions:
         raise DataError(
             f"{path}: {cycler.article} {cycler.label} export is {' or '.join(cycler.extensions)}, "
@@ -646,19 +641,11 @@ def read_columns(path: str | Path, cycler_name: str,
 
 def _temperature(where, values: np.ndarray, used: int, candidates: list[tuple[str, str]]):
     """The temperature (°C) of the first channel with readings, which column it came from, and
-    a note naming the channels not used. A column in °C whose median lies in KELVIN_RANGE is
-    refused: it is in kelvin, and a thermal model fed 298 °C would be nonsense, not an error."""
+    a note naming the channels not used. A column labelled K is converted; one in °C that holds
+    kelvin is refused by the records layer's range (``records.TEMPERATURE_RANGE_C``)."""
     column, unit = candidates[used]
     if unit == "K":
         values = values - 273.15
-    else:
-        median = float(np.median(values))
-        lo, hi = KELVIN_RANGE
-        if lo <= median <= hi:
-            raise DataError(
-                f"{where}: column {column!r}: temperature median {median:g} looks like kelvin "
-                f"(a cell is tested at -40..80 °C); label the column in K, or convert it to °C"
-            )
     others = [c for j, (c, _) in enumerate(candidates) if j != used]
     note = (
         f"{where}: {len(candidates)} temperature columns; column {column!r} is used, "
@@ -1010,8 +997,7 @@ def convert(
     path = Path(path)
     if cycler_name not in CYCLERS:
         raise UserError(f"unknown cycler {cycler_name!r}; choose from {', '.join(CYCLERS)}")
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    regular_file(path, f"{cycler_name}'s export")
     chosen = choose_sheets(path, cycler_name, sheet, concat)
     parts = [read_columns(path, cycler_name, s) for s in chosen]
     # net charge at every raw row (before rows are dropped, so no interval's charge is lost)
