@@ -366,7 +366,7 @@ def cmd_diagnose(args) -> None:
     report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
                                          ocv_table=read.ocv, validate=read.validate,
                                          warnings=read.warnings)  # fmt: skip
-    report["at_bounds"] = model.at_bounds()  # values the bounds set, not the records
+    report["at_bounds"] = [] if model is None else model.at_bounds()  # set by bounds, not data
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it

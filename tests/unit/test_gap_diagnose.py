@@ -163,10 +163,11 @@ def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
 
 
 def test_diagnose_rejects_a_frame_in_milliamperes():
+    # with the capacity known (without it the records cannot tell mA from a large cell's A)
     frame = _good()
     frame["current_a"] *= 1000.0
-    with pytest.raises(diagnose.DataError, match="mA"):
-        diagnose.diagnose(frame, source="frame")
+    with pytest.raises(diagnose.UserError, match="mA"):
+        diagnose.diagnose(frame, capacity_ah=2.57, source="frame")
 
 
 def test_noise_floor_ignores_smooth_misfit():
