@@ -660,10 +660,15 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
            drop_unsupported: bool = False, file_name: str = "cell.py") -> Export:  # fmt: skip
     """The module text of ``model`` (``source``: its file, for messages and the module's SOURCE).
 
-    ``frame``: a record of the cell (``record``: its name); it sets the initial SOC (unless
-    ``soc0``) and, when elements are dropped, is where their cost is measured (required then).
+    ``frame``: a record of the cell (``record``: its name); the model's voltage on it must be a
+    cell's (``FittedModel.check_cell``, the check ``simulate`` makes; without a record, on a 1C
+    probe); it sets the initial SOC (unless ``soc0``) and, when elements are dropped, is where
+    their cost is measured (required then).
     """
     drop = check_exportable(model, source, drop_unsupported)
+    # what simulate refuses, the export refuses too, by simulate's own check (on the record, or
+    # without one on FittedModel's probe): a module is never written for a model that is no cell
+    model.check_cell(frame, soc0, source)
     if drop and frame is None:
         raise UserError(f"--drop-unsupported drops {', '.join(drop)}: give a record of the cell "
                         "(--record) to measure what that costs")  # fmt: skip
