@@ -303,20 +303,38 @@ def _show(value) -> str:
     return f"{x:.6g}"
 
 
-def _finite(validator, wanted, instance, schema):
-    """The schema keyword ``finite``: JSON parses NaN and ±Infinity (and 1e400 as inf) as
-    numbers; none is a parameter."""
-    if not validator.is_type(instance, "number"):
-        return
+def _is_finite(value) -> bool:
+    """JSON parses NaN and ±Infinity (and 1e400 as inf) as numbers, and an integer of any
+    length, which no float holds; none is a parameter."""
     try:
-        ok = math.isfinite(float(instance))
+        return math.isfinite(float(value))
     except OverflowError:
-        ok = False
-    if wanted and not ok:
+        return False
+
+
+def _finite(validator, wanted, instance, schema):
+    """The schema keyword ``finite`` (:func:`_is_finite`)."""
+    if wanted and validator.is_type(instance, "number") and not _is_finite(instance):
         yield jsonschema.ValidationError(f"{_show(instance)}, not a finite number")
 
 
-_Validator = jsonschema.validators.extend(jsonschema.Draft202012Validator, {"finite": _finite})
+def _entries(validator, item_schema, instance, schema):
+    """The schema keyword ``entries``: ``items`` for a long list of numbers (an OCV table's
+    1,001), judged at the first entry that fails, so a table costs microseconds, not a schema
+    walk per entry."""
+    if not validator.is_type(instance, "array"):
+        return
+    lo, hi = item_schema.get("minimum", -math.inf), item_schema.get("maximum", math.inf)
+    for j, value in enumerate(instance):
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not (number and _is_finite(value) and lo <= value <= hi):
+            yield from validator.descend(value, item_schema, path=j)
+            return
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator, {"finite": _finite, "entries": _entries}
+)
 
 
 def _number(lo=None, hi=None, why: str = "", exclusive: bool = False) -> dict:
@@ -363,10 +381,10 @@ def _bound_domain(name: str) -> dict:
     """A bound (physical value) inside the domain of its parameter's transform."""
     t = ecm.PARAMS[name].transform
     if t == "log10":
-        return _number(0.0, None, "a positive value (its fit coordinate is a log)", True)
+        return _number(0.0, None, "the positive numbers (its fit coordinate is a log)", True)
     if t == "log10_1m":
-        return {**_number(None, None), "exclusiveMaximum": 1.0,
-                "description": "below 1 (its fit coordinate is log10(1 − value))"}  # fmt: skip
+        why = "the numbers below 1 (its fit coordinate is log10(1 − value))"
+        return {**_number(None, None, why), "exclusiveMaximum": 1.0}
     return _number()
 
 
@@ -376,8 +394,9 @@ def _table_schema() -> dict:
     return _object({
         "soc_lo": _number(0.0, 1.0 - ocv_mod.MIN_TABLE_SPAN, "an OCV table's SOC range"),
         "soc_step": _number(0.0, 1.0, "an OCV table's SOC step", True),
-        "soc": _list(_number(), at_least=2),
-        "ocv_v": _list(_number(lo, hi, "one cell's voltage range"), at_least=2),
+        "soc": {"type": "array", "minItems": 2, "entries": _number()},
+        "ocv_v": {"type": "array", "minItems": 2,
+                  "entries": _number(lo, hi, "one cell's voltage range")},
         "capacity_ah": _nullable(_number(qlo, qhi, "the library's range of capacity_ah")),
         "source": {"type": "string"},
         "how": {"type": "string"},
