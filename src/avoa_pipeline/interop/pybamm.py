@@ -702,10 +702,12 @@ def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame
 def parameter_values(model: FittedModel, soc0: float | None = None,
                      drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
     """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
-    module text the export writes, executed in place. Elements PyBaMM's Thevenin model cannot
+    module text the export writes, executed in place, for a model that passes the export's
+    check without a record (``FittedModel.check_cell``). Elements PyBaMM's Thevenin model cannot
     hold are a UserError unless ``drop_unsupported`` (then dropped without a cost: the CLI
     measures that on a record)."""
     drop = check_exportable(model, source, drop_unsupported)
+    model.check_cell(None, soc0, source)  # as export without a record: the 1C probe
     s0, note = initial_soc_of(model, None, soc0)
     text = module_source(without(model, drop), s0, note, source,
                          {e: {"why": ELEMENTS[e].how} for e in drop})  # fmt: skip

@@ -179,7 +179,7 @@ class FittedModel:
             raise DataError(f"{source}: field 'format': not an {FORMAT} file")
         version = d.get("format_version")
         if type(version) is not int or version != FORMAT_VERSION:  # true == 1 in Python
-            raise DataError(f"{source}: field 'format_version': {version!r}; this "
+            raise DataError(f"{source}: field 'format_version': {json.dumps(version)}; this "
                             f"version ({__version__}) reads version {FORMAT_VERSION}")  # fmt: skip
         _validate(d, _envelope(), source)
         # the configuration first (with a stand-in table: the table is checked by the schema)
