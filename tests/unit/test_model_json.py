@@ -24,6 +24,8 @@ from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm, fitting
 from avoa_pipeline.model.fitted import PROBE_C_RATE, FittedModel, probe_record
 
+CURRENT_SCALE_A = 2.0 * TRUTH["capacity_ah"]  # the 99th-percentile |I| of record() (its 2C legs)
+
 SOC0 = 0.7
 REPLACEMENTS = {
     "true": True,
@@ -68,14 +70,15 @@ def make_model(kind: str, effects, extra=None) -> FittedModel:
         values["voltage_offset_v"] = -0.01
     x = ecm.vector({k: v for k, v in values.items() if ecm.BY_REPORT[k] in names})
     bounds = {n: fitting.internal_limits(n) for n in names if not ecm.PARAMS[n].per_record}
-    return FittedModel(config, x, ecm.Knots(0.2, 0.12), 300.15, bounds, {"by": "test"})
+    return FittedModel(config, x, ecm.Knots(0.2, 0.12), 300.15, bounds, {"by": "test"},
+                       CURRENT_SCALE_A)  # fmt: skip
 
 
 def record(model: FittedModel) -> pd.DataFrame:
     """A record of the cell (its voltage the model's own from SOC0) with a moving temperature:
-    rest, 1C discharge, rest, a 3C pulse, rest, 1C charge, rest."""
+    rest, 2C discharge, rest, a 3C pulse, rest, 1C charge, rest."""
     c = TRUTH["capacity_ah"]
-    cur = np.concatenate([np.zeros(20), np.full(300, c), np.zeros(60), np.full(20, 3 * c),
+    cur = np.concatenate([np.zeros(20), np.full(300, 2 * c), np.zeros(60), np.full(5, 3 * c),
                           np.zeros(60), np.full(200, -c), np.zeros(40)])  # fmt: skip
     t = np.arange(cur.size, dtype=float)
     frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7,
@@ -155,6 +158,8 @@ def variants(text: str):
 
         if isinstance(key, int):  # a list entry removed: another field may notice first
             yield f"{label(path)} removed", edited(lambda p, k: p.pop(k)), None
+        elif path == ("current_scale_a",):
+            pass  # may be absent (files written before it): test_a_file_without_current_scale
         else:
             yield f"{label(path)} missing", edited(lambda p, k: p.pop(k)), label(path)
         original = edited(lambda p, k: None)
@@ -166,6 +171,8 @@ def variants(text: str):
                 continue  # the same value, or text as good as the original's
             if path == ("provenance",) and isinstance(value, dict):
                 continue  # any object: written for readers, never read
+            if path == ("current_scale_a",) and value is None:
+                continue  # null: not known (a model made in Python without it), probed at 1C
             want = label(path)
             pair_edit = (name, len(path)) in (("list", 2), ("huge", 3), ("-huge", 3))
             if path[0] == "bounds" and pair_edit:
@@ -358,22 +365,44 @@ def test_export_refuses_what_simulate_refuses(files, tmp_path, capsys, with_reco
     if with_record:
         assert err_e == err_s
     else:
-        assert f"under a {PROBE_C_RATE:g}C discharge and charge" in err_e
+        assert "under a discharge and charge at its training current (5.14 A)" in err_e
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
 
 
-def test_the_probe_crosses_the_fitted_soc_range_at_1c():
+@pytest.mark.parametrize("known", [True, False], ids=["training-current", "1C"])
+def test_the_probe_crosses_the_fitted_soc_range_and_back(known):
     model = make_model(*MODELS["table"])
-    frame, start = probe_record(model)
+    if not known:
+        model.current_scale_a = None
+    frame, start, what = probe_record(model)
     grid = model.knots.grid()
     assert start == pytest.approx(grid[-1])
-    moved = np.sum(frame["current_a"].to_numpy()[:-1] * np.diff(frame["time_s"])) / 3600.0
-    assert moved == pytest.approx(0.0, abs=1e-9)  # down and back
+    cur, dt = frame["current_a"].to_numpy()[:-1], np.diff(frame["time_s"])
+    assert np.sum(cur * dt) == pytest.approx(0.0, abs=1e-9)  # down and back
     q = TRUTH["capacity_ah"]
-    assert frame["current_a"].max() == pytest.approx(PROBE_C_RATE * q)
-    down = frame["current_a"].to_numpy()[:-1] > 0
-    charge = np.sum(frame["current_a"].to_numpy()[:-1][down] * np.diff(frame["time_s"])[down])
-    assert charge / 3600.0 / q == pytest.approx(grid[-1] - grid[0])
+    amps = CURRENT_SCALE_A if known else PROBE_C_RATE * q
+    assert frame["current_a"].max() == pytest.approx(amps)
+    assert ("training current" in what) == known
+    down = cur > 0
+    assert np.sum(cur[down] * dt[down]) / 3600.0 / q == pytest.approx(grid[-1] - grid[0])
+
+
+def test_a_file_without_current_scale_is_probed_at_1c(files, tmp_path, capsys):
+    """model.json files written before current_scale_a load; export probes them at 1C of their
+    capacity, so removing the field does not bypass the probe (R0 = 1.9 Ω is still refused)."""
+    text, _ = files["table"]
+    d = json.loads(text)
+    del d["current_scale_a"]
+    path = tmp_path / "model.json"
+    path.write_text(json.dumps(d))
+    assert FittedModel.load(path).current_scale_a is None
+    d["parameters"]["r0_ohm"] = 1.9
+    d["bounds"]["r0_ohm"] = [0.0, 2.0]
+    path.write_text(json.dumps(d))
+    code, _, err = run(["export", path, "--to", "pybamm", "--out", tmp_path / "c.py"], capsys)
+    refused_in_one_line(code, err, path)
+    assert f"at {PROBE_C_RATE:g}C (model.json has no current_scale_a)" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json"]
 
 
 def test_an_extreme_model_is_refused_by_its_voltage_without_numpy_warnings(files, tmp_path):

@@ -27,7 +27,7 @@ import pandas as pd
 
 from .. import __version__
 from ..errors import DataError
-from ..records import MAX_CURRENT_A, VOLTAGE_RANGE_V
+from ..records import MAX_CURRENT_A, VOLTAGE_RANGE_V, current_scale
 from . import ecm
 from . import ocv as ocv_mod
 from .ecm import IDX, Config, Knots, Record
@@ -37,10 +37,14 @@ FORMAT_VERSION = 1
 
 PROBE_C_RATE = 1.0
 """Without a record of the cell, ``export`` judges a model by its voltage under a discharge and a
-charge at 1C across the SOC it was fitted on (:func:`probe_record`): every lithium-ion cell
-carries 1C, so a model whose voltage leaves one cell's range there (R0 = 1.9 Ω in a 2.6 Ah cell:
-a 4.9 V drop) describes no cell. A record given to ``export --record`` is judged instead, as
-``simulate`` judges it."""
+charge across the SOC it was fitted on (:func:`probe_record`), at the current its training
+records ran at (``current_scale_a``: their 99th-percentile |I|, ``records.current_scale``).
+Not at 1C of the fitted capacity: a diagnosis of a short drive cycle without ``--capacity-ah``
+fits 19.7 Ah for the 2.9 Ah Panasonic cell (-10 °C UDDS), and its sound model fails at 19.7 A.
+Only a model.json without ``current_scale_a`` (written before it existed, or with it removed)
+is probed at 1C of its capacity: every lithium-ion cell carries 1C, so a model whose voltage
+leaves one cell's range there (R0 = 1.9 Ω in a 2.6 Ah cell: a 4.9 V drop) describes no cell.
+A record given to ``export --record`` is judged instead, as ``simulate`` judges it."""
 PROBE_SAMPLES = 200
 """Samples per leg of the probe: the simulator is exact for any step (zero-order hold), so these
 only set where the voltage is looked at."""
@@ -54,6 +58,7 @@ class FittedModel:
     tref_k: float
     bounds: dict[str, tuple[float, float]]  # internal names → the fit's bounds
     provenance: dict = field(default_factory=dict)
+    current_scale_a: float | None = None  # the training's current (training_current_scale)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -126,11 +131,10 @@ class FittedModel:
         if frame is not None:
             self.predict(frame, soc0=soc0, source=source)
             return
-        probe, start = probe_record(self)
+        probe, start, what = probe_record(self)
         grid = self.knots.grid()
         self.predict(probe, soc0=start, source=source,
-                     on=f"under a {PROBE_C_RATE:g}C discharge and charge across the SOC it was "
-                     f"fitted on ({max(grid[0], 0.0):.3g}-{grid[-1]:.3g}; --record checks a "
+                     on=f"{what} ({max(grid[0], 0.0):.3g}-{grid[-1]:.3g}; --record checks a "
                      "record of the cell instead)")  # fmt: skip
 
     # ------------------------------------------------------------------------------------------
@@ -149,6 +153,7 @@ class FittedModel:
             "tref_k": self.tref_k,
             "ocv_table": None if self.config.table is None else ocv_mod.to_json(self.config.table),
             "capacity_ah": float(10.0 ** self.x[IDX["lq"]]),
+            "current_scale_a": self.current_scale_a,
             "provenance": self.provenance,
         }
 
@@ -217,7 +222,8 @@ class FittedModel:
         if knots.grid()[-1] > KNOTS_SOC_RANGE[1]:
             raise DataError(f"{source}: field 'knots.step': the knots reach SOC "
                             f"{knots.grid()[-1]:.6g}, beyond {KNOTS_SOC_RANGE[1]:g}")  # fmt: skip
-        model = cls(config, x, knots, float(d["tref_k"]), bounds, d["provenance"])
+        model = cls(config, x, knots, float(d["tref_k"]), bounds, d["provenance"],
+                    d.get("current_scale_a"))  # fmt: skip
         written = {**{k: params[k] for k in _derived_keys(config)},
                    "capacity_ah": d["capacity_ah"]}  # fmt: skip
         derived = {**model.parameters(), "capacity_ah": float(10.0 ** x[IDX["lq"]])}
@@ -350,8 +356,9 @@ def _nullable(number: dict) -> dict:
     return {**number, "type": ["null", "number"]}  # range keywords apply to numbers only
 
 
-def _object(properties: dict) -> dict:
-    return {"type": "object", "properties": properties, "required": list(properties),
+def _object(properties: dict, optional=()) -> dict:
+    return {"type": "object", "properties": properties,
+            "required": [k for k in properties if k not in optional],
             "additionalProperties": False}  # fmt: skip
 
 
@@ -417,6 +424,7 @@ def model_schema(config: Config) -> dict:
     for key in _derived_keys(config):
         params[key] = _number()
     qlo, qhi = ecm.LIMITS["lq"]
+    # current_scale_a alone may be absent: files written before it are probed at 1C instead
     return _object({
         "format": {"const": FORMAT},
         "format_version": {"const": FORMAT_VERSION},
@@ -432,8 +440,10 @@ def model_schema(config: Config) -> dict:
         "tref_k": _number(*TREF_RANGE_K, "a cell's test temperatures"),
         "ocv_table": _table_schema() if config.table is not None else {"type": "null"},
         "capacity_ah": _number(qlo, qhi, "the library's range of capacity_ah"),
+        "current_scale_a": _nullable(_number(0.0, MAX_CURRENT_A, "a record's current scale",
+                                             exclusive=True)),
         "provenance": {"type": "object"},  # what made the model, for readers; never read
-    })  # fmt: skip
+    }, optional=("current_scale_a",))  # fmt: skip
 
 
 def _derived_keys(config: Config) -> list[str]:
@@ -529,14 +539,25 @@ def _table(d: dict, source: str) -> ecm.OcvTable:
     return ocv_mod.from_json(d)
 
 
-def probe_record(model: FittedModel) -> tuple[pd.DataFrame, float]:
-    """(record, initial SOC) on which ``export`` judges a model without a record of the cell: at
-    :data:`PROBE_C_RATE` from the top of the SOC range the model was fitted on (its knots) a
-    discharge to the bottom, a rest and a charge back, at the model's reference temperature."""
+def training_current_scale(recs) -> float:
+    """The current a model was fitted at: the largest of its training records' current scales
+    (99th-percentile |I|, ``records.current_scale``)."""
+    return max(current_scale(r.i) for r in recs)
+
+
+def probe_record(model: FittedModel) -> tuple[pd.DataFrame, float, str]:
+    """(record, initial SOC, what it is) on which ``export`` judges a model without a record of
+    the cell: from the top of the SOC range the model was fitted on (its knots) a discharge to
+    the bottom, a rest and a charge back, at the model's training current (else at
+    :data:`PROBE_C_RATE` of its capacity) and its reference temperature."""
     grid = model.knots.grid()
     lo, hi = max(float(grid[0]), 0.0), float(grid[-1])
-    amps = PROBE_C_RATE * float(10.0 ** model.x[IDX["lq"]])
-    dt = max(hi - lo, 1e-3) * 3600.0 / PROBE_C_RATE / PROBE_SAMPLES  # a leg crosses the range
+    q = float(10.0 ** model.x[IDX["lq"]])
+    if model.current_scale_a is not None:
+        amps, what = model.current_scale_a, f"its training current ({model.current_scale_a:.3g} A)"
+    else:
+        amps, what = PROBE_C_RATE * q, f"{PROBE_C_RATE:g}C (model.json has no current_scale_a)"
+    dt = max(hi - lo, 1e-3) * q * 3600.0 / amps / PROBE_SAMPLES  # a leg crosses the range
     rest = np.zeros(PROBE_SAMPLES // 10)
     cur = np.concatenate([rest, np.full(PROBE_SAMPLES, amps), rest,
                           np.full(PROBE_SAMPLES, -amps), rest])  # fmt: skip
@@ -546,7 +567,7 @@ def probe_record(model: FittedModel) -> tuple[pd.DataFrame, float]:
         "voltage_v": np.zeros(cur.size),  # not measured: the probe's initial SOC is given
         "temperature_c": np.full(cur.size, model.tref_k - 273.15),
     })  # fmt: skip
-    return frame, hi
+    return frame, hi, f"under a discharge and charge at {what} across the SOC it was fitted on"
 
 
 def _validate(d, schema: dict, source: str) -> None:
@@ -600,5 +621,6 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     mse = [float(np.mean((ecm.simulate_rows(rec, X[r], knots, config.table,
                                             config.load_ohm)[:, 0] - rec.v) ** 2))
            for r, rec in enumerate(recs)]  # fmt: skip
-    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {})
+    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
+                        training_current_scale(recs))  # fmt: skip
     return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)
