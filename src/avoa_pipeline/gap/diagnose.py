@@ -26,7 +26,7 @@ from .. import __version__, records, selection
 from ..errors import DataError, UserError
 from ..model import ecm, fitting
 from ..model.ecm import Record
-from ..model.fitted import FittedModel, fit_model
+from ..model.fitted import FittedModel, fit_model, training_current_scale
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
 
 MIN_SAMPLES = 2000
@@ -405,7 +405,7 @@ def fitted_model(ctx: selection.Context, run: selection.ModelRun, provenance=Non
     if ctx.fix_q:
         bounds["lq"] = (run.X[0, ecm.IDX["lq"]],) * 2
     return FittedModel(run.st.config, run.X[0].copy(), run.st.knots, ctx.recs[0].tref_k, bounds,
-                       provenance or {})  # fmt: skip
+                       provenance or {}, training_current_scale(ctx.recs))  # fmt: skip
 
 
 def _errors(model_v: np.ndarray, v: np.ndarray, mask: np.ndarray | None = None) -> dict:

@@ -660,10 +660,15 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
            drop_unsupported: bool = False, file_name: str = "cell.py") -> Export:  # fmt: skip
     """The module text of ``model`` (``source``: its file, for messages and the module's SOURCE).
 
-    ``frame``: a record of the cell (``record``: its name); it sets the initial SOC (unless
-    ``soc0``) and, when elements are dropped, is where their cost is measured (required then).
+    ``frame``: a record of the cell (``record``: its name); the model's voltage on it must be a
+    cell's (``FittedModel.check_cell``, the check ``simulate`` makes; without a record, on a 1C
+    probe); it sets the initial SOC (unless ``soc0``) and, when elements are dropped, is where
+    their cost is measured (required then).
     """
     drop = check_exportable(model, source, drop_unsupported)
+    # what simulate refuses, the export refuses too, by simulate's own check (on the record, or
+    # without one on FittedModel's probe): a module is never written for a model that is no cell
+    model.check_cell(frame, soc0, source)
     if drop and frame is None:
         raise UserError(f"--drop-unsupported drops {', '.join(drop)}: give a record of the cell "
                         "(--record) to measure what that costs")  # fmt: skip
@@ -697,10 +702,12 @@ def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame
 def parameter_values(model: FittedModel, soc0: float | None = None,
                      drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
     """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
-    module text the export writes, executed in place. Elements PyBaMM's Thevenin model cannot
+    module text the export writes, executed in place, for a model that passes the export's
+    check without a record (``FittedModel.check_cell``). Elements PyBaMM's Thevenin model cannot
     hold are a UserError unless ``drop_unsupported`` (then dropped without a cost: the CLI
     measures that on a record)."""
     drop = check_exportable(model, source, drop_unsupported)
+    model.check_cell(None, soc0, source)  # as export without a record: the 1C probe
     s0, note = initial_soc_of(model, None, soc0)
     text = module_source(without(model, drop), s0, note, source,
                          {e: {"why": ELEMENTS[e].how} for e in drop})  # fmt: skip

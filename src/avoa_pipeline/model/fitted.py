@@ -3,25 +3,51 @@
 
 The initial SOC of a record comes from the library's one rule (``ecm.soc0_from_voltage``: the
 OCV at the first sample, corrected for the ohmic drop; hysteresis state 0), or is given.
+
+A ``model.json`` is hand-editable, so loading it trusts nothing: one JSON Schema built from the
+library's own tables (``ecm.PARAMS``, ``ecm.LIMITS``, ``ecm.EFFECTS``; :func:`model_schema`)
+checks every field the writer writes for presence, JSON type (a boolean is not a number),
+finiteness, shape and range before any number is used; what a schema cannot say (bounds in
+order, a table that rises, values written for readers equal to what the parameters give)
+follows in :meth:`FittedModel.from_json`. Every refusal is one line naming the file and the
+field. Whether the parameters describe a cell *together* is judged by the voltage they predict
+(:meth:`FittedModel.predict`), the one check ``simulate`` and ``export`` share.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pandas as pd
 
 from .. import __version__
 from ..errors import DataError
-from ..records import VOLTAGE_RANGE_V
+from ..records import VOLTAGE_RANGE_V, current_scale
 from . import ecm
 from . import ocv as ocv_mod
 from .ecm import IDX, Config, Knots, Record
 
 FORMAT = "avoa-pipeline-model"
 FORMAT_VERSION = 1
+
+PROBE_C_RATE = 1.0
+"""Without a record of the cell, ``export`` judges a model by its voltage under a discharge and a
+charge across the SOC it was fitted on (:func:`probe_record`), at the current its training
+records ran at (``current_scale_a``: their 99th-percentile |I|, ``records.current_scale``).
+Not at 1C of the fitted capacity: a diagnosis of a short drive cycle without ``--capacity-ah``
+fits 19.7 Ah for the 2.9 Ah Panasonic cell (-10 °C UDDS), and its sound model fails at 19.7 A.
+Only a model.json without ``current_scale_a`` (written before it existed, or with it removed)
+is probed at 1C of its capacity: every lithium-ion cell carries 1C, so a model whose voltage
+leaves one cell's range there (R0 = 1.9 Ω in a 2.6 Ah cell: a 4.9 V drop) describes no cell.
+A record given to ``export --record`` is judged instead, as ``simulate`` judges it."""
+PROBE_SAMPLES = 200
+"""Samples per leg of the probe: the simulator is exact for any step (zero-order hold), so these
+only set where the voltage is looked at."""
 
 
 AT_BOUND = 1e-4
@@ -40,6 +66,7 @@ class FittedModel:
     tref_k: float
     bounds: dict[str, tuple[float, float]]  # internal names → the fit's bounds
     provenance: dict = field(default_factory=dict)
+    current_scale_a: float | None = None  # the training's current (training_current_scale)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -83,15 +110,24 @@ class FittedModel:
         return (res[0][:, 0], res[1]) if traces else res[:, 0]
 
     def predict(self, frame: pd.DataFrame, soc0: float | None = None,
-                source: str = "model.json") -> np.ndarray:  # fmt: skip
+                source: str = "model.json", on: str = "") -> np.ndarray:  # fmt: skip
         """:meth:`simulate`, refused (DataError naming ``source``) where the model's voltage
-        leaves one cell's range (``records.VOLTAGE_RANGE_V``): parameters that pass every bound
-        one by one may still not describe a cell together."""
-        v = self.simulate(frame, soc0=soc0)
+        leaves one cell's range (``records.VOLTAGE_RANGE_V``) or is not finite: parameters
+        that pass every bound one by one may still not describe a cell together. The one
+        refusal ``simulate`` and ``export`` share (:meth:`check_cell`); ``on`` says what ran."""
+        # an extreme model may overflow on the way; its voltage is judged right below, and a
+        # numpy warning printed before the one-line refusal would only hide it
+        with np.errstate(all="ignore"):
+            v = self.simulate(frame, soc0=soc0)
         lo, hi = VOLTAGE_RANGE_V
-        if not (np.all(np.isfinite(v)) and v.min() >= lo and v.max() <= hi):
-            raise DataError(f"{source}: the model predicts {np.nanmin(v):.4g}..{np.nanmax(v):.4g}"
-                            f" V, outside one cell's {lo:g}..{hi:g} V: its parameters do not "
+        where = f" {on}" if on else ""
+        bad = int(np.count_nonzero(~np.isfinite(v)))
+        if bad:
+            raise DataError(f"{source}: the model predicts no finite voltage at {bad} of {v.size}"
+                            f" samples{where}: its parameters do not describe a cell")  # fmt: skip
+        if v.min() < lo or v.max() > hi:
+            raise DataError(f"{source}: the model predicts {v.min():.4g}..{v.max():.4g} V{where},"
+                            f" outside one cell's {lo:g}..{hi:g} V: its parameters do not "
                             "describe a cell")  # fmt: skip
         return v
 
@@ -115,6 +151,20 @@ class FittedModel:
                               "bounds": [plo, phi]})  # fmt: skip
         return flags
 
+    def check_cell(self, frame: pd.DataFrame | None = None, soc0: float | None = None,
+                   source: str = "model.json") -> None:  # fmt: skip
+        """What ``export`` refuses, by ``simulate``'s own check (:meth:`predict`): on the
+        record given (from ``soc0``, else by the library's rule, as ``simulate`` starts it);
+        without one, on :func:`probe_record`."""
+        if frame is not None:
+            self.predict(frame, soc0=soc0, source=source)
+            return
+        probe, start, what = probe_record(self)
+        grid = self.knots.grid()
+        self.predict(probe, soc0=start, source=source,
+                     on=f"{what} ({max(grid[0], 0.0):.3g}-{grid[-1]:.3g}; --record checks a "
+                     "record of the cell instead)")  # fmt: skip
+
     # ------------------------------------------------------------------------------------------
 
     def to_json(self) -> dict:
@@ -131,6 +181,7 @@ class FittedModel:
             "tref_k": self.tref_k,
             "ocv_table": None if self.config.table is None else ocv_mod.to_json(self.config.table),
             "capacity_ah": float(10.0 ** self.x[IDX["lq"]]),
+            "current_scale_a": self.current_scale_a,
             "provenance": self.provenance,
         }
 
@@ -150,20 +201,33 @@ class FittedModel:
             tmp.write_text(json.dumps(self.to_json(), indent=1, allow_nan=False) + "\n")
 
     @classmethod
-    def from_json(cls, d: dict, source: str = "model.json") -> FittedModel:
-        """A saved model, checked: its format and version, known elements, every parameter of
-        the configuration present, finite and inside the bounds it was fitted in."""
-        if not isinstance(d, dict) or d.get("format") != FORMAT:
+    def from_json(cls, d, source: str = "model.json") -> FittedModel:
+        """A saved model, checked before any of it is used (module docstring): its format and
+        version, its configuration, then :func:`model_schema` and what a schema cannot say.
+        Every refusal is one DataError naming ``source`` and the field."""
+        if not isinstance(d, dict):
+            raise DataError(f"{source}: field '(top level)': {_kind(d)}, not an object (an "
+                            f"{FORMAT} file)")  # fmt: skip
+        if d.get("format") != FORMAT:
             raise DataError(f"{source}: field 'format': not an {FORMAT} file")
-        if d.get("format_version") != FORMAT_VERSION:
-            raise DataError(f"{source}: field 'format_version': {d.get('format_version')!r}; this "
+        version = d.get("format_version")
+        if type(version) is not int or version != FORMAT_VERSION:  # true == 1 in Python
+            raise DataError(f"{source}: field 'format_version': {json.dumps(version)}; this "
                             f"version ({__version__}) reads version {FORMAT_VERSION}")  # fmt: skip
+        _validate(d, _envelope(), source)
+        # the configuration first (with a stand-in table: the table is checked by the schema)
         try:
-            table = ocv_mod.from_json(d["ocv_table"]) if d.get("ocv") == "table" else None
-            config = Config(tuple(d["effects"]), table, d.get("load_ohm"))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise DataError(f"{source}: field 'effects'/'ocv': {exc}") from None
-        params, bounds_rep = d.get("parameters") or {}, d.get("bounds") or {}
+            stand_in = _STAND_IN_TABLE if d["ocv"] == "table" else None
+            config = Config(tuple(d["effects"]), stand_in)
+        except ValueError as exc:
+            raise DataError(f"{source}: field 'effects': {exc}") from None
+        _validate(d, model_schema(config), source)
+        table = None if stand_in is None else _table(d["ocv_table"], source)
+        try:
+            config = Config(config.effects, table, d["load_ohm"])
+        except ValueError as exc:
+            raise DataError(f"{source}: field 'load_ohm': {exc}") from None
+        params, bounds_rep = d["parameters"], d["bounds"]
         x = ecm.NEUTRAL.copy()
         bounds = {}
         for n in config.names():
@@ -171,31 +235,377 @@ class FittedModel:
             if p.per_record:
                 continue
             rep = p.report
-            if rep not in params or rep not in bounds_rep:
-                raise DataError(f"{source}: field 'parameters.{rep}': missing")
-            value = params[rep]
-            lo, hi = bounds_rep[rep]
-            if not (isinstance(value, int | float) and np.isfinite(value)):
-                raise DataError(f"{source}: field 'parameters.{rep}': not a finite number")
+            value, (lo, hi) = float(params[rep]), map(float, bounds_rep[rep])
+            if lo > hi:
+                raise DataError(f"{source}: field 'bounds.{rep}': lower {lo:g} above upper "
+                                f"{hi:g}")  # fmt: skip
             tol = 1e-9 * max(1.0, abs(hi - lo))
             if not lo - tol <= value <= hi + tol:
                 raise DataError(f"{source}: field 'parameters.{rep}': {value:g} outside the "
                                 f"bounds it was fitted in [{lo:g}, {hi:g}]")  # fmt: skip
-            plo, phi = ecm.LIMITS[n]
-            if not plo - 1e-9 * abs(plo) <= value <= phi + 1e-9 * abs(phi):
-                raise DataError(f"{source}: field 'parameters.{rep}': {value:g} outside the "
-                                f"library's physical range [{plo:g}, {phi:g}]")  # fmt: skip
             x[IDX[n]] = ecm.internal_value(rep, value)[1]
             bounds[n] = tuple(sorted((ecm.internal_value(rep, lo)[1],
                                       ecm.internal_value(rep, hi)[1])))  # fmt: skip
         knots = Knots(float(d["knots"]["lo"]), float(d["knots"]["step"]))
-        return cls(config, x, knots, float(d["tref_k"]), bounds, d.get("provenance") or {})
+        if knots.grid()[-1] > KNOTS_SOC_RANGE[1]:
+            raise DataError(f"{source}: field 'knots.step': the knots reach SOC "
+                            f"{knots.grid()[-1]:.6g}, beyond {KNOTS_SOC_RANGE[1]:g}")  # fmt: skip
+        model = cls(config, x, knots, float(d["tref_k"]), bounds, d["provenance"],
+                    d.get("current_scale_a"))  # fmt: skip
+        written = {**{k: params[k] for k in _derived_keys(config)},
+                   "capacity_ah": d["capacity_ah"]}  # fmt: skip
+        derived = {**model.parameters(), "capacity_ah": float(10.0 ** x[IDX["lq"]])}
+        for key, value in written.items():
+            want = derived[key]
+            if not math.isclose(value, want, rel_tol=DERIVED_RTOL, abs_tol=DERIVED_RTOL):
+                field_name = key if key == "capacity_ah" else f"parameters.{key}"
+                raise DataError(f"{source}: field '{field_name}': {value:.10g}, but the "
+                                f"parameters give {want:.10g} (written for readers, never read:"
+                                " edit the parameters instead)")  # fmt: skip
+        return model
 
     @classmethod
     def load(cls, path) -> FittedModel:
+        """:meth:`from_json` of the file at ``path``; a folder, an unreadable file or text that
+        is not JSON is a one-line DataError too."""
         from ..io import read_json
 
-        return cls.from_json(read_json(path), str(path))
+        if Path(path).is_dir():
+            raise DataError(f"{path}: a folder, not a model.json file")
+        try:
+            d = read_json(path)
+        except OSError as exc:
+            raise DataError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+        except (ValueError, RecursionError) as exc:  # e.g. an integer of over 4,300 digits
+            raise DataError(f"{path}: not readable JSON ({str(exc)[:80]})") from None
+        return cls.from_json(d, str(path))
+
+
+# ----------------------------------------------------------------------------------------------
+# model.json: what a file must hold (one schema, built from the library's tables)
+
+TREF_RANGE_K = (223.15, 373.15)
+"""tref_k, the reference temperature of the thermal factors (the training records' mean): −50 to
+100 °C. Lithium-ion cells are tested between −40 and 85 °C at most; a value outside is °C
+written where K is meant, or a typo."""
+KNOTS_SOC_RANGE = (-1e-3, 1.2 + 1e-3)
+"""Where the knots may lie: ``fitting.knots_for`` spreads them over the SOC the training records
+visit, clipped to [0, 1.2] (the rational OCV's own clip) and widened by 5e-4 each side where that
+range is narrower than 1e-3."""
+MAX_CELL_CURRENT_A = 1e4
+"""No single cell carries more: the largest cells made hold about 1,000 Ah, and 10 C of them is
+10 kA (records no longer cap the current: a capacity judges it, ``records.AMBIGUOUS_CURRENT_A``)."""
+LOAD_OHM_RANGE = (VOLTAGE_RANGE_V[1] / MAX_CELL_CURRENT_A, 1e9)
+"""The paper's load resistor across the cell: at most ``MAX_CELL_CURRENT_A`` through it at
+the highest cell voltage (a lower resistance is a short, not a single cell's load); above 1 GΩ it
+draws nanoamperes, i.e. no load (write null)."""
+DERIVED_RTOL = 1e-9
+"""Values model.json writes for readers (the knots, the OCV correction and resistance factors at
+them, the capacity beside the parameters, the table's SOC grid) are computed from the parameters;
+an edited one would be ignored on loading, so it must equal the recomputed value (to 1e-9
+relative: what a JSON round trip of the same arithmetic leaves)."""
+LIMIT_RTOL = 1e-9
+"""A value at a limit of ``ecm.LIMITS`` may lie this far (relative) beyond it: the physical value
+is written from its internal coordinate (10**log10(x) is not always x to the last bit)."""
+
+_TYPE_WORDS = {"number": "a number", "integer": "an integer", "string": "a string",
+               "array": "a list", "object": "an object", "null": "null"}  # fmt: skip
+
+
+def _kind(value) -> str:
+    """A JSON value's type as the user wrote it (true/false is a boolean, not a number)."""
+    if isinstance(value, bool):
+        return f"a boolean ({str(value).lower()})"
+    if value is None:
+        return "null"
+    if isinstance(value, str):
+        return f"a string ({value[:40]!r})"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "an object"
+    return f"the number {_show(value)}"
+
+
+def _show(value) -> str:
+    """A number as JSON spells it (NaN, Infinity), or the words for one no float holds."""
+    try:
+        x = float(value)
+    except OverflowError:
+        return "an integer beyond a float's range"
+    if math.isnan(x):
+        return "NaN"
+    if math.isinf(x):
+        return "-Infinity" if x < 0 else "Infinity"
+    return f"{x:.6g}"
+
+
+def _is_finite(value) -> bool:
+    """JSON parses NaN and ±Infinity (and 1e400 as inf) as numbers, and an integer of any
+    length, which no float holds; none is a parameter."""
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+def _finite(validator, wanted, instance, schema):
+    """The schema keyword ``finite`` (:func:`_is_finite`)."""
+    if wanted and validator.is_type(instance, "number") and not _is_finite(instance):
+        yield jsonschema.ValidationError(f"{_show(instance)}, not a finite number")
+
+
+def _entries(validator, item_schema, instance, schema):
+    """The schema keyword ``entries``: ``items`` for a long list of numbers (an OCV table's
+    1,001), judged at the first entry that fails, so a table costs microseconds, not a schema
+    walk per entry."""
+    if not validator.is_type(instance, "array"):
+        return
+    lo, hi = item_schema.get("minimum", -math.inf), item_schema.get("maximum", math.inf)
+    for j, value in enumerate(instance):
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not (number and _is_finite(value) and lo <= value <= hi):
+            yield from validator.descend(value, item_schema, path=j)
+            return
+
+
+_Validator = jsonschema.validators.extend(
+    jsonschema.Draft202012Validator, {"finite": _finite, "entries": _entries}
+)
+
+
+def _number(lo=None, hi=None, why: str = "", exclusive: bool = False) -> dict:
+    s = {"type": "number", "finite": True, "description": why}
+    if lo is not None:
+        s["exclusiveMinimum" if exclusive else "minimum"] = lo
+    if hi is not None:
+        s["maximum"] = hi
+    return s
+
+
+def _nullable(number: dict) -> dict:
+    return {**number, "type": ["null", "number"]}  # range keywords apply to numbers only
+
+
+def _object(properties: dict, optional=()) -> dict:
+    return {"type": "object", "properties": properties,
+            "required": [k for k in properties if k not in optional],
+            "additionalProperties": False}  # fmt: skip
+
+
+def _list(items: dict, n: int | None = None, at_least: int | None = None) -> dict:
+    s = {"type": "array", "items": items}
+    if n is not None:
+        s["minItems"] = s["maxItems"] = n
+    if at_least is not None:
+        s["minItems"] = at_least
+    return s
+
+
+def _envelope() -> dict:
+    """What decides the configuration: read first, so that the rest can be checked against it."""
+    return {
+        "type": "object",
+        "properties": {
+            "ocv": {"enum": ["rational", "table"]},
+            "effects": {**_list({"type": "string", "enum": list(ecm.EFFECTS)}),
+                        "uniqueItems": True},
+        },
+        "required": ["ocv", "effects"],
+    }  # fmt: skip
+
+
+def _bound_domain(name: str) -> dict:
+    """A bound (physical value) inside the domain of its parameter's transform."""
+    t = ecm.PARAMS[name].transform
+    if t == "log10":
+        return _number(0.0, None, "the positive numbers (its fit coordinate is a log)", True)
+    if t == "log10_1m":
+        why = "the numbers below 1 (its fit coordinate is log10(1 − value))"
+        return {**_number(None, None, why), "exclusiveMaximum": 1.0}
+    return _number()
+
+
+def _table_schema() -> dict:
+    lo, hi = VOLTAGE_RANGE_V
+    qlo, qhi = ecm.LIMITS["lq"]
+    return _object({
+        "soc_lo": _number(0.0, 1.0 - ocv_mod.MIN_TABLE_SPAN, "an OCV table's SOC range"),
+        "soc_step": _number(0.0, 1.0, "an OCV table's SOC step", True),
+        "soc": {"type": "array", "minItems": 2, "entries": _number()},
+        "ocv_v": {"type": "array", "minItems": 2,
+                  "entries": _number(lo, hi, "one cell's voltage range")},
+        "capacity_ah": _nullable(_number(qlo, qhi, "the library's range of capacity_ah")),
+        "source": {"type": "string"},
+        "how": {"type": "string"},
+    })  # fmt: skip
+
+
+def model_schema(config: Config) -> dict:
+    """The JSON Schema of a model.json of ``config``: every field the writer writes, its JSON
+    type, finiteness, shape and range; the ranges are the library's (``ecm.LIMITS``,
+    ``records.VOLTAGE_RANGE_V``) and this module's constants."""
+    names = [n for n in config.names() if not ecm.PARAMS[n].per_record]
+    params, bounds = {}, {}
+    for n in names:
+        lo, hi = ecm.LIMITS[n]
+        params[ecm.PARAMS[n].report] = _number(lo - LIMIT_RTOL * abs(lo), hi + LIMIT_RTOL * abs(hi),
+                                               "the library's physical range")  # fmt: skip
+        bounds[ecm.PARAMS[n].report] = _list(_bound_domain(n), n=2)
+    for key in _derived_keys(config):
+        params[key] = _number()
+    qlo, qhi = ecm.LIMITS["lq"]
+    # current_scale_a alone may be absent: files written before it are probed at 1C instead
+    return _object({
+        "format": {"const": FORMAT},
+        "format_version": {"const": FORMAT_VERSION},
+        "package_version": {"type": "string"},
+        "ocv": {"const": config.ocv_kind},
+        "effects": {**_list({"type": "string"}), "uniqueItems": True},
+        "load_ohm": _nullable(_number(*LOAD_OHM_RANGE, "a load resistor's range")),
+        "parameters": _object(params),
+        "bounds": _object(bounds),
+        "knots": _object({"lo": _number(*KNOTS_SOC_RANGE, "the knots' SOC range"),
+                          "step": _number(0.0, KNOTS_SOC_RANGE[1] - KNOTS_SOC_RANGE[0],
+                                          "the knots' SOC step", True)}),
+        "tref_k": _number(*TREF_RANGE_K, "a cell's test temperatures"),
+        "ocv_table": _table_schema() if config.table is not None else {"type": "null"},
+        "capacity_ah": _number(qlo, qhi, "the library's range of capacity_ah"),
+        "current_scale_a": _nullable(_number(0.0, MAX_CELL_CURRENT_A, "a record's current scale",
+                                             exclusive=True)),
+        "provenance": {"type": "object"},  # what made the model, for readers; never read
+    }, optional=("current_scale_a",))  # fmt: skip
+
+
+def _derived_keys(config: Config) -> list[str]:
+    """The names of the values written for readers (:meth:`FittedModel.parameters` beyond the
+    parameters themselves): those of a model of ``config`` at neutral values."""
+    names = {ecm.PARAMS[n].report for n in config.names()}
+    probe = FittedModel(config, ecm.NEUTRAL.copy(), Knots(0.0, 0.2), ecm.T_DEFAULT_K, {})
+    return [k for k in probe.parameters() if k not in names]
+
+
+def _field(path) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+def _refusal(err: jsonschema.ValidationError) -> tuple[str, str]:
+    """(field, what) of a schema error, in the user's words (JSON's types, not Python's)."""
+    path, value, s, v = list(err.absolute_path), err.instance, err.schema, err.validator
+    if v == "required":
+        missing = next(k for k in s["required"] if k not in value)
+        return _field([*path, missing]), "missing"
+    if v == "additionalProperties":
+        extra = next(k for k in value if k not in s["properties"])
+        return _field([*path, extra]), "not a field of this model.json's configuration"
+    field = _field(path) or "(top level)"
+    if v == "type":
+        wanted = s["type"] if isinstance(s["type"], list) else [s["type"]]
+        return field, f"{_kind(value)}, not {' or '.join(_TYPE_WORDS[t] for t in wanted)}"
+    if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
+        lo = s.get("minimum", s.get("exclusiveMinimum"))
+        hi = s.get("maximum", s.get("exclusiveMaximum"))
+        left = "(" if "exclusiveMinimum" in s else "["
+        right = ")" if "exclusiveMaximum" in s else "]"
+        ends = (
+            _show(lo) if lo is not None else "-Infinity",
+            _show(hi) if hi is not None else "Infinity",
+        )
+        span = f"{left}{ends[0]}, {ends[1]}{right}"
+        why = s.get("description") or "the allowed range"
+        return field, f"{_show(value)} outside {why} {span}"
+    if v == "enum" and path and path[0] == "effects":
+        return field, f"unknown element {value!r}; choose from {', '.join(ecm.EFFECTS)}"
+    if v in ("enum", "const"):
+        allowed = s["enum"] if v == "enum" else [s["const"]]
+        return field, f"{value!r}, not {' or '.join(map(repr, allowed))}"
+    if v in ("minItems", "maxItems"):
+        return field, f"a list of {len(value)}, need " + (
+            f"{s['minItems']}"
+            if s.get("minItems") == s.get("maxItems")
+            else f"at least {s['minItems']}"
+        )
+    if v == "uniqueItems":
+        return field, "an entry twice"
+    return field, err.message
+
+
+_STAND_IN_TABLE = ecm.OcvTable(0.0, 1.0, np.array([3.0, 4.0]))
+"""Tells :class:`Config` that the OCV is a table while the file's own table awaits its checks."""
+
+
+def _table(d: dict, source: str) -> ecm.OcvTable:
+    """The OCV table of a model.json that passed the schema, with what a schema cannot say: it
+    rises strictly (the initial-SOC rule inverts it), its grid stays within SOC 0-1 and spans
+    at least ``ocv.MIN_TABLE_SPAN`` (as a table read from a file must), and ``soc`` is that
+    grid."""
+    v = np.asarray(d["ocv_v"], dtype=float)
+    k = np.flatnonzero(np.diff(v) <= 0.0)
+    if k.size:
+        j = int(k[0]) + 1
+        raise DataError(f"{source}: field 'ocv_table.ocv_v[{j}]': {v[j]:.6g} V, not above the "
+                        f"entry before ({v[j - 1]:.6g} V); the initial-SOC rule inverts the "
+                        "table, so it must rise strictly")  # fmt: skip
+    lo, step = float(d["soc_lo"]), float(d["soc_step"])
+    span = step * (v.size - 1)
+    if lo + span > 1.0 + DERIVED_RTOL or span < ocv_mod.MIN_TABLE_SPAN - DERIVED_RTOL:
+        raise DataError(
+            f"{source}: field 'ocv_table.soc_step': the table covers SOC "
+            f"{lo:.6g}-{lo + span:.6g} (soc_lo + soc_step × (entries − 1)); an OCV "
+            f"table lies within 0-1 and spans at least {ocv_mod.MIN_TABLE_SPAN:g}"
+        )
+    if len(d["soc"]) != v.size:
+        raise DataError(f"{source}: field 'ocv_table.soc': a list of {len(d['soc'])}, need "
+                        f"{v.size} (one per ocv_v entry)")  # fmt: skip
+    grid = lo + step * np.arange(v.size)
+    for j, (got, want) in enumerate(zip(d["soc"], grid, strict=True)):
+        if not math.isclose(got, want, rel_tol=DERIVED_RTOL, abs_tol=DERIVED_RTOL):
+            raise DataError(
+                f"{source}: field 'ocv_table.soc[{j}]': {got:.10g}, but soc_lo and "
+                f"soc_step give {want:.10g} (written for readers, never read)"
+            )
+    return ocv_mod.from_json(d)
+
+
+def training_current_scale(recs) -> float:
+    """The current a model was fitted at: the largest of its training records' current scales
+    (99th-percentile |I|, ``records.current_scale``)."""
+    return max(current_scale(r.i) for r in recs)
+
+
+def probe_record(model: FittedModel) -> tuple[pd.DataFrame, float, str]:
+    """(record, initial SOC, what it is) on which ``export`` judges a model without a record of
+    the cell: from the top of the SOC range the model was fitted on (its knots) a discharge to
+    the bottom, a rest and a charge back, at the model's training current (else at
+    :data:`PROBE_C_RATE` of its capacity) and its reference temperature."""
+    grid = model.knots.grid()
+    lo, hi = max(float(grid[0]), 0.0), float(grid[-1])
+    q = float(10.0 ** model.x[IDX["lq"]])
+    if model.current_scale_a is not None:
+        amps, what = model.current_scale_a, f"its training current ({model.current_scale_a:.3g} A)"
+    else:
+        amps, what = PROBE_C_RATE * q, f"{PROBE_C_RATE:g}C (model.json has no current_scale_a)"
+    dt = max(hi - lo, 1e-3) * q * 3600.0 / amps / PROBE_SAMPLES  # a leg crosses the range
+    rest = np.zeros(PROBE_SAMPLES // 10)
+    cur = np.concatenate([rest, np.full(PROBE_SAMPLES, amps), rest,
+                          np.full(PROBE_SAMPLES, -amps), rest])  # fmt: skip
+    frame = pd.DataFrame({
+        "time_s": dt * np.arange(cur.size),
+        "current_a": cur,
+        "voltage_v": np.zeros(cur.size),  # not measured: the probe's initial SOC is given
+        "temperature_c": np.full(cur.size, model.tref_k - 273.15),
+    })  # fmt: skip
+    return frame, hi, f"under a discharge and charge at {what} across the SOC it was fitted on"
+
+
+def _validate(d, schema: dict, source: str) -> None:
+    err = jsonschema.exceptions.best_match(_Validator(schema).iter_errors(d))
+    if err is not None:
+        field, what = _refusal(err)
+        raise DataError(f"{source}: field '{field}': {what}")
 
 
 @dataclass
@@ -242,5 +652,6 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     mse = [float(np.mean((ecm.simulate_rows(rec, X[r], knots, config.table,
                                             config.load_ohm)[:, 0] - rec.v) ** 2))
            for r, rec in enumerate(recs)]  # fmt: skip
-    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {})
+    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
+                        training_current_scale(recs))  # fmt: skip
     return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)
