@@ -551,7 +551,18 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     bvarr = np.any(thbv != 0.0)
     load = g_load != 0.0
     hx = np.zeros(m)  # the hysteresis decay of the last sample, per row
-    for k in range(n):
+    # a held current between returned samples: the state's per-sample increments are constants
+    # of the hold (no element there depends on the state itself), so they are computed once and
+    # the states stepped in tight loops, the same operations in the same order as below
+    fast = not load and not record and not low
+    if extras:  # noqa: SIM102 - as below
+        if soc_r1:
+            fast = False
+    b1, b2, b3, bd = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
+    dqs, hs = np.zeros(m), np.zeros(m)
+    hon = np.zeros(m, dtype=np.bool_)
+    k = 0
+    while k < n:
         dtk = dt[k]
         ik0 = cur[k]
         # the same current over the same step as the sample before (a cycler's hold; never under
@@ -567,6 +578,47 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                 a2[c] = np.exp(-dtk / tau2[c])
                 a3[c] = np.exp(-dtk / tau3[c])
                 ad[c] = np.exp(-dtk / taud[c])
+        if fast and row < 0:
+            e = k + 1
+            while (e < n and sel[e] < 0 and cur[e] == ik0 and dt[e] == dtk
+                   and (not therm1 or dinv_t[e] == dinv)):  # fmt: skip
+                e += 1
+            if e - k > 1:
+                for c in range(m):
+                    i = ik0 + ioff[c]
+                    g = 1.0
+                    f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
+                    gi = f1 * g * i
+                    b1[c] = r1[c] * (1.0 - a1[c]) * gi
+                    b2[c] = r2[c] * (1.0 - a2[c]) * gi
+                    b3[c] = r3[c] * (1.0 - a3[c]) * gi
+                    bd[c] = (1.0 - ad[c]) * kd[c] * i
+                    ie = i if i > 0.0 else eta[c] * i
+                    dqs[c] = ie * dtk / q3600[c]
+                    hon[c] = hyst and i != 0.0
+                    if hon[c]:
+                        hx[c] = np.exp(-abs(dqs[c] * gam[c]))
+                        hs[c] = (1.0 - hx[c]) * (1.0 if i > 0.0 else -1.0)
+                for _ in range(e - k):
+                    for c in range(m):
+                        v1[c] = a1[c] * v1[c] + b1[c]
+                    if rc2:
+                        for c in range(m):
+                            v2[c] = a2[c] * v2[c] + b2[c]
+                    if rc3:
+                        for c in range(m):
+                            v3[c] = a3[c] * v3[c] + b3[c]
+                    if diff:
+                        for c in range(m):
+                            dl[c] = ad[c] * dl[c] + bd[c]
+                    if hyst:
+                        for c in range(m):
+                            if hon[c]:
+                                h[c] = hx[c] * h[c] - hs[c]
+                    for c in range(m):
+                        soc[c] = soc[c] - dqs[c]
+                k = e
+                continue
         # the terminal voltage is needed only where it is returned or recorded, or where a load
         # makes the current follow it; elsewhere only the state is stepped (a fit returns a
         # thinned subset of a long record, so most samples only carry the state forward)
@@ -663,6 +715,7 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                 ex = hx[c]
                 h[c] = ex * h[c] - (1.0 - ex) * (1.0 if i > 0.0 else -1.0)
             soc[c] = s - dq
+        k += 1
 
 
 _SIMULATE = {False: _kernel(False), True: _kernel(True)}
