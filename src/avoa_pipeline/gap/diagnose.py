@@ -12,6 +12,23 @@ and their reasons: docs/gap-diagnosis.md).
    judged on held-out data by the one selection method (``avoa_pipeline.selection``).
 4. The selected model (the ladder's last rung) is written as ``model.json``; records passed for
    validation are predicted by every rung of the ladder and never enter any choice.
+
+Long records (issue 25; 10⁶ samples, 28 h at 10 Hz). What was done, and why this and not a
+subset: the state (SOC, RC voltages, hysteresis) is a recursion through every sample, so every
+sample is simulated; a fit's residuals are already every s-th sample (``fitting.MAX_FIT_POINTS``,
+a fixed stride), and the held-out scores, tests, localization and signatures read every sample.
+The cost was the simulator computing the terminal voltage (the OCV, its corrections, the
+overpotentials) at all 10⁶ samples of every Jacobian pass although only 20,000 were returned.
+The simulator now computes the voltage only at the samples returned, and across a held current
+between two of them steps the state with the hold's increments computed once
+(``ecm._loop``): the same operations in the same order, so every fit, score and verdict is bit
+for bit what it was at every size (no size threshold is needed; 1e6-sample report identical to
+the one before). Thinning *which* residuals enter a fit or a test, or coarsening the record,
+would change verdicts and was not done. ``diagnosis.json``'s ``samples`` says it: given, fitted
+per fit, the stride, and the residuals' correlation time and effective sample size (a stride
+below the correlation time loses almost no information: neighbouring residuals repeat each
+other). The cost still grows with the length (twice the samples, about twice the time and
+memory: docs/benchmarks.md); after PROGRESS_AFTER_S a line per finished stage goes to stderr.
 """
 
 from __future__ import annotations

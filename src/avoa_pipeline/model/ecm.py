@@ -492,6 +492,13 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     whose parameter is neutral in every row is skipped (the flags do not change inside the loops,
     so the compiler takes the branches out of them). ``extras``: a constant of the compiled
     version (:func:`_kernel`).
+
+    Long records (issue 25): the voltage is computed only at samples that are returned or
+    traced (or under a load, where the current follows it); between them only the state is
+    stepped, and across a held current (same current, step and temperature) with the hold's
+    increments computed once. Every state update is the same operations in the same order as
+    the full pass, so a thinned call returns the full pass's voltages bit for bit
+    (``tests/unit/test_long_records.py``).
     """
     m = P.shape[0]
     n = cur.shape[0]
