@@ -11,6 +11,7 @@ drive-cycle-like random current at 10 Hz for 200k. Prints measured times; assert
     ... --sweep 6        # 6 replicates x (control + 8 effects x 2 magnitudes)
     ... --stages A.csv B.csv   # where each diagnosis's time goes (fits, held-out fits, Jacobians)
     ... --long 1000000 2000000   # issue 25's long records through the CLI, in a child process
+    ... --thinned 1000000   # the simulator's CPU ns per sample-row, full and thinned passes
 
 ``--long``: the issue's clean synthetic record (:func:`issue_record`: 10 Hz, current held 1-30 s
 at 0, ±0.5, ±1 or ±2 A with SOC kept in 0.2-0.9, OCV 3.0 + 0.7·s + 0.5·s² V, R0 30 mΩ, R1 15 mΩ,
@@ -149,7 +150,7 @@ def long_records(sizes, timeout_s: float) -> None:
             code = proc.returncode = os.waitstatus_to_exitcode(status)
             rep = (json.loads((out / "diagnosis.json").read_text())
                    if (out / "diagnosis.json").exists() else None)  # fmt: skip
-            smp = rep["samples"] if rep else {}
+            smp = rep.get("samples", {}) if rep else {}  # absent before issue 25
             print(
                 f"{n:9d} {wall:7.1f} {ru.ru_utime + ru.ru_stime:7.1f} "
                 f"{ru.ru_maxrss / 1024:11.0f} {load0:8.2f}/{os.getloadavg()[0]:<8.2f} "
@@ -157,6 +158,28 @@ def long_records(sizes, timeout_s: float) -> None:
                 f"{rep['verdict']['effect'] if rep else '-':>12}  {code}",
                 flush=True,
             )
+
+
+def thinned(n: int, rows: int = 9, returned: int = 20000, repeat: int = 3) -> None:
+    """CPU ns per sample and parameter row of ``ecm.simulate_physical`` on :func:`issue_record`'s
+    current: the full pass (every voltage) and a fit's thinned pass (``returned`` voltages)."""
+    rec = ecm.Record.from_frame(issue_record(n))
+    params = {**TRUTH, "capacity_ah": 30.0, "soc0": 0.8}
+    idx = np.arange(0, n, max(1, n // returned))
+    configs = {
+        "base": {},
+        "ocv_shape": {"ocv_shape_u0_v": 0.005},
+        "hysteresis": {"hysteresis_m_v": 0.01, "hysteresis_gamma": 50.0},
+    }
+    for name, extra in configs.items():
+        P = ecm.to_physical(np.repeat(ecm.vector({**params, **extra})[None, :], rows, axis=0))
+        for label, sel in (("full", None), ("thinned", idx)):
+            best = np.inf
+            for _ in range(repeat):
+                c0 = time.process_time()
+                ecm.simulate_physical(rec, P, ecm.Knots(0.0, 0.2), idx=sel)
+                best = min(best, time.process_time() - c0)
+            print(f"{name:>10} {label:>8} {1e9 * best / n / rows:6.2f} ns per sample-row")
 
 
 SWEEP = {
@@ -303,7 +326,17 @@ def main() -> None:
     p.add_argument(
         "--timeout", type=float, default=1800.0, help="--long: seconds before the child is killed"
     )
+    p.add_argument(
+        "--thinned",
+        type=int,
+        default=0,
+        metavar="SAMPLES",
+        help="the simulator's CPU ns per sample-row, full and thinned passes",
+    )
     args = p.parse_args()
+    if args.thinned:
+        thinned(args.thinned)
+        return
     if args.long:
         long_records(args.long, args.timeout)
         return
