@@ -27,8 +27,9 @@ the one before). Thinning *which* residuals enter a fit or a test, or coarsening
 would change verdicts and was not done. ``diagnosis.json``'s ``samples`` says it: given, fitted
 per fit, the stride, and the residuals' correlation time and effective sample size (a stride
 below the correlation time loses almost no information: neighbouring residuals repeat each
-other). The cost still grows with the length (twice the samples, about twice the time and
-memory: docs/benchmarks.md); after PROGRESS_AFTER_S a line per finished stage goes to stderr.
+other). The cost still grows with the length and the ladder (measured in docs/benchmarks.md:
+10⁶ samples 52 s of CPU, 0.66 GB; 2·10⁶ 196 s, 1.1 GB); after PROGRESS_AFTER_S a line per
+finished stage goes to stderr.
 """
 
 from __future__ import annotations
@@ -538,8 +539,8 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     ``source``. ``ocv_table``: the cell's measured OCV (``model.ocv``), or None for the rational
     curve. ``validate``: checked records never used for any choice. ``warnings``: what the input
     layer found odd, carried into the report. Every option is checked before the first fit.
-    ``progress``: where a long diagnosis says where it is (True: stderr; None: nowhere;
-    :class:`Progress`).
+    ``progress``: where a long diagnosis says where it is (True: stderr; None or False: nowhere;
+    or a text stream).
     """
     t_start = time.perf_counter()
     train = _checked(train, source)
@@ -553,7 +554,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     recs = [Record.from_frame(f, tref_k=tref, source=s) for f, s in zip(frames, sources,
                                                                         strict=True)]  # fmt: skip
     ctx = selection.Context(recs, ocv_table, capacity_ah, soc0)
-    ctx.progress = Progress(sys.stderr if progress is True else progress, t_start)
+    ctx.progress = Progress(sys.stderr if progress is True else progress or None, t_start)
     table = ocv_table
 
     # 1. base fit, and the sanity gate before anything else is spent on it
