@@ -10,6 +10,14 @@ drive-cycle-like random current at 10 Hz for 200k. Prints measured times; assert
     ... --sizes 15000 --effect hysteresis --repeat 3
     ... --sweep 6        # 6 replicates x (control + 8 effects x 2 magnitudes)
     ... --stages A.csv B.csv   # where each diagnosis's time goes (fits, held-out fits, Jacobians)
+    ... --long 1000000 2000000   # issue 25's long records through the CLI, in a child process
+    ... --thinned 1000000   # the simulator's CPU ns per sample-row, full and thinned passes
+
+``--long``: the issue's clean synthetic record (:func:`issue_record`: 10 Hz, current held 1-30 s
+at 0, ±0.5, ±1 or ±2 A with SOC kept in 0.2-0.9, OCV 3.0 + 0.7·s + 0.5·s² V, R0 30 mΩ, R1 15 mΩ,
+τ1 30 s, 2.9 Ah, 1 mV noise) written as a CSV and diagnosed by ``python -m avoa_pipeline
+diagnose`` in a child process; prints its wall and CPU seconds, its peak RSS (the whole process,
+from ``os.wait4``), the load average before and after, and what ``diagnosis.json`` says it did.
 """
 
 from __future__ import annotations
@@ -20,7 +28,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the CLI (before numpy l
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
+import json
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -83,6 +96,90 @@ def record(n: int, effect: str, seed: int = 0) -> pd.DataFrame:
     frame["voltage_v"] = np.round((v + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
     frame["current_a"] = np.round((cur + 1e-3 * rng.standard_normal(n)) / 1e-3) * 1e-3
     return frame
+
+
+def issue_record(n: int, seed: int = 0, hz: float = 10.0) -> pd.DataFrame:
+    """Issue 25's clean synthetic long record (an independent simulation, not the library's:
+    its OCV is a quadratic the rational curve cannot follow exactly)."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(seed)
+    q_ah, r0, r1, tau1, soc0 = 2.9, 0.030, 0.015, 30.0, 0.55
+    levels = np.array([0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0])
+    cur = np.empty(n)
+    k, soc = 0, soc0
+    while k < n:
+        m = min(n - k, round(rng.uniform(1.0, 30.0) * hz))
+        a = rng.choice(levels)
+        if not 0.2 <= soc - a * m / hz / 3600.0 / q_ah <= 0.9:
+            a = -a  # the other direction keeps SOC inside 0.2-0.9
+        cur[k : k + m] = a
+        soc -= a * m / hz / 3600.0 / q_ah
+        k += m
+    s = soc0 - np.concatenate([[0.0], np.cumsum(cur[:-1])]) / hz / 3600.0 / q_ah
+    a1 = np.exp(-1.0 / hz / tau1)
+    v1 = lfilter([0.0, r1 * (1.0 - a1)], [1.0, -a1], cur)  # v1[k+1] = a·v1[k] + R1(1 − a)·i[k]
+    v = 3.0 + 0.7 * s + 0.5 * s**2 - r0 * cur - v1 + 1e-3 * rng.standard_normal(n)
+    return pd.DataFrame({"time_s": np.arange(n) / hz, "current_a": cur, "voltage_v": v})
+
+
+def long_records(sizes, timeout_s: float) -> None:
+    """Each size diagnosed by the CLI in a child process: wall, CPU, peak RSS, load."""
+    print(f"{'samples':>9} {'wall s':>7} {'cpu s':>7} {'peak RSS MB':>11} {'load before/after':>17}"
+          f" {'fitted':>7} {'stride':>6} {'verdict':>12}  exit")  # fmt: skip
+    for n in sizes:
+        with tempfile.TemporaryDirectory() as tmp:
+            csv = Path(tmp) / f"issue25_{n}.csv"
+            issue_record(n).to_csv(csv, index=False)
+            out = Path(tmp) / "out"
+            load0 = os.getloadavg()[0]
+            t0 = time.perf_counter()
+            proc = subprocess.Popen([sys.executable, "-m", "avoa_pipeline", "diagnose", str(csv),
+                                     "--out", str(out)], stdout=subprocess.DEVNULL)  # fmt: skip
+            # wait4 reaps this child only and returns its own resource use (ru_maxrss in kB)
+            while True:
+                pid, status, ru = os.wait4(proc.pid, os.WNOHANG)
+                if pid:
+                    break
+                if time.perf_counter() - t0 > timeout_s:  # running away: stop it, say so
+                    proc.kill()
+                    _, status, ru = os.wait4(proc.pid, 0)
+                    break
+                time.sleep(0.2)
+            wall = time.perf_counter() - t0
+            code = proc.returncode = os.waitstatus_to_exitcode(status)
+            rep = (json.loads((out / "diagnosis.json").read_text())
+                   if (out / "diagnosis.json").exists() else None)  # fmt: skip
+            smp = rep.get("samples", {}) if rep else {}  # absent before issue 25
+            print(
+                f"{n:9d} {wall:7.1f} {ru.ru_utime + ru.ru_stime:7.1f} "
+                f"{ru.ru_maxrss / 1024:11.0f} {load0:8.2f}/{os.getloadavg()[0]:<8.2f} "
+                f"{smp.get('fitted', '-'):>7} {smp.get('stride', '-'):>6} "
+                f"{rep['verdict']['effect'] if rep else '-':>12}  {code}",
+                flush=True,
+            )
+
+
+def thinned(n: int, rows: int = 9, returned: int = 20000, repeat: int = 3) -> None:
+    """CPU ns per sample and parameter row of ``ecm.simulate_physical`` on :func:`issue_record`'s
+    current: the full pass (every voltage) and a fit's thinned pass (``returned`` voltages)."""
+    rec = ecm.Record.from_frame(issue_record(n))
+    params = {**TRUTH, "capacity_ah": 30.0, "soc0": 0.8}
+    idx = np.arange(0, n, max(1, n // returned))
+    configs = {
+        "base": {},
+        "ocv_shape": {"ocv_shape_u0_v": 0.005},
+        "hysteresis": {"hysteresis_m_v": 0.01, "hysteresis_gamma": 50.0},
+    }
+    for name, extra in configs.items():
+        P = ecm.to_physical(np.repeat(ecm.vector({**params, **extra})[None, :], rows, axis=0))
+        for label, sel in (("full", None), ("thinned", idx)):
+            best = np.inf
+            for _ in range(repeat):
+                c0 = time.process_time()
+                ecm.simulate_physical(rec, P, ecm.Knots(0.0, 0.2), idx=sel)
+                best = min(best, time.process_time() - c0)
+            print(f"{name:>10} {label:>8} {1e9 * best / n / rows:6.2f} ns per sample-row")
 
 
 SWEEP = {
@@ -218,7 +315,31 @@ def main() -> None:
         metavar="CSV",
         help="where the time of each CSV's diagnosis goes (full and held-out fits)",
     )
+    p.add_argument(
+        "--long",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="SAMPLES",
+        help="issue 25's long records through the CLI (wall, CPU, peak RSS)",
+    )
+    p.add_argument(
+        "--timeout", type=float, default=1800.0, help="--long: seconds before the child is killed"
+    )
+    p.add_argument(
+        "--thinned",
+        type=int,
+        default=0,
+        metavar="SAMPLES",
+        help="the simulator's CPU ns per sample-row, full and thinned passes",
+    )
     args = p.parse_args()
+    if args.thinned:
+        thinned(args.thinned)
+        return
+    if args.long:
+        long_records(args.long, args.timeout)
+        return
     if args.stages:
         diagnose.diagnose(record(2000, "none"))  # the numba cache, outside the timing
         stages(args.stages)

@@ -177,6 +177,11 @@ class Context:
         # each sample weighs n/(R·n_r): every record's mean squared error counts once
         self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
+        self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
+
+    def say(self, what: str) -> None:
+        if self.progress is not None:
+            self.progress(what)
 
     def structure(self, effects, knots: Knots, recs=None) -> fitting.Structure:
         return fitting.structure(self.recs if recs is None else recs,
@@ -236,7 +241,12 @@ class Context:
                 if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
                     st = replace(st, knots=fitting.knots_for(self.recs, mr.X, masks))
                 X = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100).X
-                ho[f] = self.simulate(st, X)[f]
+                # the voltage at the held-out samples only (the state still runs through all)
+                ho[f] = np.concatenate([
+                    ecm.simulate_rows(rec, X[r], st.knots, st.config.table, st.config.load_ohm,
+                                      idx=h)[:, 0]
+                    for r, (rec, h) in enumerate(zip(self.recs, held, strict=True))
+                ])  # fmt: skip
             self.fits += 1
             mr.fold_X.append(X)
         mr.ho = ho
@@ -276,11 +286,12 @@ def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> t
     return True, ""
 
 
-def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool) -> dict[str, ModelRun]:
+def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool,
+                rung: int = 1) -> dict[str, ModelRun]:  # fmt: skip
     """Fit ref + each remaining element; with ``cv``, cross-validate those that can pay (a fit
     with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error)."""
     cands = {}
-    for e in remaining:
+    for j, e in enumerate(remaining):
         st = ctx.structure((*ref.effects, e), ref.st.knots)
         c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
         if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
@@ -288,6 +299,8 @@ def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool) -> dict[str, M
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
         cands[e] = c
+        ctx.say(f"rung {rung}: {e} fitted{', held out' if c.ho is not None else ''} "
+                f"({j + 1}/{len(remaining)})")  # fmt: skip
     return cands
 
 
@@ -369,7 +382,7 @@ def climb(ctx: Context, base: ModelRun, first: str, first_run: ModelRun, candida
         now = [e for e in remaining if applicable(ctx.recs, e, final.effects, ctx.table)[0]]
         if not now:
             break
-        step = try_effects(ctx, final, now, cv=True)
+        step = try_effects(ctx, final, now, cv=True, rung=len(rows) + 1)
         nxt = choose(ctx, judge(ctx, final, step), step)
         if nxt is None:
             break
@@ -433,6 +446,7 @@ def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
             ctx.fits += 1
             ctx.cross_validate(reduced)
             (row,) = judge(ctx, reduced, {e: final})
+            ctx.say(f"pruning: {e} {'stays' if row['pays'] else 'dropped'}")
             if not row["pays"]:
                 dropped.append({**row, "from": list(final.effects)})
                 final = reduced
@@ -457,14 +471,17 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
             idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
             base = ctx.run(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
     ctx.cross_validate(base)
+    ctx.say("rung 1: base held out")
     # only a candidate whose full fit can pay is held out (as on the later rungs): one whose
     # ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error (against a re-polished,
     # better base its ΔBIC only rises), so holding it out would change no verdict
-    for c in cands.values():
+    for e, c in cands.items():
         if bic(c.rss, ctx.n, c.k) - bic(base.rss, ctx.n, base.k) < BIC_MAX:
             ctx.cross_validate(c)
+            ctx.say(f"rung 1: {e} held out")
     rows = judge(ctx, base, cands)
     winner = choose(ctx, rows, cands)
+    ctx.say(f"rung 1: {len(cands)} candidates, {winner or 'none'} wins")
     skipped = [{"effect": e, "applicable": False,
                 "reason": applicable(ctx.recs, e, (), ctx.table)[1]}
                for e in effects if e not in cands]  # fmt: skip

@@ -12,10 +12,29 @@ and their reasons: docs/gap-diagnosis.md).
    judged on held-out data by the one selection method (``avoa_pipeline.selection``).
 4. The selected model (the ladder's last rung) is written as ``model.json``; records passed for
    validation are predicted by every rung of the ladder and never enter any choice.
+
+Long records (issue 25; 10⁶ samples, 28 h at 10 Hz). What was done, and why this and not a
+subset: the state (SOC, RC voltages, hysteresis) is a recursion through every sample, so every
+sample is simulated; a fit's residuals are already every s-th sample (``fitting.MAX_FIT_POINTS``,
+a fixed stride), and the held-out scores, tests, localization and signatures read every sample.
+The cost was the simulator computing the terminal voltage (the OCV, its corrections, the
+overpotentials) at all 10⁶ samples of every Jacobian pass although only 20,000 were returned.
+The simulator now computes the voltage only at the samples returned, and across a held current
+between two of them steps the state with the hold's increments computed once
+(``ecm._loop``): the same operations in the same order, so every fit, score and verdict is bit
+for bit what it was at every size (no size threshold is needed; 1e6-sample report identical to
+the one before). Thinning *which* residuals enter a fit or a test, or coarsening the record,
+would change verdicts and was not done. ``diagnosis.json``'s ``samples`` says it: given, fitted
+per fit, the stride, and the residuals' correlation time and effective sample size (a stride
+below the correlation time loses almost no information: neighbouring residuals repeat each
+other). The cost still grows with the length and the ladder (measured in docs/benchmarks.md:
+10⁶ samples 52 s of CPU, 0.66 GB; 2·10⁶ 196 s, 1.1 GB); after PROGRESS_AFTER_S a line per
+finished stage goes to stderr.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -34,6 +53,11 @@ MIN_SAMPLES = 2000
 REGION_MIN_SHARE = 0.02
 TIME_WINDOWS = 20
 UNEXPLAINED_RATIO = 1.2  # base RMSE / noise floor above which a `none` verdict says a gap remains
+
+PROGRESS_AFTER_S = 10.0
+"""A diagnosis says where it is on stderr once it has run this long, never before: a quick one
+(the tests' and the withheld-effect grid's records, seconds each) stays silent, and a long record
+(10⁶ samples take minutes) is not silent for minutes. stdout keeps its one line."""
 
 # trimmed standard deviation of a normal (1 % per tail) relative to the untrimmed one
 _Z_TRIM = stats.norm.ppf(0.99)
@@ -109,6 +133,19 @@ def sanity(base_rmse_v: float, v: np.ndarray, sources) -> None:
                         f"{1e3 * base_rmse_v:.4g} mV RMS, more than their voltage varies "
                         f"({1e3 * sd:.4g} mV SD): the inputs do not describe one cell (check the "
                         "units and sign of current_a and voltage_v, and the --ocv)")  # fmt: skip
+
+
+class Progress:
+    """One line per finished stage on ``stream`` (``diagnose: 41 s: rung 1: hysteresis fitted
+    (4/12)``), from PROGRESS_AFTER_S on."""
+
+    def __init__(self, stream, t0: float):
+        self.stream, self.t0 = stream, t0
+
+    def __call__(self, what: str) -> None:
+        elapsed = time.perf_counter() - self.t0
+        if self.stream is not None and elapsed >= PROGRESS_AFTER_S:
+            print(f"diagnose: {elapsed:.0f} s: {what}", file=self.stream, flush=True)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -348,6 +385,41 @@ def _last_direction(rec):
     return d[idx]
 
 
+def residual_correlation(resid: np.ndarray, batches) -> float:
+    """The residual's integrated autocorrelation time in samples, τ = b̄·Var(batch means) /
+    Var(residual) over the selection's batches (the batch-means estimate: neighbouring samples
+    that move together make batch means vary more than independent ones would); ≈ 1 for white
+    noise, and n/τ is the number of effectively independent residuals."""
+    var = float(np.var(resid))
+    means = np.array([resid[b].mean() for b in batches])
+    if var == 0 or means.size < 2:
+        return 1.0
+    return float(np.mean([b.size for b in batches]) * np.var(means, ddof=1) / var)
+
+
+def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) -> dict:
+    """What of the records entered the diagnosis (``diagnosis.json``'s ``samples``): every
+    sample is simulated and scored; each least-squares fit sees every s-th residual. Beside it,
+    per model of ``runs``, its residual's correlation time and effective sample size: a stride
+    below the correlation time (fitted ≥ effective samples) drops residuals that repeat their
+    neighbours and loses almost no information; on a residual at the white noise floor the fits
+    average 1/stride of the noise they could (their parameters' noise SD √stride larger)."""
+    idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
+    strides = [int(i[1] - i[0]) if i.size > 1 else 1 for i in idx]
+    tau = {k: residual_correlation(ctx.v - r.v, ctx.layout.batches) for k, r in runs.items()}
+    return {
+        "given": ctx.n,
+        "fitted": int(sum(i.size for i in idx)),
+        "stride": strides[0] if len(strides) == 1 else strides,
+        "method": "the state simulated through every sample; each fit's residuals at a fixed "
+                  f"stride, at most {fitting.MAX_FIT_POINTS} per fit (the terminal voltage "
+                  "computed only there); held-out scores, tests, localization and signatures on "
+                  "every sample",
+        "residual_correlation_samples": tau,
+        "effective_samples": {k: ctx.n / max(t, 1.0) for k, t in tau.items()},
+    }  # fmt: skip
+
+
 # ----------------------------------------------------------------------------------------------
 # the diagnosis
 
@@ -464,7 +536,7 @@ def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.D
 
 
 def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=(),
-        warnings=()):  # fmt: skip
+        warnings=(), progress=True):  # fmt: skip
     """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
 
     ``train``: the cell's checked training records (``records.Checked``, as ``inputs.py`` reads
@@ -472,6 +544,8 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     ``source``. ``ocv_table``: the cell's measured OCV (``model.ocv``), or None for the rational
     curve. ``validate``: checked records never used for any choice. ``warnings``: what the input
     layer found odd, carried into the report. Every option is checked before the first fit.
+    ``progress``: where a long diagnosis says where it is (True: stderr; None or False: nowhere;
+    or a text stream).
     """
     t_start = time.perf_counter()
     train = _checked(train, source)
@@ -485,11 +559,15 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     recs = [Record.from_frame(f, tref_k=tref, source=s) for f, s in zip(frames, sources,
                                                                         strict=True)]  # fmt: skip
     ctx = selection.Context(recs, ocv_table, capacity_ah, soc0)
+    ctx.progress = Progress(sys.stderr if progress is True else progress or None, t_start)
     table = ocv_table
 
     # 1. base fit, and the sanity gate before anything else is spent on it
     base = selection.fit_base(ctx, capacity_ah, soc0)
     sanity(float(np.sqrt(base.rss / ctx.n)), ctx.v, sources)
+    ctx.say(f"base fit done ({ctx.n:,} samples, "
+            f"{sum(i.size for i in fitting.indices(recs, None, fitting.MAX_FIT_POINTS)):,} "
+            "fitted)")  # fmt: skip
 
     # 3. which, and the whole ladder: the one selection method
     lad = selection.ladder(ctx, base)
@@ -560,6 +638,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
         "n_samples": rec.n,
+        "samples": samples_used(ctx, {"base": base, "selected": final}),
         "duration_s": float(sum(r.t[-1] - r.t[0] for r in recs)),
         "records": [
             {
@@ -631,6 +710,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "version": __version__,
     }
     if vframes:
+        ctx.say(f"ladder done ({selected_name}); validation records")
         floor = floors(ctx, final, vframes, capacity_ah)
         report["validation"] = validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected_name, **f} for k, f in floor.items()]

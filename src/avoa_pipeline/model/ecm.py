@@ -492,6 +492,13 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     whose parameter is neutral in every row is skipped (the flags do not change inside the loops,
     so the compiler takes the branches out of them). ``extras``: a constant of the compiled
     version (:func:`_kernel`).
+
+    Long records (issue 25): the voltage is computed only at samples that are returned or
+    traced (or under a load, where the current follows it); between them only the state is
+    stepped, and across a held current (same current, step and temperature) with the hold's
+    increments computed once. Every state update is the same operations in the same order as
+    the full pass, so a thinned call returns the full pass's voltages bit for bit
+    (``tests/unit/test_long_records.py``).
     """
     m = P.shape[0]
     n = cur.shape[0]
@@ -550,9 +557,25 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     r0chg = np.any(rho != 0.0)
     bvarr = np.any(thbv != 0.0)
     load = g_load != 0.0
-    for k in range(n):
+    hx = np.zeros(m)  # the hysteresis decay of the last sample, per row
+    # a held current between returned samples: the state's per-sample increments are constants
+    # of the hold (no element there depends on the state itself), so they are computed once and
+    # the states stepped in tight loops, the same operations in the same order as below
+    fast = not load and not record and not low
+    if extras:  # noqa: SIM102 - as below
+        if soc_r1:
+            fast = False
+    b1, b2, b3, bd = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
+    dqs, hs = np.zeros(m), np.zeros(m)
+    hon = np.zeros(m, dtype=np.bool_)
+    k = 0
+    while k < n:
         dtk = dt[k]
         ik0 = cur[k]
+        # the same current over the same step as the sample before (a cycler's hold; never under
+        # a load, whose current follows the voltage): the hysteresis decay is the same number,
+        # so it is reused (one exp per row and sample was most of a hysteresis model's cost)
+        held = not load and k > 0 and ik0 == cur[k - 1] and dtk == dt[k - 1]
         dinv = dinv_t[k]
         rtf = two_rt_f[k]
         row = sel[k]
@@ -562,75 +585,124 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                 a2[c] = np.exp(-dtk / tau2[c])
                 a3[c] = np.exp(-dtk / tau3[c])
                 ad[c] = np.exp(-dtk / taud[c])
+        if fast and row < 0:
+            e = k + 1
+            while (e < n and sel[e] < 0 and cur[e] == ik0 and dt[e] == dtk
+                   and (not therm1 or dinv_t[e] == dinv)):  # fmt: skip
+                e += 1
+            if e - k > 1:
+                for c in range(m):
+                    i = ik0 + ioff[c]
+                    g = 1.0
+                    f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
+                    gi = f1 * g * i
+                    b1[c] = r1[c] * (1.0 - a1[c]) * gi
+                    b2[c] = r2[c] * (1.0 - a2[c]) * gi
+                    b3[c] = r3[c] * (1.0 - a3[c]) * gi
+                    bd[c] = (1.0 - ad[c]) * kd[c] * i
+                    ie = i if i > 0.0 else eta[c] * i
+                    dqs[c] = ie * dtk / q3600[c]
+                    hon[c] = hyst and i != 0.0
+                    if hon[c]:
+                        hx[c] = np.exp(-abs(dqs[c] * gam[c]))
+                        hs[c] = (1.0 - hx[c]) * (1.0 if i > 0.0 else -1.0)
+                for _ in range(e - k):
+                    for c in range(m):
+                        v1[c] = a1[c] * v1[c] + b1[c]
+                    if rc2:
+                        for c in range(m):
+                            v2[c] = a2[c] * v2[c] + b2[c]
+                    if rc3:
+                        for c in range(m):
+                            v3[c] = a3[c] * v3[c] + b3[c]
+                    if diff:
+                        for c in range(m):
+                            dl[c] = ad[c] * dl[c] + bd[c]
+                    if hyst:
+                        for c in range(m):
+                            if hon[c]:
+                                h[c] = hx[c] * h[c] - hs[c]
+                    for c in range(m):
+                        soc[c] = soc[c] - dqs[c]
+                k = e
+                continue
+        # the terminal voltage is needed only where it is returned or recorded, or where a load
+        # makes the current follow it; elsewhere only the state is stepped (a fit returns a
+        # thinned subset of a long record, so most samples only carry the state forward)
+        need_v = load or record or row >= 0
         for c in range(m):
             s = soc[c]
-            so = s - dl[c] if diff else s
-            if rational:
-                sc = min(max(so, 0.0), 1.2)  # the rational curve is singular outside
-                e = vnom[c] * sc / (omb[c] + beta[c] * sc)
-            else:
-                x = (so - tab_lo) / tab_step
-                if x <= 0.0:
-                    e = table[0]
-                elif x >= nt - 1:
-                    e = table[nt - 1]
-                else:
-                    j = int(x)
-                    w = x - j
-                    e = (1.0 - w) * table[j] + w * table[j + 1]
-                sc = so
-            if shape:
-                x = (sc - k_lo) / k_step
-                if x <= 0.0:
-                    e += d[c, 0]
-                elif x >= nk - 1:
-                    e += d[c, nk - 1]
-                else:
-                    j = int(x)
-                    w = x - j
-                    e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
-            e += voff[c]
-            if hyst:
-                e += hm[c] * h[c]
             g = 1.0 + klow[c] * np.exp(-min(max(s, -0.5), 2.0) / sig[c]) if low else 1.0
-            f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
             f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
-            ro = f0 * g * r0[c]
             g1 = 1.0
             if extras:  # noqa: SIM102 - a constant alone, so that the compiler drops the block
-                if soc_r0 or soc_r1:  # log-multipliers at the knots, by the (bulk) SOC
+                if soc_r1:
                     xs = (s - k_lo) / k_step
                     js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
                     ws = min(max(xs - js, 0.0), 1.0)
-                    if soc_r0:
-                        ro *= np.exp((1.0 - ws) * l0[c, js] + ws * l0[c, js + 1])
-                    if soc_r1:
-                        g1 = np.exp((1.0 - ws) * l1[c, js] + ws * l1[c, js + 1])
-            e -= v1[c] + v2[c] + v3[c]
+                    g1 = np.exp((1.0 - ws) * l1[c, js] + ws * l1[c, js + 1])
             ip = ik0 + ioff[c]
-            if extras:  # noqa: SIM102 - as above
-                if r0chg and ip < 0.0:
-                    ro *= np.exp(rho[c])
-            if load:  # the load's current follows the terminal voltage: solved exactly
-                v = (e - ro * ip) / (1.0 + ro * g_load)
-                i = ip + v * g_load
-            else:
-                i = ip
-                v = e - ro * i
-                if bv:
-                    gb = bvg[c]
-                    if extras:  # noqa: SIM102 - as above
-                        if bvarr:
-                            gb *= np.exp(thbv[c] * dinv)
-                    v -= rtf * np.arcsinh(0.5 * gb * i)
-            if row >= 0:
-                out[row, c] = v
-            if record and c == 0:
-                tr[0, k] = s
-                tr[1, k] = h[c]
-                tr[2, k] = v1[c] + v2[c] + v3[c]
-                tr[3, k] = f0
-                tr[4, k] = i
+            i = ip
+            if need_v:
+                so = s - dl[c] if diff else s
+                if rational:
+                    sc = min(max(so, 0.0), 1.2)  # the rational curve is singular outside
+                    e = vnom[c] * sc / (omb[c] + beta[c] * sc)
+                else:
+                    x = (so - tab_lo) / tab_step
+                    if x <= 0.0:
+                        e = table[0]
+                    elif x >= nt - 1:
+                        e = table[nt - 1]
+                    else:
+                        j = int(x)
+                        w = x - j
+                        e = (1.0 - w) * table[j] + w * table[j + 1]
+                    sc = so
+                if shape:
+                    x = (sc - k_lo) / k_step
+                    if x <= 0.0:
+                        e += d[c, 0]
+                    elif x >= nk - 1:
+                        e += d[c, nk - 1]
+                    else:
+                        j = int(x)
+                        w = x - j
+                        e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
+                e += voff[c]
+                if hyst:
+                    e += hm[c] * h[c]
+                f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
+                ro = f0 * g * r0[c]
+                if extras:  # noqa: SIM102 - as above
+                    if soc_r0:  # log-multipliers at the knots, by the (bulk) SOC
+                        xs = (s - k_lo) / k_step
+                        js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
+                        ws = min(max(xs - js, 0.0), 1.0)
+                        ro *= np.exp((1.0 - ws) * l0[c, js] + ws * l0[c, js + 1])
+                e -= v1[c] + v2[c] + v3[c]
+                if extras:  # noqa: SIM102 - as above
+                    if r0chg and ip < 0.0:
+                        ro *= np.exp(rho[c])
+                if load:  # the load's current follows the terminal voltage: solved exactly
+                    v = (e - ro * ip) / (1.0 + ro * g_load)
+                    i = ip + v * g_load
+                else:
+                    v = e - ro * i
+                    if bv:
+                        gb = bvg[c]
+                        if extras:  # noqa: SIM102 - as above
+                            if bvarr:
+                                gb *= np.exp(thbv[c] * dinv)
+                        v -= rtf * np.arcsinh(0.5 * gb * i)
+                if row >= 0:
+                    out[row, c] = v
+                if record and c == 0:
+                    tr[0, k] = s
+                    tr[1, k] = h[c]
+                    tr[2, k] = v1[c] + v2[c] + v3[c]
+                    tr[3, k] = f0
+                    tr[4, k] = i
             gi = f1 * g * i
             if extras:
                 v1[c] = a1[c] * v1[c] + r1[c] * g1 * (1.0 - a1[c]) * gi
@@ -645,9 +717,12 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
             ie = i if i > 0.0 else eta[c] * i
             dq = ie * dtk / q3600[c]
             if hyst and i != 0.0:
-                ex = np.exp(-abs(dq * gam[c]))
+                if not held:
+                    hx[c] = np.exp(-abs(dq * gam[c]))
+                ex = hx[c]
                 h[c] = ex * h[c] - (1.0 - ex) * (1.0 if i > 0.0 else -1.0)
             soc[c] = s - dq
+        k += 1
 
 
 _SIMULATE = {False: _kernel(False), True: _kernel(True)}

@@ -27,7 +27,8 @@ from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
 MAX_FIT_POINTS = 20000
 """Residuals fitted per least-squares problem at most (all records together); longer data are
 thinned by a fixed stride for fitting (the model is always simulated at full resolution and
-scored on every sample)."""
+scored on every sample; the simulator computes the terminal voltage only at the fitted samples and
+only steps the state between them, so a fit's cost on a long record is mostly that stepping)."""
 
 COARSE_POINTS = 2500
 """Residuals per multi-start trial: the starts are compared on thinned records, and only the best

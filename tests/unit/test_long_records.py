@@ -1,0 +1,119 @@
+"""Long records (issue 25): the simulator's shortcuts for thinned output give the voltage its
+full pass gives, the diagnosis says what it fitted, and a long diagnosis talks on stderr only."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_ecm import ACTIVE, TRUTH, profile_frame, with_voltage
+
+from avoa_pipeline.cli import main
+from avoa_pipeline.gap import diagnose
+from avoa_pipeline.model import ecm, fitting
+
+
+def _held_record(n=30000, hz=10.0, temperature="constant", seed=0) -> ecm.Record:
+    """Currents held 1-30 s (as a cycler's steps), 10 Hz."""
+    rng = np.random.default_rng(seed)
+    cur = np.concatenate([np.full(int(rng.uniform(1, 30) * hz), rng.choice([0, 0.5, -1, 2.0]))
+                          for _ in range(n // 50)])[:n]  # fmt: skip
+    t = np.arange(cur.size) / hz
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7})
+    if temperature == "constant":
+        frame["temperature_c"] = 25.0
+    elif temperature == "steps":  # held for minutes at a time: a thermal model's holds too
+        frame["temperature_c"] = 25.0 + np.floor(t / 600.0) % 3
+    return ecm.Record.from_frame(frame, tref_k=298.15)
+
+
+def _rows(effects, m=7):
+    params = dict(TRUTH, capacity_ah=30.0, soc0=0.7)
+    for e in effects:
+        params.update(ACTIVE[e])
+    X = np.repeat(ecm.vector(params)[None, :], m, axis=0)
+    X[:, ecm.IDX["r0"]] *= np.linspace(1.0, 1.2, m)  # rows differ, as a Jacobian's do
+    return X
+
+
+@pytest.mark.parametrize("effects", [(), ("hysteresis",), ("second_rc", "diffusion"),
+                                     ("thermal", "coulombic_efficiency", "current_offset"),
+                                     ("soc_resistance",), ("r1_soc", "r0_charge")])  # fmt: skip
+@pytest.mark.parametrize("temperature", ["constant", "steps"])
+def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature):
+    """A fit asks for every s-th sample; the simulator then steps only the state between them
+    (held currents in tight loops). Those voltages must be the full pass's, bit for bit."""
+    rec = _held_record(temperature=temperature)
+    X = _rows(effects)
+    knots = ecm.Knots(0.5, 0.1)
+    full = ecm.simulate_rows(rec, X, knots)
+    for stride in (1, 7, 50, 1000):
+        idx = np.arange(3, rec.n, stride)
+        np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx])
+
+
+def test_thinned_output_under_a_load_is_the_full_pass():
+    """Under the paper's load the current follows the voltage: no shortcut may skip it."""
+    rec = _held_record(n=5000)
+    X = _rows(("hysteresis",))
+    full = ecm.simulate_rows(rec, X, ecm.Knots(0, 0.2), load_ohm=50.0)
+    idx = np.arange(0, rec.n, 13)
+    np.testing.assert_array_equal(
+        ecm.simulate_rows(rec, X, ecm.Knots(0, 0.2), load_ohm=50.0, idx=idx), full[idx]
+    )
+
+
+def _small_frame():
+    return with_voltage(profile_frame(), TRUTH, noise_v=1e-3, seed=3)
+
+
+def test_samples_say_what_was_fitted():
+    frame = pd.concat([_small_frame()] * 4, ignore_index=True)  # 24,000 samples: thinned
+    frame["time_s"] = np.arange(len(frame), dtype=float)
+    r = diagnose.diagnose(frame, progress=None)
+    s = r["samples"]
+    n = len(frame)
+    assert s["given"] == r["n_samples"] == n
+    assert s["stride"] == int(np.ceil(n / fitting.MAX_FIT_POINTS)) == 2
+    assert s["fitted"] == len(range(0, n, 2))
+    assert set(s["residual_correlation_samples"]) == {"base", "selected"}
+    for k, tau in s["residual_correlation_samples"].items():
+        assert tau > 0
+        assert s["effective_samples"][k] == pytest.approx(n / max(tau, 1.0))
+    assert "every sample" in s["method"]
+
+
+def test_residual_correlation_reads_white_and_smooth_residuals():
+    rng = np.random.default_rng(0)
+    batches = np.array_split(np.arange(100_000), 100)
+    white = rng.standard_normal(100_000)
+    assert diagnose.residual_correlation(white, batches) == pytest.approx(1.0, abs=0.5)
+    # an AR(1) with coefficient 0.9: integrated autocorrelation time (1 + 0.9)/(1 − 0.9) = 19
+    ar = np.empty_like(white)
+    ar[0] = white[0]
+    for k in range(1, ar.size):
+        ar[k] = 0.9 * ar[k - 1] + white[k]
+    assert diagnose.residual_correlation(ar, batches) == pytest.approx(19.0, rel=0.4)
+
+
+def test_progress_goes_to_stderr_once_slow_and_stdout_keeps_one_line(tmp_path, capsys,
+                                                                     monkeypatch):  # fmt: skip
+    path = tmp_path / "r.csv"
+    _small_frame().to_csv(path, index=False)
+    monkeypatch.setattr(diagnose, "PROGRESS_AFTER_S", 0.0)  # every diagnosis counts as slow
+    assert main(["diagnose", str(path), "--out", str(tmp_path / "out")]) == 0
+    cap = capsys.readouterr()
+    assert cap.out.count("\n") == 1
+    lines = cap.err.splitlines()
+    assert lines
+    assert all(x.startswith("diagnose: ") for x in lines)
+    assert any("base fit done" in x for x in lines)
+    assert any("rung 1:" in x for x in lines)
+    report = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert report["samples"]["given"] == len(_small_frame())
+
+
+def test_a_quick_diagnosis_is_silent(capsys, monkeypatch):
+    monkeypatch.setattr(diagnose, "PROGRESS_AFTER_S", 1e9)
+    diagnose.diagnose(_small_frame())
+    assert capsys.readouterr().err == ""
