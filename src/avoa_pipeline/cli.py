@@ -366,7 +366,6 @@ def cmd_diagnose(args) -> None:
     report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
                                          ocv_table=read.ocv, validate=read.validate,
                                          warnings=read.warnings)  # fmt: skip
-    report["at_bounds"] = [] if model is None else model.at_bounds()  # set by bounds, not data
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it
@@ -379,7 +378,17 @@ def cmd_diagnose(args) -> None:
     inputs.warn(
         f"{out / 'model.json'}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
         f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
-        for f in report["at_bounds"]
+        for f in report.get("at_bounds", ())
+    )
+    inputs.warn(  # those at a bound were named above, with their values
+        f"{out / 'model.json'}: {flag}"
+        for flag in report.get("intervals", {}).get("flags", ())
+        if not flag.endswith("at a bound of its fit")
+    )
+    inputs.warn(
+        f"{out / 'diagnosis.json'}: {u['effect']} not admitted ({u['why']}): cannot tell from "
+        f"these records; would decide it: {u['would_decide']}"
+        for u in report.get("undecided", ())
     )
     v = report["verdict"]
     print(

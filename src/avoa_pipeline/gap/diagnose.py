@@ -43,7 +43,7 @@ from scipy import stats
 
 from .. import __version__, records, selection
 from ..errors import DataError, UserError
-from ..model import ecm, fitting
+from ..model import ecm, fitting, intervals
 from ..model.ecm import Record
 from ..model.fitted import FittedModel, fit_model, training_current_scale
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
@@ -385,18 +385,6 @@ def _last_direction(rec):
     return d[idx]
 
 
-def residual_correlation(resid: np.ndarray, batches) -> float:
-    """The residual's integrated autocorrelation time in samples, τ = b̄·Var(batch means) /
-    Var(residual) over the selection's batches (the batch-means estimate: neighbouring samples
-    that move together make batch means vary more than independent ones would); ≈ 1 for white
-    noise, and n/τ is the number of effectively independent residuals."""
-    var = float(np.var(resid))
-    means = np.array([resid[b].mean() for b in batches])
-    if var == 0 or means.size < 2:
-        return 1.0
-    return float(np.mean([b.size for b in batches]) * np.var(means, ddof=1) / var)
-
-
 def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) -> dict:
     """What of the records entered the diagnosis (``diagnosis.json``'s ``samples``): every
     sample is simulated and scored; each least-squares fit sees every s-th residual. Beside it,
@@ -406,7 +394,7 @@ def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) ->
     average 1/stride of the noise they could (their parameters' noise SD √stride larger)."""
     idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
     strides = [int(i[1] - i[0]) if i.size > 1 else 1 for i in idx]
-    tau = {k: residual_correlation(ctx.v - r.v, ctx.layout.batches) for k, r in runs.items()}
+    tau = {k: intervals.autocorrelation_time(ctx.v - r.v) for k, r in runs.items()}
     return {
         "given": ctx.n,
         "fitted": int(sum(i.size for i in idx)),
@@ -626,6 +614,13 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             if ratio < UNEXPLAINED_RATIO
             else "a misfit beyond the noise floor that no candidate explains on held-out data"
         )
+    undecided = [
+        {**u, "would_decide": selection.WOULD_DECIDE.get(e, "a second profile of the cell")
+         + ("; or a second profile of the cell" if len(recs) == 1 else "")}
+        for e, u in ctx.undecided.items() if e not in final.effects
+    ]  # fmt: skip
+    if undecided:  # docs/admission-rule.md, 3: say so, keep the simpler model
+        verdict["cannot_tell"] = [u["effect"] for u in undecided]
     remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
     selected_name = "+".join(final.effects) or "base"
     model = fitted_model(ctx, final, provenance={
@@ -637,6 +632,9 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
 
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
+        "undecided": undecided,
+        "intervals": intervals.of_fit(ctx.recs, final.st, final.X).report(),
+        "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
         "n_samples": rec.n,
         "samples": samples_used(ctx, {"base": base, "selected": final}),
         "duration_s": float(sum(r.t[-1] - r.t[0] for r in recs)),

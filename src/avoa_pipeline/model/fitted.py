@@ -50,14 +50,6 @@ PROBE_SAMPLES = 200
 only set where the voltage is looked at."""
 
 
-AT_BOUND = 1e-4
-"""A fitted parameter within 1e-4 of its searched range (in the optimizer's internal coordinates)
-of a bound is pressed against it: the bound stopped the fit, not the data, so the value is not a
-finding (the records would have taken it further). Bounded least squares stops within about
-1e-8 of the range from an active bound; 1e-4 leaves room for that and still lies below the values
-records set (0.2 mΩ of a 0-2 Ω range, 0.06 % of a time constant over 5 decades)."""
-
-
 @dataclass
 class FittedModel:
     config: Config
@@ -132,8 +124,10 @@ class FittedModel:
         return v
 
     def at_bounds(self) -> list[dict]:
-        """The cell's parameters pressed against a bound of their fit: within AT_BOUND of the
-        searched range (internal coordinates, the optimizer's own) from either end."""
+        """The cell's parameters pressed against a bound of their fit: within
+        ``fitting.AT_BOUND`` of the searched range (internal coordinates) from either end."""
+        from . import fitting
+
         flags = []
         for n in self.names:
             lo, hi = self.bounds[n]
@@ -143,7 +137,7 @@ class FittedModel:
             x = float(self.x[IDX[n]])
             near = {"lower": x - lo, "upper": hi - x}
             side = min(near, key=near.get)
-            if near[side] <= AT_BOUND * span:
+            if near[side] <= fitting.AT_BOUND * span:
                 rep = ecm.PARAMS[n].report
                 value = self.parameters()[rep]
                 plo, phi = self._physical_bounds(n)

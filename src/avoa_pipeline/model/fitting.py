@@ -34,6 +34,13 @@ COARSE_POINTS = 2500
 """Residuals per multi-start trial: the starts are compared on thinned records, and only the best
 is refined on the full set."""
 
+AT_BOUND = 1e-4
+"""A fitted parameter within 1e-4 of its searched range (internal coordinates) of a bound is
+pressed against it: the bound stopped the fit, not the data, so the value is not a finding (the
+records would have taken it further). Bounded least squares stops within about 1e-8 of the range
+from an active bound; 1e-4 leaves room for that and still lies below the values records set
+(0.2 mΩ of a 0-2 Ω range, 0.06 % of a time constant over 5 decades)."""
+
 PRIOR_SCALE_V = 1e-3
 """Residual scale (V) of the weak priors: one prior row weighs like one sample with 1 mV noise, so
 data that inform a parameter outweigh its prior by orders of magnitude."""

@@ -18,7 +18,7 @@ what makes naive intervals on battery records 3-30 times too narrow. The check a
 
 What is flagged:
 
-- a parameter within ``fitted.AT_BOUND`` of its searched range from a bound: the bound set it, not
+- a parameter within ``fitting.AT_BOUND`` of its searched range from a bound: the bound set it, not
   the records; it is held fixed for the others' covariance and gets no interval;
 - a pair whose correlation is beyond ±CORR_LIMIT: the records do not separate the two;
 - a parameter whose interval covers more than half its searched range: not identified.
@@ -42,9 +42,7 @@ longer than the narrower of the two marginal intervals would suggest)."""
 UNIDENTIFIED_SHARE = 0.5
 """A 95 % interval wider than half the searched range: the records hardly constrain the
 parameter (the fit's answer there is its start or its prior)."""
-AT_BOUND = 1e-4
-"""Within this share of the searched range from a bound is at the bound (``fitted.AT_BOUND``'s
-reason)."""
+AT_BOUND = fitting.AT_BOUND  # its reason is there
 
 
 def autocorrelation(e: np.ndarray) -> np.ndarray:
@@ -274,19 +272,30 @@ def _opening_cov(recs, st, X, idxs, prob, res, Jd, A_pinv, free, taus) -> np.nda
 
 
 NULL_EIGEN = 1e-12
-"""Eigenvalues of the Gauss–Newton matrix below this share of the largest are directions nothing
+"""Eigenvalues of the scaled Gauss–Newton matrix (unit diagonal) below this are directions nothing
 constrains (the round-off of a double in a matrix of sums of squares is about 1e-16 of its
-largest entry; 1e-12 leaves room for the finite-difference Jacobian's error)."""
+largest entry; 1e-12 leaves room for the finite-difference Jacobian's error): a correlation of
+1 − 1e-12 between two parameters."""
 
 
 def _pinv(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The inverse of a Gauss–Newton matrix on the directions the records constrain, and which
-    parameters lie in a direction they do not (eigenvalues below NULL_EIGEN of the largest)."""
-    lam, vec = np.linalg.eigh(0.5 * (A + A.T))
-    top = float(lam.max()) if lam.size else 0.0
-    null = lam <= NULL_EIGEN * max(top, 0.0)
+    parameters lie in a direction they do not. Judged on the matrix scaled to unit diagonal
+    (parameters in ohms, seconds and decades are not comparable otherwise): eigenvalues below
+    NULL_EIGEN are unconstrained directions, and a parameter whose unit vector has more than
+    NULL_WEIGHT of its length in them is not identified."""
+    d = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    zero = d <= 0
+    d = np.where(zero, 1.0, d)
+    As = A / np.outer(d, d)
+    lam, vec = np.linalg.eigh(0.5 * (As + As.T))
+    null = lam <= NULL_EIGEN * max(float(lam.max()) if lam.size else 0.0, 0.0)
     inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, lam))
-    touched = (
-        np.any(np.abs(vec[:, null]) > 1e-6, axis=1) if null.any() else np.zeros(len(lam), bool)
-    )
-    return (vec * inv) @ vec.T, touched
+    touched = zero | (np.sum(vec[:, null] ** 2, axis=1) > NULL_WEIGHT**2)
+    return ((vec * inv) @ vec.T) / np.outer(d, d), touched
+
+
+NULL_WEIGHT = 1e-3
+"""A parameter with more than 0.1 % of its (scaled) unit vector in an unconstrained direction is
+not identified: along that direction it moves a thousandth of its own scale for every unit the
+others move, with nothing to stop it; below that, the eigenvectors' own round-off."""
