@@ -28,7 +28,7 @@ would change verdicts and was not done. ``diagnosis.json``'s ``samples`` says it
 per fit, the stride, and the residuals' correlation time and effective sample size (a stride
 below the correlation time loses almost no information: neighbouring residuals repeat each
 other). The cost still grows with the length and the ladder (measured in docs/benchmarks.md:
-10⁶ samples 52 s of CPU, 0.66 GB; 2·10⁶ 196 s, 1.1 GB); after PROGRESS_AFTER_S a line per
+10⁶ samples 47 s of CPU, 0.66 GB; 2·10⁶ 192 s, 1.1 GB); after PROGRESS_AFTER_S a line per
 finished stage goes to stderr.
 """
 
