@@ -107,12 +107,8 @@ def read_json(path: str | Path, what: str = ""):
     naming it (``what`` says whose file it is, e.g. "sidecar of x.csv")."""
     path = Path(path)
     label = f" ({what})" if what else ""
+    regular_file(path, "a JSON file", label)
     try:
-        mode = os.stat(path).st_mode
-        if stat.S_ISDIR(mode):
-            raise DataError(f"{path}: a folder, not a JSON file{label}")
-        if not stat.S_ISREG(mode):  # a device or a pipe: /dev/zero would be read without end
-            raise DataError(f"{path}: not a regular file (a device or a pipe){label}")
         return json.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         raise DataError(f"{path}: no such file{label}") from None
@@ -196,19 +192,22 @@ def _not_csv(head: bytes) -> str | None:
     return None
 
 
-def regular_file(path: Path, kind: str = "a CSV file") -> None:
+def regular_file(path: Path, kind: str = "a CSV file", label: str = "") -> None:
     """DataError naming what ``path`` is when it is not a readable regular file: missing, a
-    folder, a device or a pipe, a symlink loop, a name too long (``kind`` says what was wanted)."""
+    folder, a device or a pipe (``/dev/zero`` would be read without end), a symlink loop, a name
+    too long (``kind`` says what was wanted, ``label`` whose file it is, e.g. " (sidecar of x)")."""
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        raise DataError(f"{path}: no such file") from None
+        raise DataError(f"{path}: no such file{label}") from None
     except OSError as exc:  # a symlink loop, a name too long, no permission
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        raise DataError(f"{path}: cannot read{label} ({exc.strerror or exc})") from None
     if stat.S_ISDIR(mode):
-        raise DataError(f"{path}: a folder, not {kind}")
+        raise DataError(f"{path}: a folder, not {kind}{label}")
     if not stat.S_ISREG(mode):
-        raise DataError(f"{path}: not a regular file (a device or a pipe): save it to a file first")
+        raise DataError(
+            f"{path}: not a regular file (a device or a pipe){label}: save it to a file first"
+        )
 
 
 def _header(path: Path) -> list[str]:
