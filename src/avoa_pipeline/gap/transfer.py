@@ -334,9 +334,9 @@ def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients
     (out / "diagnosis.json").write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
     (out / "model.json").write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
 
-    fixed = {}
+    fixed, train_mv = {}, {}
     for key, fit in fit_fixed([c.frame for c in read.train], inputs.read_ocv(slow)).items():
-        fixed[key] = fit.model
+        fixed[key], train_mv[key] = fit.model, fit.train_rmse_mv
         (out / f"model_{key}.json").write_text(
             json.dumps(fit.model.to_json(), indent=1, allow_nan=False) + "\n")  # fmt: skip
 
@@ -355,11 +355,15 @@ def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients
             "fixed_1rc_mv": _rmse_mv(fixed["1rc"].simulate(c.frame), v),
             "fixed_2rc_mv": _rmse_mv(fixed["2rc"].simulate(c.frame), v),
             "floor_mv": sel["floor_rmse_mv"],
+            # how well each fitted the training records (the diagnosis's base over them joined)
+            "base_train_mv": report["base"]["rmse_mv"],
+            "fixed_1rc_train_mv": train_mv["1rc"], "fixed_2rc_train_mv": train_mv["2rc"],
         })  # fmt: skip
     return rows
 
 
 SUMMARY_COLUMNS = ("selected_mv", "base_mv", "fixed_1rc_mv", "fixed_2rc_mv", "floor_mv")
+TRAIN_COLUMNS = ("base_train_mv", "fixed_1rc_train_mv", "fixed_2rc_train_mv")
 
 
 def summarize(rows: list[dict]) -> pd.DataFrame:
@@ -371,6 +375,9 @@ def summarize(rows: list[dict]) -> pd.DataFrame:
     out.insert(1, "n_unseen", g.size())
     out["selected_over_2rc"] = out["selected_mv"] / out["fixed_2rc_mv"]
     out["selected_over_base"] = out["selected_mv"] / out["base_mv"]
+    for col in TRAIN_COLUMNS:  # one value per split (absent in rows of an older run)
+        if col in df.columns:
+            out[col] = g[col].first()
     return out.reset_index()
 
 
@@ -384,4 +391,10 @@ def markdown(summary: pd.DataFrame) -> str:
             f"{r.base_mv:.2f} | {r.fixed_1rc_mv:.2f} | {r.fixed_2rc_mv:.2f} | {r.floor_mv:.2f} | "
             f"{r.selected_over_2rc:.2f} | {r.selected_over_base:.2f} |"
         )
+    if set(TRAIN_COLUMNS) <= set(summary.columns):
+        lines += ["", "Training RMSE (mV) of the same fits:", "",
+                  "| cell | split | base | 1RC | 2RC |", "|---|---|---|---|---|"]  # fmt: skip
+        for r in summary.itertuples(index=False):
+            lines.append(f"| {r.cell} | {r.split} | {r.base_train_mv:.2f} | "
+                         f"{r.fixed_1rc_train_mv:.2f} | {r.fixed_2rc_train_mv:.2f} |")  # fmt: skip
     return "\n".join(lines) + "\n"
