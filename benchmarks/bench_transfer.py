@@ -4,7 +4,7 @@ fixed 1RC and 2RC circuits fitted to the same training records, on the cell's un
 
 Builds the records once into ``--data`` (PyBaMM runs are cached there), runs the protocol of
 every cell and split, prints the table and writes ``transfer.csv`` (one row per unseen record),
-``summary.csv`` and ``summary.md`` into ``--out`` (default: ``--data``).
+``summary.csv``, ``summary_by_ambient.csv`` and ``summary.md`` into ``--out`` (default: ``--data``).
 
     PYBAMM_DISABLE_TELEMETRY=true nice -n 19 .venv/bin/python benchmarks/bench_transfer.py
     ... --quick                      # one cell, one split, shortened profiles (about a minute)
@@ -87,7 +87,10 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     per_record.to_csv(out / "transfer.csv", index=False, float_format="%.4g")
     summary.to_csv(out / "summary.csv", index=False, float_format="%.4g")
-    text = T.markdown(summary)
+    by_ambient = ("cell", "split", "ambient_c")  # 10 °C records: a temperature never trained on
+    per_ambient = T.summarize(rows, by_ambient)
+    per_ambient.to_csv(out / "summary_by_ambient.csv", index=False, float_format="%.4g")
+    text = T.markdown(summary) + "\nBy ambient:\n\n" + T.markdown(per_ambient, by_ambient)
     (out / "summary.md").write_text(text)
     print(text)
     print(

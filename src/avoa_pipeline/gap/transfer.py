@@ -100,8 +100,9 @@ PANASONIC_DRIVE = {
     "hwfet": f"{_DRIVES_25C}/03-20-17_05.56 25degC_HWFTa_Pan18650PF.mat",
 }
 DRIVE_S = 2400
-"""Seconds of each drive cycle replayed: 40 min, about a quarter of the cell's charge at the
-cycles' mean C-rates, so a drive record stays within the SOC range a user's trip covers."""
+"""Seconds of each drive cycle replayed: 40 min of driving, which moves 16 % (LA92, mean 0.23C,
+peaks 2.4C) and 28 % (HWFET, mean 0.42C) of the charge: one trip's SOC range, and at least the
+diagnosis's minimum of samples (``diagnose.MIN_SAMPLES``), so a drive can be a training record."""
 QUICK_SCALE = 0.5
 """``--quick`` halves every profile's repeated part (4 HPPC SOC steps instead of 7, 20 min of
 driving): the HPPC record then still holds the diagnosis's minimum of samples
@@ -366,10 +367,10 @@ SUMMARY_COLUMNS = ("selected_mv", "base_mv", "fixed_1rc_mv", "fixed_2rc_mv", "fl
 TRAIN_COLUMNS = ("base_train_mv", "fixed_1rc_train_mv", "fixed_2rc_train_mv")
 
 
-def summarize(rows: list[dict]) -> pd.DataFrame:
-    """Per cell and split: each model's median unseen RMSE and the two ratios."""
+def summarize(rows: list[dict], by=("cell", "split")) -> pd.DataFrame:
+    """Per cell and split (or ``by``): each model's median unseen RMSE and the two ratios."""
     df = pd.DataFrame(rows)
-    g = df.groupby(["cell", "split"], sort=False)
+    g = df.groupby(list(by), sort=False)
     out = g[list(SUMMARY_COLUMNS)].median()
     out.insert(0, "selected_model", g["selected_model"].first())
     out.insert(1, "n_unseen", g.size())
@@ -381,18 +382,23 @@ def summarize(rows: list[dict]) -> pd.DataFrame:
     return out.reset_index()
 
 
-def markdown(summary: pd.DataFrame) -> str:
-    head = ("| cell | split | selected | n unseen | selected mV | base mV | 1RC mV | 2RC mV | "
-            "floor mV | sel/2RC | sel/base |")  # fmt: skip
-    lines = [head, "|" + "---|" * 11]
+def markdown(summary: pd.DataFrame, by=("cell", "split")) -> str:
+    """The summary as a markdown table, and the training RMSEs of the same fits below it."""
+    keys = [str(k).replace("_c", " °C").replace("_", " ") for k in by]
+    head = " | ".join([*keys, "selected", "n unseen", "selected mV", "base mV", "1RC mV",
+                       "2RC mV", "floor mV", "sel/2RC", "sel/base"])  # fmt: skip
+    lines = [f"| {head} |", "|" + "---|" * (len(by) + 9)]
     for r in summary.itertuples(index=False):
+        key = " | ".join(f"{getattr(r, k):g}" if isinstance(getattr(r, k), float)
+                         else str(getattr(r, k)) for k in by)  # fmt: skip
         lines.append(
-            f"| {r.cell} | {r.split} | {r.selected_model} | {r.n_unseen} | {r.selected_mv:.2f} | "
+            f"| {key} | {r.selected_model} | {r.n_unseen} | {r.selected_mv:.2f} | "
             f"{r.base_mv:.2f} | {r.fixed_1rc_mv:.2f} | {r.fixed_2rc_mv:.2f} | {r.floor_mv:.2f} | "
             f"{r.selected_over_2rc:.2f} | {r.selected_over_base:.2f} |"
         )
-    if set(TRAIN_COLUMNS) <= set(summary.columns):
-        lines += ["", "Training RMSE (mV) of the same fits:", "",
+    if tuple(by) == ("cell", "split") and set(TRAIN_COLUMNS) <= set(summary.columns):
+        lines += ["", "Training RMSE (mV) of the same fits (the base: over the training records "
+                  "joined; 1RC, 2RC: records weighted alike):", "",
                   "| cell | split | base | 1RC | 2RC |", "|---|---|---|---|---|"]  # fmt: skip
         for r in summary.itertuples(index=False):
             lines.append(f"| {r.cell} | {r.split} | {r.base_train_mv:.2f} | "
