@@ -386,8 +386,8 @@ def cmd_diagnose(args) -> None:
         if not flag.endswith("at a bound of its fit")
     )
     inputs.warn(
-        f"{out / 'diagnosis.json'}: {u['effect']} not admitted ({u['why']}): cannot tell from "
-        f"these records; would decide it: {u['would_decide']}"
+        f"{out / 'diagnosis.json'}: {u['effect']} selected, but {u['why']}: these records may "
+        f"not identify it; would decide it: {u['would_decide']}"
         for u in report.get("undecided", ())
     )
     v = report["verdict"]

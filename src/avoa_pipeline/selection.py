@@ -28,7 +28,6 @@ Only training records enter: a record passed for validation is never seen here.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -62,11 +61,6 @@ A true effect whose base residual is r (in noise RMS units) can remove up to r²
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
 
 
-FORWARD_CUTS = (0.5, 0.75)
-"""One training record: the forward stretches start at these shares of its samples; each is
-predicted from a fit to everything before it (docs/admission-rule.md). Two stretches of a
-quarter each: the later half of the record, judged twice, each from at least half of it."""
-
 WOULD_DECIDE = {
     "second_rc": "a long rest after a load (relaxation over an hour or more)",
     "third_rc": "a long rest after a load (relaxation over an hour or more)",
@@ -84,7 +78,7 @@ WOULD_DECIDE = {
     "ocv_shape": "a slow OCV test (--ocv)",
     "voltage_offset": "a slow OCV test (--ocv)",
 }
-"""Per element, the record that would decide an undecided one (docs/admission-rule.md)."""
+"""Per element, the record that would identify it (docs/admission-rule.md)."""
 
 
 @dataclass
@@ -178,7 +172,6 @@ class ModelRun:
     rss: float
     ho: np.ndarray | None = None  # held-out voltage (each sample from the fit without its fold)
     fold_X: list = field(default_factory=list)
-    forward: list | None = None  # one training record: each forward stretch's squared errors
 
     @property
     def k(self) -> int:
@@ -204,7 +197,6 @@ class Context:
         # each sample weighs n/(R·n_r): every record's mean squared error counts once
         self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
-        self.undecided: dict[str, dict] = {}  # element → why it was not admitted (the last)
         self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
 
     def say(self, what: str) -> None:
@@ -279,28 +271,6 @@ class Context:
             mr.fold_X.append(X)
         mr.ho = ho
         return mr
-
-    def predict_forward(self, mr: ModelRun) -> list[np.ndarray]:
-        """One training record: each forward stretch (FORWARD_CUTS) predicted by a fit to the
-        samples before it, warm-started from the full fit; the simulation runs through the whole
-        record, so the stretch starts from the state the model reaches there. Per stretch, the
-        squared errors (cached on ``mr``)."""
-        if mr.forward is not None:
-            return mr.forward
-        (rec,) = self.recs
-        cuts = [int(c * rec.n) for c in FORWARD_CUTS] + [rec.n]
-        out = []
-        for a, b in itertools.pairwise(cuts):
-            mask = np.arange(rec.n) < a
-            st = mr.st
-            if "ocv_shape" in st.effects:
-                st = replace(st, knots=fitting.knots_for(self.recs, mr.X, [mask]))
-            idxs = fitting.indices(self.recs, [mask], fitting.MAX_FIT_POINTS)
-            X = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100).X
-            self.fits += 1
-            out.append((self.simulate(st, X)[a:b] - self.v[a:b]) ** 2)
-        mr.forward = out
-        return out
 
     def ho_loss(self, mr: ModelRun) -> np.ndarray:
         """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
@@ -380,32 +350,19 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
             # batches (an effect that acts only in pulses), the rank test a gain spread over
             # most batches that one unpredictable block hides from the mean
             p = min(1.0, 2.0 * min(p_mean, p_rank))
-            pays = bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK)
-            row.update(heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
-                       p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p)  # fmt: skip
-            if pays:  # docs/admission-rule.md: only what the records identify, everywhere
-                why = admitted(ctx, ref, c, e)
-                if why is not None:
-                    row["undecided"] = why
-                    ctx.undecided[e] = {"effect": e, "against": list(ref.effects), "why": why}
-                    pays = False
-            row["pays"] = pays
+            row.update(
+                heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
+                p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
+                pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
+            )  # fmt: skip
         out.append(row)
     return out
 
 
-def admitted(ctx: Context, ref: ModelRun, cand: ModelRun, effect: str) -> str | None:
-    """None if ``cand`` (``ref`` + ``effect``, or a model with ``effect`` against ``ref``
-    without it) passes the admission rule's criteria 1 and 2 (docs/admission-rule.md); else why
-    not, in words."""
-    return identified(ctx, cand, effect) or pays_everywhere(ctx, ref, cand)
-
-
-def identified(ctx: Context, cand: ModelRun, effect: str) -> str | None:
-    """Criterion 1: the element's parameters identified by the training records
-    (``model/intervals.py`` on the candidate's fit): none at a bound or unconstrained, a
-    strength parameter's interval off its neutral value, none trading with the rest."""
-    iv = intervals.of_fit(ctx.recs, cand.st, cand.X)
+def identified(iv: intervals.Intervals, effect: str) -> str | None:
+    """None if the records identify ``effect``'s parameters in a fit's intervals ``iv``
+    (docs/admission-rule.md, criterion 1: none at a bound or unconstrained, a strength
+    parameter's interval off its neutral value, none trading with the rest); else why not."""
     own = [n for n in iv.names if ecm.PARAMS[n].element == effect]
     k = {n: iv.names.index(n) for n in own}
     report = iv.report()["parameters"]
@@ -424,23 +381,6 @@ def identified(ctx: Context, cand: ModelRun, effect: str) -> str | None:
             mine, other = (a, b) if a in own else (b, a)
             return (f"{ecm.PARAMS[mine].report} trades with {ecm.PARAMS[other].report} "
                     f"(correlation {c:+.3f})")  # fmt: skip
-    return None
-
-
-def pays_everywhere(ctx: Context, ref: ModelRun, cand: ModelRun) -> str | None:
-    """Criterion 2: ``cand`` predicts every held-out record (two records or more) or every
-    forward stretch (one record) better than ``ref``."""
-    if ctx.layout.by_record:
-        lr, lc = ctx.ho_loss(ref), ctx.ho_loss(cand)
-        worse = [ctx.recs[r].source for r, f in enumerate(ctx.layout.folds)
-                 if lc[f].mean() >= lr[f].mean()]  # fmt: skip
-        if worse:
-            return f"predicts held-out {', '.join(worse)} no better"
-        return None
-    fr, fc = ctx.predict_forward(ref), ctx.predict_forward(cand)
-    for cut, a, b in zip(FORWARD_CUTS, fr, fc, strict=True):
-        if b.mean() >= a.mean():
-            return f"predicts the record forward from {cut:.0%} of it no better"
     return None
 
 

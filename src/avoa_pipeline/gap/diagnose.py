@@ -614,12 +614,13 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             if ratio < UNEXPLAINED_RATIO
             else "a misfit beyond the noise floor that no candidate explains on held-out data"
         )
-    undecided = [
-        {**u, "would_decide": selection.WOULD_DECIDE.get(e, "a second profile of the cell")
+    iv = intervals.of_fit(ctx.recs, final.st, final.X)
+    undecided = [  # selected, but the records do not identify it (docs/admission-rule.md)
+        {"effect": e, "why": why, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
          + ("; or a second profile of the cell" if len(recs) == 1 else "")}
-        for e, u in ctx.undecided.items() if e not in final.effects
+        for e in final.effects if (why := selection.identified(iv, e)) is not None
     ]  # fmt: skip
-    if undecided:  # docs/admission-rule.md, 3: say so, keep the simpler model
+    if undecided:
         verdict["cannot_tell"] = [u["effect"] for u in undecided]
     remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
     selected_name = "+".join(final.effects) or "base"
@@ -633,7 +634,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
         "undecided": undecided,
-        "intervals": intervals.of_fit(ctx.recs, final.st, final.X).report(),
+        "intervals": iv.report(),
         "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
         "n_samples": rec.n,
         "samples": samples_used(ctx, {"base": base, "selected": final}),
