@@ -11,7 +11,12 @@ reruns the job next time.
 
 On a cluster the job's ancestor is the Snakemake process the executor starts on the node, so
 killing the submitting Snakemake leaves cluster jobs to the scheduler, as it should (``scancel``).
-Without a Snakemake ancestor (the CLI run by hand, tests) nothing happens.
+Without a Snakemake ancestor (the CLI run by hand, tests) nothing happens, unless the job was
+started by a Snakemake that is already gone: a ``kill -9`` in the instant between a job's start
+and its first look at its ancestors (on a loaded machine a Python job takes seconds to get
+there) leaves it no Snakemake ancestor to find. The workflow therefore names its Snakemake in
+the jobs' environment (:data:`ENV`, set by :func:`announce` in ``common.smk``): a job that finds
+no ancestor but was started by a Snakemake of this host that no longer runs stops at once.
 
 ``python -m avoa_pipeline.jobguard CMD ...`` runs CMD under the same watch (for ``shell:`` rules
 whose program is not the package's, e.g. papermill and its kernel).
@@ -34,6 +39,38 @@ POLL_S = 0.5
 """How often the job looks for its Snakemake (a stopped run computes on for at most this long)."""
 
 _STARTED: list = []
+
+ENV = "AVOA_SNAKEMAKE"
+"""The Snakemake process that starts the jobs, as ``host:pid:create_time`` (create_time tells a
+reused PID from the process itself)."""
+
+
+def announce() -> None:
+    """Name this (Snakemake) process in the environment its jobs inherit (:data:`ENV`)."""
+    import socket
+
+    import psutil
+
+    me = psutil.Process()
+    os.environ[ENV] = f"{socket.gethostname()}:{me.pid}:{me.create_time()!r}"
+
+
+def _announced_gone() -> bool:
+    """Whether the Snakemake named in :data:`ENV` ran on this host and no longer runs."""
+    import socket
+
+    import psutil
+
+    host, _, rest = os.environ.get(ENV, "").partition(":")
+    pid, _, created = rest.partition(":")
+    if not pid or host != socket.gethostname():
+        return False  # not started by the workflow, or by a Snakemake on another node
+    try:
+        return psutil.Process(int(pid)).create_time() != float(created)
+    except (psutil.NoSuchProcess, ValueError):
+        return True
+    except psutil.Error:
+        return False
 
 
 def is_snakemake(cmdline) -> bool:
@@ -76,6 +113,9 @@ def watch(poll_s: float = POLL_S):
     target = snakemake_ancestor()
     _STARTED.append(target)
     if target is None:
+        if _announced_gone():  # its Snakemake died before the job looked: stop now
+            _kill_children()
+            os._exit(137)
         return None
 
     def loop():

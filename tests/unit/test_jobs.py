@@ -257,3 +257,26 @@ def test_stale_locks_are_cleared_only_without_a_live_snakemake_here(tmp_path):
     assert snakemake_compat.clear_stale_locks(tmp_path, False, False) == []  # not the main run
     assert snakemake_compat.clear_stale_locks(tmp_path, True, False) == ["0.input.lock"]
     assert not (locks / "0.input.lock").exists()
+
+
+def test_a_job_whose_announced_snakemake_is_gone_stops_at_once(monkeypatch):
+    # a kill -9 of Snakemake before a job looked for it leaves no ancestor to find: the job
+    # stops if the Snakemake named in its environment (same host) no longer runs, and runs
+    # when that Snakemake lives or when nothing is named (the CLI by hand)
+    import socket
+    import subprocess
+    import sys
+
+    from avoa_pipeline import jobguard
+
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    cmd = [sys.executable, "-m", "avoa_pipeline.jobguard", sys.executable, "-c", "pass"]
+    monkeypatch.setenv(jobguard.ENV, f"{socket.gethostname()}:{gone.pid}:0.0")
+    assert subprocess.run(cmd, timeout=60).returncode == 137
+    monkeypatch.setenv(jobguard.ENV, f"another-host:{gone.pid}:0.0")
+    assert subprocess.run(cmd, timeout=60).returncode == 0
+    jobguard.announce()  # this test process, alive
+    assert subprocess.run(cmd, timeout=60).returncode == 0
+    monkeypatch.delenv(jobguard.ENV)
+    assert subprocess.run(cmd, timeout=60).returncode == 0

@@ -3,8 +3,12 @@ from pathlib import Path
 
 import avoa_pipeline.config as avoa_config
 import avoa_pipeline.workflow as wf
-from avoa_pipeline import snakemake_compat
+from avoa_pipeline import jobguard, snakemake_compat
 from avoa_pipeline.model.battery import CASES
+
+# Jobs learn which Snakemake started them, so a job that starts after a kill -9 of it stops at once
+# (avoa_pipeline.jobguard).
+jobguard.announce()
 
 # A killed run's lock files, when no live Snakemake works here, are removed so that a plain rerun
 # resumes; the workflow runs correctly without this (then `snakemake --unlock` once).
