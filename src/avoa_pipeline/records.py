@@ -253,8 +253,8 @@ def check_scale(
     if "temperature_c" in frame.columns:
         _check_temperature(frame["temperature_c"].to_numpy(dtype=float), source,
                            col["temperature_c"])  # fmt: skip
+    step = float(np.median(np.diff(t))) if t.size > 1 else np.inf
     if t.size > 1:
-        step = float(np.median(np.diff(t)))
         if step < MIN_TIME_STEP_S:
             raise DataError(
                 f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
@@ -263,8 +263,7 @@ def check_scale(
             )
         _check_gaps(t, i, scale, source, col)
     decided = _check_rest_slope(t, i, v, scale, source, col["time_s"], capacity_ah)
-    if t.size > 1 and np.median(np.diff(t)) < FAST_TIME_STEP_S and not (decided and capacity_ah):
-        step = float(np.median(np.diff(t)))
+    if step < FAST_TIME_STEP_S and not (decided and capacity_ah):
         notes.append(
             f"{source}: column {col['time_s']!r}: median step {step:.3g} s ({1 / step:.3g} Hz) "
             "taken as seconds; if the time is in minutes, the capacity and every time constant "

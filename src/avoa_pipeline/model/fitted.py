@@ -128,21 +128,15 @@ class FittedModel:
         ``fitting.AT_BOUND`` of the searched range (internal coordinates) from either end."""
         from . import fitting
 
-        flags = []
+        flags, values = [], self.parameters()
         for n in self.names:
             lo, hi = self.bounds[n]
-            span = hi - lo
-            if not span > 0:
-                continue
             x = float(self.x[IDX[n]])
-            near = {"lower": x - lo, "upper": hi - x}
-            side = min(near, key=near.get)
-            if near[side] <= fitting.AT_BOUND * span:
+            if hi > lo and fitting.at_bound(x, lo, hi):  # a fixed value (lo = hi) is no bound hit
                 rep = ecm.PARAMS[n].report
-                value = self.parameters()[rep]
-                plo, phi = self._physical_bounds(n)
-                flags.append({"parameter": rep, "value": value, "bound": side,
-                              "bounds": [plo, phi]})  # fmt: skip
+                flags.append({"parameter": rep, "value": values[rep],
+                              "bound": "lower" if x - lo <= hi - x else "upper",
+                              "bounds": self._physical_bounds(n)})  # fmt: skip
         return flags
 
     def check_cell(self, frame: pd.DataFrame | None = None, soc0: float | None = None,

@@ -41,6 +41,13 @@ records would have taken it further). Bounded least squares stops within about 1
 from an active bound; 1e-4 leaves room for that and still lies below the values records set
 (0.2 mΩ of a 0-2 Ω range, 0.06 % of a time constant over 5 decades)."""
 
+
+def at_bound(x, lo, hi) -> np.ndarray:
+    """Per parameter (internal coordinates): within AT_BOUND of its searched range of a bound."""
+    x, lo, hi = (np.asarray(a, dtype=float) for a in (x, lo, hi))
+    return np.minimum(x - lo, hi - x) <= AT_BOUND * (hi - lo)
+
+
 PRIOR_SCALE_V = 1e-3
 """Residual scale (V) of the weak priors: one prior row weighs like one sample with 1 mV noise, so
 data that inform a parameter outweigh its prior by orders of magnitude."""

@@ -42,7 +42,6 @@ longer than the narrower of the two marginal intervals would suggest)."""
 UNIDENTIFIED_SHARE = 0.5
 """A 95 % interval wider than half the searched range: the records hardly constrain the
 parameter (the fit's answer there is its start or its prior)."""
-AT_BOUND = fitting.AT_BOUND  # its reason is there
 
 
 def autocorrelation(e: np.ndarray) -> np.ndarray:
@@ -67,7 +66,10 @@ def autocorrelation(e: np.ndarray) -> np.ndarray:
 def autocorrelation_time(e: np.ndarray) -> float:
     """Integrated autocorrelation time of a residual series, 1 + 2 Σ ρ_k over Sokal's window
     (at least 1)."""
-    rho = autocorrelation(e)
+    return _time_of(autocorrelation(e))
+
+
+def _time_of(rho: np.ndarray) -> float:
     return float(max(2.0 * rho.sum() - 1.0, 1.0))
 
 
@@ -95,8 +97,7 @@ class Intervals:
 
     @property
     def at_bound(self) -> np.ndarray:
-        span = self.hi - self.lo
-        return np.minimum(self.value - self.lo, self.hi - self.value) <= AT_BOUND * span
+        return fitting.at_bound(self.value, self.lo, self.hi)
 
     def bounds95(self) -> tuple[np.ndarray, np.ndarray]:
         """The 95 % intervals (internal), inside the searched bounds."""
@@ -190,8 +191,7 @@ def of_fit(recs, st: fitting.Structure, X: np.ndarray, masks=None) -> Intervals:
     J = prob.jacobian(z)
     p = z.size
     n = int(sum(i.size for i in idxs))
-    span = st.hi - st.lo
-    free = np.minimum(z - st.lo, st.hi - z) > AT_BOUND * span
+    free = ~fitting.at_bound(z, st.lo, st.hi)
     Jd, ed = J[:n][:, free], res[:n]
     A_pinv, touched = _pinv(Jd.T @ Jd)
     B = np.zeros_like(A_pinv)
@@ -201,7 +201,7 @@ def of_fit(recs, st: fitting.Structure, X: np.ndarray, masks=None) -> Intervals:
         e, Jr = ed[off : off + i.size], Jd[off : off + i.size]
         off += i.size
         rho = autocorrelation(e)
-        tau = float(max(2.0 * rho.sum() - 1.0, 1.0))
+        tau = _time_of(rho)
         taus.append(rho)
         B += _long_run(Jr * e[:, None], int(np.ceil(HAC_LAGS * tau)))
         n_eff, ss = n_eff + i.size / tau, ss + float(np.sum(e**2))
@@ -210,7 +210,7 @@ def of_fit(recs, st: fitting.Structure, X: np.ndarray, masks=None) -> Intervals:
     if free.any():
         cov = A_pinv @ B @ A_pinv
         if st.soc0_rule:
-            cov = cov + _opening_cov(recs, st, X, idxs, prob, res, Jd, A_pinv, free, taus)
+            cov = cov + _opening_cov(recs, st, X, idxs, prob, res, Jd, A_pinv, taus)
         cov[touched, :] = np.inf
         cov[:, touched] = np.inf
         d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -249,7 +249,7 @@ OPENING_STEP_V = 1e-4
 initial SOC moves by about 1e-4 of its range, far inside the linear range of the OCV."""
 
 
-def _opening_cov(recs, st, X, idxs, prob, res, Jd, A_pinv, free, taus) -> np.ndarray:
+def _opening_cov(recs, st, X, idxs, prob, res, Jd, A_pinv, taus) -> np.ndarray:
     """The variance the opening rule adds: each record starts at the SOC its opening voltage
     (the mean over ``ecm.OPENING_WINDOW_S``) gives, and that mean carries the logger's noise,
     which moves every later residual of the record at once and the fitted parameters with it
