@@ -375,16 +375,8 @@ def cmd_diagnose(args) -> None:
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
     inputs.warn(read.warnings)  # once the command succeeded: an error stays one line
-    inputs.warn(
-        f"{out / 'model.json'}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
-        f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
-        for f in report.get("at_bounds", ())
-    )
-    inputs.warn(  # those at a bound were named above, with their values
-        f"{out / 'model.json'}: {flag}"
-        for flag in report.get("intervals", {}).get("flags", ())
-        if not flag.endswith("at a bound of its fit")
-    )
+    inputs.warn(_flag_lines(out / "model.json", report.get("at_bounds", ()),
+                            report.get("intervals")))  # fmt: skip
     inputs.warn(
         f"{out / 'diagnosis.json'}: {u['effect']} selected, but {u['why']}: these records may "
         f"not identify it; would decide it: {u['would_decide']}"
@@ -397,6 +389,19 @@ def cmd_diagnose(args) -> None:
         + f"; selected {report['selected']['name']}; wrote {out / 'diagnosis.json'}, "
         f"{out / 'diagnosis.png'}, {out / 'model.json'}"
     )
+
+
+def _flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:
+    """One warning line per flagged parameter of a model (``FittedModel.at_bounds`` and the
+    flags of its intervals, ``model/intervals.py``): ``diagnose`` says them of the model it
+    writes, ``simulate`` and ``export`` of the model they run."""
+    lines = [f"{source}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
+             f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
+             for f in at_bounds]  # fmt: skip
+    flags = (intervals or {}).get("flags", ())
+    # those at a bound were named above, with their values
+    return lines + [f"{source}: {flag}" for flag in flags
+                    if not flag.endswith("at a bound of its fit")]  # fmt: skip
 
 
 def _model_and_record(args, data):
@@ -449,6 +454,7 @@ def cmd_simulate(args) -> None:
         out.to_csv(tmp, index=False)
     rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
     inputs.warn(rec.warnings)
+    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
     print(
         f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV; "
         f"wrote {args.out}"
@@ -494,6 +500,9 @@ def cmd_export(args) -> None:
             f"; dropped {', '.join(ex.dropped)}: {ex.summary['rms_mv']:.3g} mV RMS, "
             f"{ex.summary['max_abs_mv']:.3g} mV at most on {args.record}; wrote {cost_path}"
         )
+    from . import inputs
+
+    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
     print(line)
 
 

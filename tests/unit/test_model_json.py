@@ -21,7 +21,7 @@ from test_ecm import ACTIVE, TRUTH
 
 from avoa_pipeline import cli
 from avoa_pipeline.errors import DataError
-from avoa_pipeline.model import ecm, fitting
+from avoa_pipeline.model import ecm, fitting, intervals
 from avoa_pipeline.model.fitted import PROBE_C_RATE, FittedModel, probe_record
 
 CURRENT_SCALE_A = 2.0 * TRUTH["capacity_ah"]  # the 99th-percentile |I| of record() (its 2C legs)
@@ -41,7 +41,12 @@ REPLACEMENTS = {
     "-huge": -1e300,
     "bigint": 10**400,
 }
-FREE_TEXT = {("package_version",), ("ocv_table", "source"), ("ocv_table", "how")}
+FREE_TEXT = {
+    ("package_version",),
+    ("ocv_table", "source"),
+    ("ocv_table", "how"),
+    ("intervals", "method"),
+}
 """Strings written for readers: any other string is as valid."""
 
 # the two models every variant is made from: a measured table with the elements that write
@@ -70,8 +75,32 @@ def make_model(kind: str, effects, extra=None) -> FittedModel:
         values["voltage_offset_v"] = -0.01
     x = ecm.vector({k: v for k, v in values.items() if ecm.BY_REPORT[k] in names})
     bounds = {n: fitting.internal_limits(n) for n in names if not ecm.PARAMS[n].per_record}
-    return FittedModel(config, x, ecm.Knots(0.2, 0.12), 300.15, bounds, {"by": "test"},
-                       CURRENT_SCALE_A)  # fmt: skip
+    model = FittedModel(config, x, ecm.Knots(0.2, 0.12), 300.15, bounds, {"by": "test"},
+                        CURRENT_SCALE_A)  # fmt: skip
+    model.intervals = model_intervals(model)
+    return model
+
+
+def model_intervals(model: FittedModel) -> dict:
+    """Intervals as a fit reports them (``Intervals.report``), with every kind of entry: the
+    capacity held (given), R1 at its upper bound, τ1 unconstrained, the others narrow, and
+    R0 and R1 correlated beyond the limit."""
+    x = model.x
+    model.bounds["lq"] = (float(x[ecm.IDX["lq"]]),) * 2
+    lo, hi = model.bounds["r1"]
+    model.bounds["r1"] = (lo, float(x[ecm.IDX["r1"]]))
+    free = tuple(n for n in model.names if n != "lq")
+    k = {n: j for j, n in enumerate(free)}
+    lo = np.array([model.bounds[n][0] for n in free])
+    hi = np.array([model.bounds[n][1] for n in free])
+    sd = 0.01 * (hi - lo)
+    sd[k["ltau1"]] = np.inf
+    sd[k["r1"]] = np.nan
+    corr = np.eye(len(free))
+    corr[k["r0"], k["ltau1"]] = corr[k["ltau1"], k["r0"]] = -0.995
+    iv = intervals.Intervals(free, x[[ecm.IDX[n] for n in free]], lo, hi, sd, corr, 5000, 250.0,
+                             1e-3, (("lq", float(x[ecm.IDX["lq"]])),))  # fmt: skip
+    return iv.report()
 
 
 def record(model: FittedModel) -> pd.DataFrame:
@@ -158,8 +187,8 @@ def variants(text: str):
 
         if isinstance(key, int):  # a list entry removed: another field may notice first
             yield f"{label(path)} removed", edited(lambda p, k: p.pop(k)), None
-        elif path == ("current_scale_a",):
-            pass  # may be absent (files written before it): test_a_file_without_current_scale
+        elif path in (("current_scale_a",), ("intervals",)):
+            pass  # may be absent (files written before them): test_a_file_without_current_scale
         else:
             yield f"{label(path)} missing", edited(lambda p, k: p.pop(k)), label(path)
         original = edited(lambda p, k: None)
@@ -171,7 +200,7 @@ def variants(text: str):
                 continue  # the same value, or text as good as the original's
             if path == ("provenance",) and isinstance(value, dict):
                 continue  # any object: written for readers, never read
-            if path == ("current_scale_a",) and value is None:
+            if path in (("current_scale_a",), ("intervals",)) and value is None:
                 continue  # null: not known (a model made in Python without it), probed at 1C
             want = label(path)
             pair_edit = (name, len(path)) in (("list", 2), ("huge", 3), ("-huge", 3))
@@ -392,7 +421,7 @@ def test_a_file_without_current_scale_is_probed_at_1c(files, tmp_path, capsys):
     capacity, so removing the field does not bypass the probe (R0 = 1.9 Ω is still refused)."""
     text, _ = files["table"]
     d = json.loads(text)
-    del d["current_scale_a"]
+    del d["current_scale_a"], d["intervals"]  # written before either existed
     path = tmp_path / "model.json"
     path.write_text(json.dumps(d))
     assert FittedModel.load(path).current_scale_a is None

@@ -129,6 +129,7 @@ def test_parameters_at_their_bounds_are_flagged(tmp_path, capsys):
 
     from test_ecm import TRUTH, profile_frame, with_voltage
 
+    from avoa_pipeline.model import ecm
     from avoa_pipeline.model.ecm import IDX
     from avoa_pipeline.model.fitted import FittedModel
 
@@ -144,6 +145,20 @@ def test_parameters_at_their_bounds_are_flagged(tmp_path, capsys):
     model = FittedModel.load(out / "model.json")
     flagged = {f["parameter"] for f in model.at_bounds()}
     assert flagged == {f["parameter"] for f in report["at_bounds"]}
+    # model.json carries diagnosis.json's intervals: an entry for every parameter of the cell
+    iv = json.loads((out / "model.json").read_text())["intervals"]
+    assert iv == report["intervals"] == model.intervals
+    assert set(iv["parameters"]) == {ecm.PARAMS[n].report for n in model.names}
+    for rep, e in iv["parameters"].items():
+        assert e["at_bound"] == (rep in flagged)
+        assert (e["low95"] is None) == (e["at_bound"] or e["held"]), rep
+    # the other flags are warning lines too; simulate says them of the model it runs, one each
+    lines = [f for f in iv["flags"] if not f.endswith("at a bound of its fit")]
+    assert all(f"{out / 'model.json'}: {f}" in err for f in lines)
+    assert main(["simulate", str(out / "model.json"), str(path), "--out",
+                 str(tmp_path / "sim.csv")]) == 0  # fmt: skip
+    said = [line for line in capsys.readouterr().err.splitlines() if "model.json: " in line]
+    assert len(said) == len(report["at_bounds"]) + len(lines)
     lo, hi = model.bounds["lq"]
     model.x[IDX["lq"]] = hi - 1e-6 * (hi - lo)  # pressed against the upper bound
     (cap,) = [f for f in model.at_bounds() if f["parameter"] == "capacity_ah"]

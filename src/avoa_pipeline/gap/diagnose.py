@@ -630,11 +630,12 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "ocv": None if table is None else {"source": table.source, "how": table.how},
         "package_version": __version__,
     })  # fmt: skip
+    model.intervals = iv.report()  # model.json and diagnosis.json carry the same intervals
 
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
         "undecided": undecided,
-        "intervals": iv.report(),
+        "intervals": model.intervals,
         "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
         "n_samples": rec.n,
         "samples": samples_used(ctx, {"base": base, "selected": final}),

@@ -12,6 +12,11 @@ order, a table that rises, values written for readers equal to what the paramete
 follows in :meth:`FittedModel.from_json`. Every refusal is one line naming the file and the
 field. Whether the parameters describe a cell *together* is judged by the voltage they predict
 (:meth:`FittedModel.predict`), the one check ``simulate`` and ``export`` share.
+
+A model carries the 95 % intervals of its fit (``model/intervals.py``; ``fit_model`` and the
+diagnosis compute them): read back with every consistency a file can be held to (each value is
+its parameter's, each flag what the bounds and the interval say), and their flags are warning
+lines wherever the model is used. A model.json written before them (no ``intervals``) loads.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ class FittedModel:
     bounds: dict[str, tuple[float, float]]  # internal names → the fit's bounds
     provenance: dict = field(default_factory=dict)
     current_scale_a: float | None = None  # the training's current (training_current_scale)
+    intervals: dict | None = None  # model/intervals.py's report of the fit (read, not used)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -170,6 +176,7 @@ class FittedModel:
             "ocv_table": None if self.config.table is None else ocv_mod.to_json(self.config.table),
             "capacity_ah": float(10.0 ** self.x[IDX["lq"]]),
             "current_scale_a": self.current_scale_a,
+            "intervals": self.intervals,
             "provenance": self.provenance,
         }
 
@@ -239,7 +246,7 @@ class FittedModel:
             raise DataError(f"{source}: field 'knots.step': the knots reach SOC "
                             f"{knots.grid()[-1]:.6g}, beyond {KNOTS_SOC_RANGE[1]:g}")  # fmt: skip
         model = cls(config, x, knots, float(d["tref_k"]), bounds, d["provenance"],
-                    d.get("current_scale_a"))  # fmt: skip
+                    d.get("current_scale_a"), d.get("intervals"))  # fmt: skip
         written = {**{k: params[k] for k in _derived_keys(config)},
                    "capacity_ah": d["capacity_ah"]}  # fmt: skip
         derived = {**model.parameters(), "capacity_ah": float(10.0 ** x[IDX["lq"]])}
@@ -250,6 +257,7 @@ class FittedModel:
                 raise DataError(f"{source}: field '{field_name}': {value:.10g}, but the "
                                 f"parameters give {want:.10g} (written for readers, never read:"
                                 " edit the parameters instead)")  # fmt: skip
+        _check_intervals(model, params, source)
         return model
 
     @classmethod
@@ -297,7 +305,8 @@ LIMIT_RTOL = 1e-9
 is written from its internal coordinate (10**log10(x) is not always x to the last bit)."""
 
 _TYPE_WORDS = {"number": "a number", "integer": "an integer", "string": "a string",
-               "array": "a list", "object": "an object", "null": "null"}  # fmt: skip
+               "array": "a list", "object": "an object", "null": "null",
+               "boolean": "true or false"}  # fmt: skip
 
 
 def _kind(value) -> str:
@@ -461,8 +470,110 @@ def model_schema(config: Config) -> dict:
         "capacity_ah": _number(qlo, qhi, "the library's range of capacity_ah"),
         "current_scale_a": _nullable(_number(0.0, MAX_CELL_CURRENT_A, "a record's current scale",
                                              exclusive=True)),
+        "intervals": {**_intervals_schema(names), "type": ["null", "object"]},  # null: none
         "provenance": {"type": "object"},  # what made the model, for readers; never read
-    }, optional=("current_scale_a",))  # fmt: skip
+    }, optional=("current_scale_a", "intervals"))  # fmt: skip
+
+
+MAX_COUNT = 2**53
+"""A count of samples is an integer a double holds exactly (beyond, it is no count)."""
+
+
+def _intervals_schema(names: list[str]) -> dict:
+    """model/intervals.py's report (``Intervals.report``): an entry for every parameter of the
+    cell, the correlated pairs among them, the flags."""
+    from .intervals import CORR_LIMIT, LEVEL
+
+    reports = [ecm.PARAMS[n].report for n in names]
+    entry = _object({"value": _number(), "low95": _nullable(_number()),
+                     "high95": _nullable(_number()), "at_bound": {"type": "boolean"},
+                     "identified": {"type": "boolean"}, "held": {"type": "boolean"}})  # fmt: skip
+    why = "a correlation of a pair"  # a pair is listed for |correlation| ≥ CORR_LIMIT
+    beyond = [
+        _number(-1.0 - LIMIT_RTOL, -CORR_LIMIT, why),
+        _number(CORR_LIMIT, 1.0 + LIMIT_RTOL, why),
+    ]
+    pair = _object({"a": {"enum": reports}, "b": {"enum": reports},
+                    "correlation": {"anyOf": beyond}})  # fmt: skip
+    lo, hi = VOLTAGE_RANGE_V
+    return _object({
+        "method": {"type": "string"},
+        "level": {"const": LEVEL},
+        "samples": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
+        "effective_samples": _number(0.0, MAX_COUNT, "at most the samples"),
+        "residual_sd_mv": _number(0.0, 1e3 * (hi - lo), "within one cell's voltage range"),
+        "parameters": _object({r: entry for r in reports}),
+        "correlated_pairs": _list(pair),
+        "flags": _list({"type": "string"}),
+    })  # fmt: skip
+
+
+def _check_intervals(model: FittedModel, params: dict, source: str) -> None:
+    """What the schema cannot say of a model.json's intervals (written for readers; only their
+    flags are used, as warnings): each entry's value is the parameter's, its flags are what the
+    model's bounds say (``at_bound`` by ``fitting.at_bound``, ``held`` for a fixed parameter,
+    ``identified`` by ``intervals.identified``), its ends are numbers around the value exactly
+    where it has an interval, and ``flags`` are the entries' own (``intervals.flags``)."""
+    from . import fitting, intervals
+
+    iv = model.intervals
+    if iv is None:
+        return
+    where = f"{source}: field 'intervals"
+    if iv["effective_samples"] > iv["samples"]:
+        raise DataError(f"{where}.effective_samples': {iv['effective_samples']:.6g}, more than "
+                        f"the {iv['samples']} samples")  # fmt: skip
+    for rep, e in iv["parameters"].items():
+        n = ecm.BY_REPORT[rep]
+        lo, hi = model.bounds[n]
+        x = float(model.x[IDX[n]])
+        at = f"{where}.parameters.{rep}"
+        if not math.isclose(e["value"], params[rep], rel_tol=DERIVED_RTOL, abs_tol=DERIVED_RTOL):
+            raise DataError(f"{at}.value': {e['value']:.10g}, but the parameter is "
+                            f"{params[rep]:.10g} (the intervals are the fit's: remove "
+                            "'intervals' to edit the parameters by hand)")  # fmt: skip
+        held = bool(hi <= lo)
+        if e["held"] != held:
+            raise DataError(f"{at}.held': {json.dumps(e['held'])}, but the bounds "
+                            f"{'fix' if held else 'do not fix'} it")  # fmt: skip
+        bound = not held and bool(fitting.at_bound(x, lo, hi))
+        if e["at_bound"] != bound:
+            raise DataError(f"{at}.at_bound': {json.dumps(e['at_bound'])}, but the value "
+                            f"{'is' if bound else 'is not'} at a bound of the fit")  # fmt: skip
+        ends = {"low95": e["low95"], "high95": e["high95"]}
+        has = not (held or bound)
+        for key, end in ends.items():
+            if (end is None) == has:
+                raise DataError(f"{at}.{key}': {json.dumps(end)}, but the parameter "
+                                f"{'has' if has else 'has no'} interval")  # fmt: skip
+        if not has:
+            if e["identified"]:
+                raise DataError(f"{at}.identified': true, but the parameter has no interval")
+            continue
+        tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
+        plo, phi = model._physical_bounds(n)
+        ptol = LIMIT_RTOL * max(abs(plo), abs(phi))
+        for key, ok in (("low95", ends["low95"] <= e["value"] + tol),
+                        ("high95", ends["high95"] >= e["value"] - tol)):  # fmt: skip
+            if not ok:
+                raise DataError(f"{at}.{key}': {ends[key]:.6g}, on the wrong side of the value "
+                                f"{e['value']:.6g}")  # fmt: skip
+            if not plo - ptol <= ends[key] <= phi + ptol:  # intervals end inside the fit's bounds
+                raise DataError(f"{at}.{key}': {ends[key]:.6g}, outside the bounds it was "
+                                f"fitted in [{plo:.6g}, {phi:.6g}]")  # fmt: skip
+        width = abs(np.diff([ecm.internal_value(rep, ends[k])[1] for k in ends])[0])
+        if e["identified"] != intervals.identified(width, lo, hi):
+            raise DataError(f"{at}.identified': {json.dumps(e['identified'])}, but its interval "
+                            f"spans {width / (hi - lo):.3g} of its range (identified at most "
+                            f"{intervals.UNIDENTIFIED_SHARE:g})")  # fmt: skip
+    own = intervals.flags(iv["parameters"], iv["correlated_pairs"])
+    if iv["flags"] != own:
+        wrong = [j for j, (a, b) in enumerate(zip(iv["flags"], own, strict=False)) if a != b]
+        at = f"{where}.flags[{wrong[0]}]'" if wrong else f"{where}.flags'"
+        raise DataError(
+            f"{at}: not the entries' own flags ({len(own)}: "
+            f"{'; '.join(own) or 'none'}: what the entries and pairs say)"
+        )
 
 
 def _derived_keys(config: Config) -> list[str]:
@@ -613,8 +724,9 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     fit (as the diagnosis's ladder adds them). Shared cell parameters, each record started by
     the library's rule (``fitting.structure``) and counting alike; one reference temperature
     (the mean over all records). The training RMSE is the records-alike one (the root of the
-    mean over records of each record's mean squared error)."""
-    from . import fitting
+    mean over records of each record's mean squared error). The model carries its parameters'
+    intervals (``model/intervals.py``)."""
+    from . import fitting, intervals
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
     temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
@@ -641,5 +753,6 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
                                             config.load_ohm)[:, 0] - rec.v) ** 2))
            for r, rec in enumerate(recs)]  # fmt: skip
     model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
-                        training_current_scale(recs))  # fmt: skip
+                        training_current_scale(recs),
+                        intervals.of_fit(recs, st, X).report())  # fmt: skip
     return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)

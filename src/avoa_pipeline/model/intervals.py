@@ -22,6 +22,9 @@ What is flagged:
   the records; it is held fixed for the others' covariance and gets no interval;
 - a pair whose correlation is beyond ±CORR_LIMIT: the records do not separate the two;
 - a parameter whose interval covers more than half its searched range: not identified.
+
+A parameter the fit held at a given value (the capacity of ``--capacity-ah``) is reported as
+``held``, with no interval: the user set it, the records did not.
 """
 
 from __future__ import annotations
@@ -94,6 +97,7 @@ class Intervals:
     n: int  # residuals used
     n_eff: float  # their effective number
     s_v: float  # residual SD per sample (V)
+    held: tuple[tuple[str, float], ...] = ()  # the cell's parameters the fit held (name, value)
 
     @property
     def at_bound(self) -> np.ndarray:
@@ -101,7 +105,7 @@ class Intervals:
 
     def bounds95(self) -> tuple[np.ndarray, np.ndarray]:
         """The 95 % intervals (internal), inside the searched bounds."""
-        half = Z95 * self.sd
+        half = np.where(np.isnan(self.sd), np.inf, Z95 * self.sd)  # no estimate: unconstrained
         return np.maximum(self.value - half, self.lo), np.minimum(self.value + half, self.hi)
 
     def excludes(self, name: str, neutral: float) -> bool:
@@ -126,42 +130,61 @@ class Intervals:
     def report(self) -> dict:
         """Report-named intervals (physical units) and flags, for model.json and diagnosis.json."""
         a, b = self.bounds95()
-        params, flags = {}, []
+        params = {}
         for k, n in enumerate(self.names):
-            rep = ecm.PARAMS[n].report
             ends = sorted(_physical(n, z) for z in (a[k], b[k]))
-            identified = bool(
-                np.isfinite(self.sd[k])
-                and (b[k] - a[k]) <= UNIDENTIFIED_SHARE * (self.hi[k] - self.lo[k])
-            )
-            entry = {
+            bound = bool(self.at_bound[k])
+            params[ecm.PARAMS[n].report] = {
                 "value": _physical(n, self.value[k]),
-                "low95": None if self.at_bound[k] else ends[0],
-                "high95": None if self.at_bound[k] else ends[1],
-                "at_bound": bool(self.at_bound[k]),
-                "identified": identified and not bool(self.at_bound[k]),
+                "low95": None if bound else ends[0],
+                "high95": None if bound else ends[1],
+                "at_bound": bound,
+                "identified": not bound and identified(b[k] - a[k], self.lo[k], self.hi[k]),
+                "held": False,
             }
-            params[rep] = entry
-            if self.at_bound[k]:
-                flags.append(f"{rep} at a bound of its fit")
-            elif not identified:
-                flags.append(f"{rep} not identified (its 95 % interval spans over half its range)")
+        for n, z in self.held:  # given, not fitted (a capacity from --capacity-ah): no interval
+            params[ecm.PARAMS[n].report] = {"value": _physical(n, z), "low95": None,
+                                            "high95": None, "at_bound": False,
+                                            "identified": False, "held": True}  # fmt: skip
         pairs = [
             {"a": ecm.PARAMS[x].report, "b": ecm.PARAMS[y].report, "correlation": c}
             for x, y, c in self.pairs()
         ]
-        flags += [f"{p['a']} and {p['b']} not separately identified (correlation "
-                  f"{p['correlation']:+.3f})" for p in pairs]  # fmt: skip
         return {
             "method": "Gauss-Newton covariance × the residuals' integrated autocorrelation time",
-            "level": 0.95,
+            "level": LEVEL,
             "samples": self.n,
             "effective_samples": self.n_eff,
             "residual_sd_mv": 1e3 * self.s_v,
             "parameters": params,
             "correlated_pairs": pairs,
-            "flags": flags,
+            "flags": flags(params, pairs),
         }
+
+
+LEVEL = 0.95
+"""The intervals' confidence level (``Z95``)."""
+
+
+def identified(width: float, lo: float, hi: float) -> bool:
+    """A 95 % interval of ``width`` (internal coordinates) in the searched range [lo, hi]
+    identifies its parameter: at most UNIDENTIFIED_SHARE of the range (an unconstrained one spans
+    all of it)."""
+    return bool(np.isfinite(width) and width <= UNIDENTIFIED_SHARE * (hi - lo))
+
+
+def flags(params: dict, pairs: list[dict]) -> list[str]:
+    """The warning lines of a report's entries and pairs (one per flagged parameter or pair):
+    written into the report for readers, and recomputed from the entries when a model.json is
+    read (``model/fitted.py``)."""
+    out = []
+    for rep, e in params.items():
+        if e["at_bound"]:
+            out.append(f"{rep} at a bound of its fit")
+        elif not (e["identified"] or e["held"]):
+            out.append(f"{rep} not identified (its 95 % interval spans over half its range)")
+    return out + [f"{p['a']} and {p['b']} not separately identified (correlation "
+                  f"{p['correlation']:+.3f})" for p in pairs]  # fmt: skip
 
 
 def _physical(name: str, z: float) -> float:
@@ -219,7 +242,9 @@ def of_fit(recs, st: fitting.Structure, X: np.ndarray, masks=None) -> Intervals:
             corr[np.ix_(free, free)] = np.where(np.isfinite(d)[:, None] & np.isfinite(d),
                                                 cov / np.outer(d, d), np.nan)  # fmt: skip
     s_v = float(np.sqrt(ss / max(n, 1)))  # weighted: records alike, as the fit counts them
-    return Intervals(st.shared, z, st.lo.copy(), st.hi.copy(), sd, corr, n, n_eff, s_v)
+    held = tuple((m, float(X[0, IDX[m]])) for m in st.config.names()
+                 if not ecm.PARAMS[m].per_record and m not in st.shared)  # fmt: skip
+    return Intervals(st.shared, z, st.lo.copy(), st.hi.copy(), sd, corr, n, n_eff, s_v, held)
 
 
 HAC_LAGS = 10.0
