@@ -263,9 +263,9 @@ def test_paper_scenarios_fade_is_absorbed_by_the_base_model(tmp_path):
 
 def test_figures_are_written(tmp_path):
     df = _hand_made()
-    ev.fig_confusion(df, tmp_path / "c.png")
-    ev.fig_accuracy(ev.accuracy(df), tmp_path / "a.png")
-    ev.fig_shrink(df, tmp_path / "s.png")
-    ev.fig_detection_limit(ev.detection_limit(df), tmp_path / "d.png")
+    ev.fig_confusion(df, tmp_path / "c")
+    ev.fig_accuracy(ev.accuracy(df), tmp_path / "a")
+    ev.fig_shrink(df, tmp_path / "s")
+    ev.fig_detection_limit(ev.detection_limit(df), tmp_path / "d")
     for name in "casd":
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"

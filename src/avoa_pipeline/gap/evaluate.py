@@ -596,15 +596,12 @@ def evaluate(files, out: dict, threshold: float = THRESHOLD, pair_df=None) -> pd
 # --- figures (matplotlib Figure objects without pyplot, as report.figures) ----------------------
 
 
-def _save_png(fig, path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=150)
-
-
-def fig_confusion(records_df: pd.DataFrame, path) -> None:
+def fig_confusion(records_df: pd.DataFrame, stem) -> None:
     """Confusion matrices, all datasets and detectable ones (with the controls), row shares
     as colour and counts as text."""
     from matplotlib.figure import Figure
+
+    from ..report.figures import save
 
     df = records_df
     parts = [
@@ -634,11 +631,13 @@ def fig_confusion(records_df: pd.DataFrame, path) -> None:
         ax.set_xlabel("verdict")
         ax.set_ylabel("withheld effect")
         ax.set_title(f"{title} (n = {int(table.to_numpy().sum())})", fontsize=10)
-    _save_png(fig, path)
+    save(fig, stem, pdf=False)
 
 
-def fig_accuracy(acc: pd.DataFrame, path, goal: float = TARGET) -> None:
+def fig_accuracy(acc: pd.DataFrame, stem, goal: float = TARGET) -> None:
     from matplotlib.figure import Figure
+
+    from ..report.figures import save
 
     fig = Figure(figsize=(10, 4.2), layout="constrained")
     ax = fig.subplots()
@@ -661,11 +660,13 @@ def fig_accuracy(acc: pd.DataFrame, path, goal: float = TARGET) -> None:
         "Accuracy per withheld effect (numbers: datasets / detectable datasets)", fontsize=10
     )
     ax.legend(fontsize=8, loc="lower left")
-    _save_png(fig, path)
+    save(fig, stem, pdf=False)
 
 
-def fig_shrink(records_df: pd.DataFrame, path) -> None:
+def fig_shrink(records_df: pd.DataFrame, stem) -> None:
     from matplotlib.figure import Figure
+
+    from ..report.figures import save
 
     fig = Figure(figsize=(10, 4.2), layout="constrained")
     ax = fig.subplots()
@@ -686,12 +687,14 @@ def fig_shrink(records_df: pd.DataFrame, path) -> None:
     ax.set_ylabel("shrink (held-out ISE removed)")
     ax.set_title("Shrink of the verdict effect, per withheld effect", fontsize=10)
     ax.legend(fontsize=8)
-    _save_png(fig, path)
+    save(fig, stem, pdf=False)
 
 
-def fig_detection_limit(dl: pd.DataFrame, path, threshold: float = THRESHOLD) -> None:
+def fig_detection_limit(dl: pd.DataFrame, stem, threshold: float = THRESHOLD) -> None:
     """Right verdicts against effect residual / noise RMSE, per effect, for each noise level."""
     from matplotlib.figure import Figure
+
+    from ..report.figures import save
 
     noises = list(dict.fromkeys(dl["noise_mv"]))
     fig = Figure(figsize=(4.6 * len(noises), 4.2), layout="constrained")
@@ -724,7 +727,7 @@ def fig_detection_limit(dl: pd.DataFrame, path, threshold: float = THRESHOLD) ->
         ax.set_ylim(-0.05, 1.05)
     axes[0].set_ylabel("right verdicts")
     axes[-1].legend(fontsize=7, loc="lower right")
-    _save_png(fig, path)
+    save(fig, stem, pdf=False)
 
 
 def demo_records(base_seed: int = 1, out_dir=None) -> pd.DataFrame:

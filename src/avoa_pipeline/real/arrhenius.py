@@ -394,7 +394,7 @@ def figure(rc: pd.DataFrame, arr: pd.DataFrame, stem) -> None:
     """R0, Rtr, τ against SOC per temperature (top) and their Arrhenius plots (bottom)."""
     from matplotlib.figure import Figure
 
-    from ..report.figures import _save
+    from ..report.figures import save
 
     shown = ("r0_step_ohm", "rtr_ohm", "tau_s")
     fig = Figure(figsize=(11, 6.6), layout="constrained")
@@ -441,7 +441,7 @@ def figure(rc: pd.DataFrame, arr: pd.DataFrame, stem) -> None:
         "Samsung INR18650-30Q (cell DNN01) HPPC 1C pulses: 1-RC parameters against temperature",
         fontsize=10,
     )
-    _save(fig, stem)
+    save(fig, stem)
 
 
 def summary(arr: pd.DataFrame) -> pd.DataFrame:

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from ..io import atomic_path
+from ..report.figures import save
 
 
 def summary_table(rmse: pd.DataFrame) -> pd.DataFrame:
@@ -80,11 +80,7 @@ def figure(pred: pd.DataFrame, rmse: pd.DataFrame, ambient: dict[str, float], st
         ax_e.set_ylim(-150, 150)
         ax_e.set_ylabel("model − measured [mV]")
         ax_e.set_xlabel("time [h]")
-    png = Path(f"{stem}.png")
-    pdf = Path(f"{stem}.pdf")
-    with atomic_path(png) as tmp_png, atomic_path(pdf) as tmp_pdf:
-        fig.savefig(tmp_png, format="png", dpi=150)
-        fig.savefig(tmp_pdf, format="pdf", metadata={"CreationDate": None})
+    save(fig, stem)
 
 
 def demo(cfg: dict, out_dir=None) -> dict:

@@ -287,7 +287,7 @@ def figure(table: pd.DataFrame, fits: pd.DataFrame, stem) -> None:
     """Measured capacity and resistance against the fade laws (top), sqrt-law residuals (bottom)."""
     from matplotlib.figure import Figure
 
-    from ..report.figures import _save
+    from ..report.figures import save
 
     fig = Figure(figsize=(11, 6.6), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True, height_ratios=(2, 1))
@@ -329,7 +329,7 @@ def figure(table: pd.DataFrame, fits: pd.DataFrame, stem) -> None:
     fig.suptitle(
         "NASA PCoE B0005, 2 A discharges at 168 ageing states: the paper's fade law", fontsize=10
     )
-    _save(fig, stem)
+    save(fig, stem)
 
 
 def summary(fits: pd.DataFrame) -> pd.DataFrame:

@@ -33,15 +33,12 @@ import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.patches import FancyBboxPatch, Polygon
 
-from ..io import atomic_path
+from ..io import atomic_path, atomic_paths
 from ..model.battery import CASES, PARAM_LABELS, PARAM_NAMES
 from ..optimizers import ALGORITHMS, PAPER_LABELS
 from ..optimizers import avoa as avoa_mod
 from . import budget, stats
 from .stats import EXCESS_TARGETS
-
-"""Permissions of the written figures (the temporary files :func:`..io.atomic_path` makes are
-private, 0600)."""
 
 DPI = 150
 """Resolution of the PNG files (the PDF files are vector graphics)."""
@@ -104,13 +101,15 @@ def _paths(stem) -> tuple[Path, Path]:
     return stem.with_name(stem.name + ".png"), stem.with_name(stem.name + ".pdf")
 
 
-def _save(fig: Figure, stem) -> None:
-    """Render ``fig`` to ``<stem>.png`` and ``<stem>.pdf``; both or neither appear."""
-    png, pdf = _paths(stem)
-    with atomic_path(png) as tmp_png, atomic_path(pdf) as tmp_pdf:
-        fig.savefig(tmp_png, format="png", dpi=DPI)
-        # no creation date: the same inputs give the same PDF bytes
-        fig.savefig(tmp_pdf, format="pdf", metadata={"CreationDate": None})
+def save(fig: Figure, stem, pdf: bool = True) -> None:
+    """The package's one way to write a figure: ``fig`` to ``<stem>.png`` (at DPI) and, with
+    ``pdf``, ``<stem>.pdf``; all or none appear (``io.atomic_paths``)."""
+    png, pdf_path = _paths(stem)
+    paths = (png, pdf_path) if pdf else (png,)
+    with atomic_paths(*paths) as tmps:
+        fig.savefig(tmps[0], format="png", dpi=DPI)
+        if pdf:  # no creation date: the same inputs give the same PDF bytes
+            fig.savefig(tmps[1], format="pdf", metadata={"CreationDate": None})
 
 
 _MATH_SYMBOLS = {
@@ -194,7 +193,7 @@ def fig01(stem) -> None:
             ha="center",
             fontsize=9,
         )
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -265,7 +264,7 @@ def fig02(dataset, stem) -> None:
             "Figure 2. Output voltage and current during discharging and charging" + where,
             fontsize=10.5,
         )
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -480,7 +479,7 @@ def fig03(stem, cfg: dict | None = None) -> None:
             color="0.25",
         )
         fig.suptitle("Figure 3. AVOA flowchart (as implemented)", fontsize=11, y=0.985)
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -642,7 +641,7 @@ def convergence(histories: pd.DataFrame, scenario: int, case: int, stem, paper_l
         if floor_hit:
             note += f"; values below {ISE_FLOOR:g} V² drawn at {ISE_FLOOR:g}"
         fig.suptitle(f"{title}\n{note}", fontsize=10)
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -724,7 +723,7 @@ def fig_budget(histories: pd.DataFrame, scenario: int, stem, targets=EXCESS_TARG
             "at b is their full-budget run seen at b",
             fontsize=10,
         )
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
     stem = Path(stem)
@@ -867,7 +866,7 @@ def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
             + _subtitle(problem),
             fontsize=10,
         )
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -908,7 +907,7 @@ def fig21(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
             + _subtitle(problem),
             fontsize=10,
         )
-        _save(fig, stem)
+        save(fig, stem)
     finally:
         fig.clear()
 
@@ -920,4 +919,4 @@ def not_run(stem, title: str, reason: str) -> None:
     ax.axis("off")
     ax.text(0.5, 0.62, title, ha="center", va="center", fontsize=12)
     ax.text(0.5, 0.38, reason, ha="center", va="center", fontsize=10, color="0.35", wrap=True)
-    _save(fig, stem)
+    save(fig, stem)
