@@ -517,3 +517,15 @@ def test_every_verdict_states_size_and_margin(sized_table):
         "practically equivalent",
         "inconclusive",
     }
+
+
+def test_median_position_is_the_lower_middle_finished_run():
+    from avoa_pipeline.report.stats import median_position
+
+    v = [3.0, 1.0, np.nan, 2.0, 4.0]
+    assert median_position(v) == 3  # finished runs 1, 2, 3, 4: the lower middle is 2.0
+    assert median_position(v[:2] + v[3:4]) == 2  # an odd count: the middle one
+    # ties broken by the seed, then by position
+    assert median_position([1.0, 1.0, 1.0, 5.0], ties=[9, 2, 7, 1]) == 2
+    assert median_position([1.0, 1.0]) == 0
+    assert median_position([np.nan, np.inf]) is None

@@ -233,9 +233,10 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
 
 
 def median_run(runs: list[dict]) -> dict:
-    """The run with the median training RMSE (lower median for an even count)."""
-    order = sorted(runs, key=lambda r: r["train_rmse_mv"])
-    return order[(len(order) - 1) // 2]
+    """The run with the median training RMSE (``report.stats.median_position``)."""
+    from ..report.stats import median_position
+
+    return runs[median_position([r["train_rmse_mv"] for r in runs])]
 
 
 def fit_and_predict(train, config: ecm.Config, tests: dict[str, pd.DataFrame]) -> dict:

@@ -769,11 +769,8 @@ def initial_guess(problem) -> np.ndarray:
 
 
 def median_run(runs: pd.DataFrame, scenario: int = 4, case: int = 4, algorithm: str = "avoa"):
-    """The run (a ``runs.parquet`` row) with the median best ISE of ``algorithm``.
-
-    With an even number of seeds, the lower of the two middle runs (an actual run, not an
-    average); ties broken by the smaller seed.
-    """
+    """The run (a ``runs.parquet`` row) with the median best ISE of ``algorithm``
+    (``stats.median_position``: the lower middle run, ties broken by the smaller seed)."""
     need = ("scenario", "case", "algorithm", "seed", "best_ise")
     missing = [c for c in need if c not in runs.columns]
     if missing:
@@ -783,8 +780,10 @@ def median_run(runs: pd.DataFrame, scenario: int = 4, case: int = 4, algorithm: 
     ]
     if sel.empty:
         raise ValueError(f"runs: no {algorithm} rows for scenario {scenario}, case {case}")
-    sel = sel.sort_values(["best_ise", "seed"], kind="mergesort")
-    return sel.iloc[(len(sel) - 1) // 2]
+    k = stats.median_position(sel["best_ise"], sel["seed"])
+    if k is None:
+        raise ValueError(f"runs: no finished {algorithm} run for scenario {scenario}, case {case}")
+    return sel.iloc[k]
 
 
 def _states(problem, x_free) -> dict:

@@ -328,12 +328,9 @@ def bounds_table(cfg: dict) -> pd.DataFrame:
 
 # -------------------------------------------------------------------------- Tables 4 to 19
 def median_run(sub: pd.DataFrame) -> pd.Series | None:
-    """The run of median ISE (for an even count the lower middle one, so it is a real run;
-    ties broken by seed)."""
-    r = sub[sub["best_ise"].notna()].sort_values(["best_ise", "seed"], kind="stable")
-    if r.empty:
-        return None
-    return r.iloc[(len(r) - 1) // 2]
+    """The run of median ISE (``stats.median_position``), or None."""
+    k = stats.median_position(sub["best_ise"], sub["seed"])
+    return None if k is None else sub.iloc[k]
 
 
 def param_table(
