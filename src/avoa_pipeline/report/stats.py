@@ -51,6 +51,8 @@ def median_position(values, ties=None) -> int | None:
     keys = (pos, pos if ties is None else np.asarray(ties), v)  # lexsort: last key first
     order = [k for k in np.lexsort(keys) if np.isfinite(v[k])]
     return int(order[(len(order) - 1) // 2]) if order else None
+
+
 DELTA_V = 1e-4
 """The equivalence margin's model error, 0.1 mV RMS (docs/reproduction-notes.md, E2)."""
 TIME_RATIO = 1.25
