@@ -41,6 +41,7 @@ import pandas as pd
 
 from .. import seeds
 from ..errors import ConfigError, DataError
+from ..io import uniform_step
 from ..model import ecm, kernel
 from ..model.battery import PARAM_NAMES, ModelSpec, simulate
 from ..model.fitted import fit_model
@@ -115,11 +116,7 @@ def paper_simulate(params: dict, frame: pd.DataFrame, dynamics: bool, qdis: floa
 
 
 def _step(frame: pd.DataFrame) -> float:
-    dt = np.diff(frame["time_s"].to_numpy())
-    ts = float(np.median(dt))
-    if np.max(np.abs(dt - ts)) > 1e-6 * ts:
-        raise DataError("record: column 'time_s': not uniformly sampled")
-    return ts
+    return uniform_step("record", frame["time_s"].to_numpy())
 
 
 # --- experiment settings and metrics -----------------------------------------------------------
@@ -304,20 +301,6 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
             m = out["models"].setdefault(name, {"effects": row["effects"], "cycles": {},
                                                 "train_rmse_mv": None})  # fmt: skip
             m["cycles"][cycle] = {k: row[k] for k in VALIDATION_ERRORS}
-    return out
-
-
-def diagnosis_fits(temp: str, train: dict[str, pd.DataFrame], tests: dict[str, pd.DataFrame],
-                   ocv_table=None, prefix: str = "diagnosis") -> dict:  # fmt: skip
-    """The diagnosis of the training records (one cell; with its measured OCV if given), run in
-    this process, the unseen cycles passed as validation records (never used for any choice):
-    :func:`diagnosis_record` of its report, and the selected model (``model``, its JSON)."""
-    from ..gap import diagnose
-
-    report, _, model = diagnose.run(list(train.values()), source=list(train),
-                                    ocv_table=ocv_table, validate=tests)  # fmt: skip
-    out = diagnosis_record(temp, report, prefix)
-    out["model"] = model.to_json()
     return out
 
 
