@@ -484,6 +484,7 @@ def paper_dataset(cfg: dict, scenario: int, case: int, out_csv) -> dict:
     """The synthetic record of one paper scenario × case (as the main workflow makes it), and
     how much of it a base model without load or fade cannot absorb."""
     from ..model.battery import vector
+    from ..model.kernel import paper_beta
     from ..synthetic import generate, write
     from .withheld import Cell, refit_residual
 
@@ -497,7 +498,7 @@ def paper_dataset(cfg: dict, scenario: int, case: int, out_csv) -> dict:
         q_ah=q,
         soc0=ds.meta["soc0"],
         vnom=vnom,
-        beta=(1.0 - vnom * soc1 / vdis) / (1.0 - soc1),
+        beta=paper_beta(vnom, vdis, soc1),
         r0=truth[3],
         r1=truth[4],
         tau1=truth[5],

@@ -54,6 +54,7 @@ import numpy as np
 import pandas as pd
 
 from ..records import REST_FRACTION, current_scale
+from . import kernel
 
 FARADAY = 96485.33212
 GAS_R = 8.314462618
@@ -785,7 +786,7 @@ def paper_rows(P_paper: np.ndarray, qdis_ah: float, soc0: float, fade_factors=No
         E = E * np.asarray(fade_factors, dtype=float)
     vnom, q, vdis, r0, rtr, tau = E.T
     soc1 = qdis_ah / q
-    beta = (1.0 - vnom * soc1 / vdis) / (1.0 - soc1)
+    beta = kernel.paper_beta(vnom, vdis, soc1)
     P = to_physical(np.repeat(NEUTRAL[None, :], E.shape[0], axis=0))
     P[:, VNOM], P[:, OMB], P[:, Q], P[:, SOC0], P[:, R0] = vnom, 1.0 - beta, q, soc0, r0
     P[:, R1] = rtr if dynamics else 0.0

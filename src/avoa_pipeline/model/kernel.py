@@ -34,6 +34,16 @@ import numpy as np
 VNOM, Q, VDIS, R0, RTR, TAU = range(6)
 
 
+def paper_beta(vnom, vdis, soc1):
+    """The OCV curvature β of eq. 5 from Vocv(SOC1) = Vdis: β = (1 − Vnom·SOC1/Vdis) / (1 − SOC1),
+    SOC1 = Qdis/Q. Scalars or arrays; the one place the paper's β is written (the compiled
+    kernel calls its numba twin, the library, the gap check and the real-cell experiments this)."""
+    return (1.0 - vnom * soc1 / vdis) / (1.0 - soc1)
+
+
+_paper_beta = nb.njit(cache=True)(paper_beta)
+
+
 @nb.njit(cache=True)
 def _coefficients(P, ts, qdis, g_load, dynamics):
     """Per-candidate constants: Vnom, 1−β, β, R0, a, b = Rtr(1−a), 1/(1+R0·G), dq = Ts/(3600·Q),
@@ -43,8 +53,7 @@ def _coefficients(P, ts, qdis, g_load, dynamics):
     C = np.empty((10, m))
     for c in range(m):
         soc1 = qdis / P[c, Q]
-        # eq. 5 with Vocv(SOC1) = Vdis  →  β = (1 − Vnom·SOC1/Vdis) / (1 − SOC1)
-        beta = (1.0 - P[c, VNOM] * soc1 / P[c, VDIS]) / (1.0 - soc1)
+        beta = _paper_beta(P[c, VNOM], P[c, VDIS], soc1)
         a = np.exp(-ts / P[c, TAU]) if dynamics else 0.0
         C[0, c] = P[c, VNOM]
         C[1, c] = 1.0 - beta

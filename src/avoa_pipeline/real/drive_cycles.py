@@ -57,9 +57,7 @@ one RC, free capacity)."""
 
 
 def _beta(P: np.ndarray, qdis: float) -> np.ndarray:
-    vnom, q, vdis = P[:, 0], P[:, 1], P[:, 2]
-    soc1 = qdis / q
-    return (1.0 - vnom * soc1 / vdis) / (1.0 - soc1)
+    return kernel.paper_beta(P[:, 0], P[:, 2], qdis / P[:, 1])
 
 
 def paper_soc0(P: np.ndarray, v0: float, i0: float, qdis: float) -> np.ndarray:
