@@ -273,15 +273,7 @@ def check_scale(
     if "temperature_c" in frame.columns:
         _check_temperature(frame["temperature_c"].to_numpy(dtype=float), source,
                            col["temperature_c"])  # fmt: skip
-    step = float(np.median(np.diff(t))) if t.size > 1 else np.inf
-    if t.size > 1:
-        if step < MIN_TIME_STEP_S:
-            raise DataError(
-                f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
-                f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes "
-                "(need s)?"
-            )
-        _check_gaps(t, i, scale, source, col)
+    step = _check_steps(t, i, scale, source, col)
     decided = _check_rest_slope(t, i, v, scale, source, col["time_s"], capacity_ah)
     if step < FAST_TIME_STEP_S and not (decided and capacity_ah):
         notes.append(
@@ -314,10 +306,19 @@ def _check_temperature(temp, source: str, column: str) -> None:
     raise DataError(f"{source}: column {column!r}: values {temp.min():g}..{temp.max():g}; {hint}")
 
 
-def _check_gaps(t, i, scale: float, source: str, col: dict) -> None:
-    """No logging gap (MAX_GAP_S and GAP_STEPS) after a row that carries a current."""
+def _check_steps(t, i, scale: float, source: str, col: dict) -> float:
+    """The median time step (inf for one sample), at least MIN_TIME_STEP_S, and no logging gap
+    (MAX_GAP_S and GAP_STEPS) after a row that carries a current."""
+    if t.size < 2:
+        return np.inf
     dt = np.diff(t)
-    gap = max(MAX_GAP_S, GAP_STEPS * float(np.median(dt)))
+    step = float(np.median(dt))
+    if step < MIN_TIME_STEP_S:
+        raise DataError(
+            f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
+            f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes (need s)?"
+        )
+    gap = max(MAX_GAP_S, GAP_STEPS * step)
     under_load = (dt > gap) & ~at_rest(i[:-1], scale)
     if under_load.any():
         k = int(np.flatnonzero(under_load)[0])
@@ -326,6 +327,7 @@ def _check_gaps(t, i, scale: float, source: str, col: dict) -> None:
             f"a row at {i[k]:.4g} A; the current over it is unknown (the model would draw "
             f"{abs(i[k]) * dt[k] / 3600:.3g} Ah there): split the record at the gap"
         )
+    return step
 
 
 def _check_rest_slope(
@@ -475,13 +477,11 @@ def sign_evidence(time_s, current_a, voltage_v) -> SignEvidence:
     i = np.asarray(current_a, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
     n = t.size
-    if n < 3:
-        return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
-    dt = np.diff(t)
     ii = i[:-1]  # interval currents
     scale = current_scale(ii)
-    if scale <= 0:
+    if n < 3 or scale <= 0:
         return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
+    dt = np.diff(t)
     line = REST_FRACTION * scale
     rest = at_rest(ii, scale)
     # the voltage noise: differences over steady intervals (the current as in the previous one)

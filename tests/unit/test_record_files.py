@@ -134,3 +134,56 @@ def test_read_reports_csv_line_and_missing_sidecar(tmp_path):
     (tmp_path / "ok.json").unlink()
     with pytest.raises(DataError, match=r"ok\.json: no such file"):
         records.read(tmp_path / "ok.csv")
+
+
+def _pulses(sign=1.0):
+    """Ten 1-A pulses between rests, the voltage dropping 50 mV under each: a clear sign."""
+    cur = np.tile(np.r_[np.zeros(10), np.ones(10)], 10)
+    t = np.arange(cur.size, dtype=float)
+    volt = 3.7 - 0.05 * cur - 1e-4 * np.cumsum(cur)
+    return pd.DataFrame({"time_s": t, "current_a": sign * cur, "voltage_v": volt,
+                         "temperature_c": 25.0})  # fmt: skip
+
+
+def test_every_read_checks_the_sign_and_the_sidecar_its_reader_needs(tmp_path):
+    out = tmp_path / "rec.csv"
+    records.write(_pulses(), SIDECAR, out)
+    assert records.read(out).sign.verdict == "discharge-positive"
+    records.write(_pulses(-1.0), SIDECAR, out)  # written as given (a writer's own sign check)
+    with pytest.raises(DataError, match=r"rec\.csv: column 'current_a': sign contradicts"):
+        records.read(out)
+    flipped = records.read(out, current_sign="charge-positive")
+    assert flipped.sign.verdict == "discharge-positive"
+    unjudged = records.read(out, judge_sign=False)
+    assert unjudged.sign.contradicts
+    # a sidecar left unread (keys=None), optional (keys=()), or required with its keys
+    (tmp_path / "rec.json").write_text("[1]")
+    assert records.read(out, keys=None, current_sign="charge-positive").meta == {}
+    with pytest.raises(DataError, match=r"rec\.json: not a JSON object"):
+        records.read(out, keys=(), current_sign="charge-positive")
+    with pytest.raises(DataError, match=r"rec\.json: sidecar is not a mapping"):
+        records.read(out, current_sign="charge-positive")
+
+
+def test_a_digest_written_is_checked_when_read(tmp_path):
+    out = tmp_path / "rec.csv"
+    records.write(_pulses(), {"name": "x"}, out, keys=(), digest="csv_sha256")
+    assert (
+        records.read(out, keys=()).meta["csv_sha256"]
+        == hashlib.sha256(out.read_bytes()).hexdigest()
+    )
+    out.write_text("\n".join(out.read_text().splitlines()[:-3]) + "\n")
+    with pytest.raises(DataError, match=r"rec\.json: field 'csv_sha256': does not match"):
+        records.read(out, keys=())
+
+
+def test_the_paper_problem_reads_its_data_through_the_records_layer(cfg, tmp_path):
+    from avoa_pipeline import problem, synthetic
+
+    data = tmp_path / "g.csv"
+    synthetic.write(synthetic.generate(cfg, 1, 2), data)
+    assert problem.build(cfg, 1, 2, data=data).notes == ()
+    frame = pd.read_csv(data)
+    records.write(frame.assign(current_a=-frame["current_a"]), {}, data, keys=())
+    with pytest.raises(DataError, match=r"g\.csv: column 'current_a': sign contradicts"):
+        problem.build(cfg, 1, 2, data=data)
