@@ -1030,7 +1030,7 @@ def convert(
         ev = events[idx]
         load = np.zeros(int(ev[-1]) + 1, dtype=bool)
         inside = ev[:-1] == ev[1:]  # an interval into the next step carries that step's current
-        busy = np.abs(interval) > records.REST_FRACTION * max(i99, 1e-12)
+        busy = ~records.at_rest(interval, max(i99, 1e-12))
         np.logical_or.at(load, ev[:-1][inside], busy[inside])
         present = np.zeros_like(load)
         present[ev] = True
