@@ -61,19 +61,8 @@ def _refuse_raw_export(path: Path) -> None:
                         " or a cycler's export read with --cycler")  # fmt: skip
 
 
-@dataclass(frozen=True)
-class Read:
-    """A file read but not yet judged for its sign (the set of files decides the advice)."""
-
-    path: Path
-    frame: pd.DataFrame  # validated, in the declared sign
-    evidence: records.SignEvidence
-    canonical: bool
-    warnings: tuple[str, ...] = ()
-    origin: dict | None = None
-
-
-def _read(path, cycler: str | None, current_sign: str) -> Read:
+def _read(path, cycler: str | None, current_sign: str) -> records.Checked:
+    """A file read and checked, its sign not yet judged (the set of files decides the advice)."""
     if current_sign not in CURRENT_SIGNS:
         raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
     path = Path(path)
@@ -81,48 +70,43 @@ def _read(path, cycler: str | None, current_sign: str) -> Read:
         from .real import cycler as cyc
 
         frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
-        ev = records.SignEvidence.from_dict(info["sign"]["voltage_check"])
         origin = {"read_as": f"{cycler} export", "conversion": info}
-        return Read(path, frame, ev, False, tuple(info["warnings"]), origin)
+        return records.converted(frame, str(path), info, origin)
     _refuse_raw_export(path)
-    raw = read_csv(path)
-    frame = records.validate(raw, str(path))
-    if current_sign == CURRENT_SIGNS[1]:
-        frame = frame.assign(current_a=-frame["current_a"])
-    notes = records.check_scale(frame, str(path))
-    side = path.with_suffix(".json")
-    origin = {"read_as": "canonical CSV", "current_sign": current_sign}
-    if side.is_file():
-        origin["sidecar"] = str(side)
-    return Read(path, frame, records.frame_sign(frame), True, notes, origin)
+    return records.read(path, keys=None, required=records.REQUIRED, current_sign=current_sign,
+                        judge_sign=False)  # fmt: skip
 
 
-def _judge(reads: list[Read], current_sign: str) -> list[records.Checked]:
+def _canonical(c: records.Checked) -> bool:
+    return c.origin["read_as"] == "canonical CSV"
+
+
+def _judge(reads: list[records.Checked], current_sign: str) -> list[records.Checked]:
     """The sign verdicts of a command's files, judged together (module docstring)."""
-    canonical = [r for r in reads if r.canonical]
-    wrong = [r for r in canonical if r.evidence.contradicts]
+    canonical = [r for r in reads if _canonical(r)]
+    wrong = [r for r in canonical if r.sign.contradicts]
     if wrong:
         r = wrong[0]
         other = CURRENT_SIGNS[1 - CURRENT_SIGNS.index(current_sign)]
         if len(wrong) == len(canonical):
             advice = f"rerun with --current-sign {other}"
         else:
-            fine = next(x for x in canonical if not x.evidence.contradicts)
+            fine = next(x for x in canonical if not x.sign.contradicts)
             advice = (
-                f"{fine.path} is {current_sign} as declared, and --current-sign applies to "
+                f"{fine.source} is {current_sign} as declared, and --current-sign applies to "
                 "every file: negate this file's current_a"
             )
         raise DataError(
-            records.sign_contradiction(str(r.path), "column 'current_a'", current_sign, r.evidence)
+            records.sign_contradiction(r.source, "column 'current_a'", current_sign, r.sign)
             + f"; {advice}"
         )
-    out = []
-    for r in reads:
-        notes = list(r.warnings)
-        if r.canonical and r.evidence.verdict == records.CANNOT_TELL:
-            notes.append(records.sign_unclear(str(r.path), "column 'current_a'", r.evidence))
-        out.append(records.Checked(r.frame, str(r.path), r.evidence, tuple(notes), r.origin or {}))
-    return out
+    unclear = [_canonical(r) and r.sign.verdict == records.CANNOT_TELL for r in reads]
+    return [
+        replace(r, warnings=(*r.warnings,
+                             records.sign_unclear(r.source, "column 'current_a'", r.sign)))
+        if u else r
+        for r, u in zip(reads, unclear, strict=True)
+    ]  # fmt: skip
 
 
 def _no_duplicates(paths) -> None:
@@ -186,7 +170,7 @@ def read_inputs(
 
 
 def _read_ocv(path, cycler, current_sign):
-    """(an OCV table, None) for a table, (None, the slow test's Read) for a slow test."""
+    """(an OCV table, None) for a table, (None, the slow test's record, its sign unjudged)."""
     from .model import ocv as ocv_mod
 
     path = Path(path)

@@ -14,12 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from . import config as config_mod
-from . import synthetic
+from . import records, synthetic
 from .errors import DataError
-from .io import read_csv, read_sidecar, sha256, uniform_step
+from .io import sidecar_of, uniform_step
 from .model import kernel
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
-from .records import check_scale, validate
 
 
 @dataclass
@@ -87,27 +86,34 @@ def build(
 ) -> Problem:
     """The problem of ``scenario`` × ``case`` on ``data`` (default: generated in memory)."""
     c = CASES[case]
+    names, lb, ub = config_mod.bounds(cfg, case)
+    truth_cfg = cfg["true_params"][c.temperature]
+
+    def fixed_of(meta: dict) -> np.ndarray:
+        return vector(meta.get("true_params", truth_cfg))
+
+    def q_max(meta: dict) -> float:  # the largest capacity the fit may find
+        q = PARAM_NAMES.index("q")
+        return float(ub[names.index("q")] if "q" in names else fixed_of(meta)[q])
+
+    notes = ()
     if data is None:
         ds = synthetic.generate(cfg, scenario, case, noise=noise)
         t, i, v, meta = ds.time_s, ds.current_a, ds.voltage_v, ds.meta
-    else:
-        df = validate(read_csv(data), str(data), min_samples=3)
-        t, i, v = (df[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
+    else:  # ms, mA, mV, minutes, a sign or a sidecar that does not fit: refused before any fit
+        # (records.read: a known capacity tells the units)
+        rec = records.read(data, keys=(), required=records.REQUIRED, min_samples=3,
+                           capacity_ah=q_max)  # fmt: skip
+        t, i, v = (rec.frame[k].to_numpy() for k in ("time_s", "current_a", "voltage_v"))
         uniform_step(data, t)
-        meta = _sidecar(data)
+        meta, notes = rec.meta, rec.warnings
         if meta and (meta.get("scenario"), meta.get("case")) != (scenario, case):
             raise DataError(
-                f"{synthetic.sidecar(data)}: field scenario/case: is {meta.get('scenario')}/"
+                f"{sidecar_of(data)}: field scenario/case: is {meta.get('scenario')}/"
                 f"{meta.get('case')}, the fit asked for {scenario}/{case}"
             )
-    truth_cfg = cfg["true_params"][c.temperature]
     truth = vector(meta["true_params"]) if "true_params" in meta else None
-    fixed = truth.copy() if truth is not None else vector(truth_cfg)
-    names, lb, ub = config_mod.bounds(cfg, case)
-    if data is not None:  # ms, mA, mV, minutes: refused before any fit, against the largest
-        # capacity the fit may find (records.check_scale: a known capacity tells the units)
-        q_max = ub[names.index("q")] if "q" in names else fixed[PARAM_NAMES.index("q")]
-        notes = check_scale(df, str(data), float(q_max))
+    fixed = fixed_of(meta)
     spec = ModelSpec.for_scenario_case(cfg["constants"], scenario, case)
     return Problem(
         scenario,
@@ -121,19 +127,5 @@ def build(
         np.asarray(t),
         np.asarray(i),
         np.asarray(v),
-        notes if data is not None else (),
+        notes,
     )
-
-
-def _sidecar(data) -> dict:
-    """The dataset's JSON sidecar (``synthetic.write``; ``io.read_sidecar`` reads it), or {}
-    without one; refused when it no longer describes the CSV beside it (its ``csv_sha256``)."""
-    meta = read_sidecar(data)
-    digest = meta.get("csv_sha256")
-    if digest is not None and digest != sha256(data):
-        raise DataError(
-            f"{synthetic.sidecar(data)}: field 'csv_sha256': does not match {data} (the CSV "
-            "changed after the sidecar was written: regenerate it, or remove the sidecar to fit "
-            "the CSV alone)"
-        )
-    return meta

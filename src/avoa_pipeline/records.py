@@ -3,17 +3,19 @@
 A *record* is one cell's time series in the canonical columns: ``time_s`` (s, strictly
 increasing), ``current_a`` (A, positive = discharge; row k's value is the current over
 [t_k, t_k+1), the zero-order hold of the model library), ``voltage_v`` (V, the terminal voltage
-at t_k) and optionally ``temperature_c`` (°C). Every reader hands its frame to this module: the
-canonical CSVs and raw cycler exports of the input layer (``inputs.py``), the real-data
-importers (Panasonic, Samsung, NASA) and the synthetic generators. It is the bottom of the
-package for records: it imports no model code, and the model library takes its rest line from
-here.
+at t_k) and optionally ``temperature_c`` (°C). A record file is a CSV in these columns with a
+JSON sidecar of the same stem; this module owns them: :func:`write` (the importers, the synthetic
+data, ``convert``) and :func:`read` (the input layer, the paper problem, the real-data
+experiments, the gap check) go through the same checks. It is the bottom of the package for
+records: it imports no model code, and the model library takes its rest line from here.
 
 What is defined here, once:
 
+- :func:`read`, :func:`write`, :data:`SIDECAR_KEYS` (an imported record's sidecar) and
+  :func:`check_source` (a source file against its configured sha256);
 - :data:`COLUMNS`, :func:`validate` (columns present, numbers, finite, time strictly increasing);
 - :func:`current_scale` (the 99th-percentile |I|) and the fractions of it that make a rest
-  (:data:`REST_FRACTION`) and a current step (:data:`STEP_FRACTION`);
+  (:data:`REST_FRACTION`, :func:`at_rest`) and a current step (:data:`STEP_FRACTION`);
 - :func:`check_scale`: the units of time, current and voltage, and a capacity against a record
   (:func:`check_capacity`), each with the physical reason beside its limit;
 - :func:`sign_evidence`: the current's sign read from the voltage, on all the evidence a record
@@ -26,15 +28,32 @@ which no record library states; the column conventions follow PyProBE's and pand
 from __future__ import annotations
 
 import itertools
+import json
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .errors import DataError, UserError
+from .io import atomic_paths, read_csv, read_json, read_sidecar, sha256, sidecar_of
 
 COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
 REQUIRED = COLUMNS[:3]
+
+SIDECAR_KEYS = (
+    "cell",
+    "nominal_capacity_ah",
+    "ambient_temperature_c",
+    "test_type",
+    "source_file",
+    "source_sha256",
+    "citation",
+    "licence",
+)
+"""What an imported record's sidecar says, so that a reader can use the record without opening
+its source: identity, conditions, provenance."""
 
 REST_FRACTION = 0.02
 """At rest: |I| at most this fraction of the record's 99th-percentile |I| (a logger's offset and a
@@ -176,7 +195,8 @@ def current_scale(current) -> float:
 
 
 def at_rest(current, scale: float | None = None) -> np.ndarray:
-    """Per sample: |I| at most REST_FRACTION of the current scale."""
+    """Per sample: |I| at most REST_FRACTION of the current scale (:func:`current_scale` of
+    ``current`` unless given: a caller passes the whole record's, or floors it away from 0)."""
     a = np.abs(np.asarray(current, dtype=float))
     return a <= REST_FRACTION * (current_scale(a) if scale is None else scale)
 
@@ -253,15 +273,7 @@ def check_scale(
     if "temperature_c" in frame.columns:
         _check_temperature(frame["temperature_c"].to_numpy(dtype=float), source,
                            col["temperature_c"])  # fmt: skip
-    step = float(np.median(np.diff(t))) if t.size > 1 else np.inf
-    if t.size > 1:
-        if step < MIN_TIME_STEP_S:
-            raise DataError(
-                f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
-                f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes "
-                "(need s)?"
-            )
-        _check_gaps(t, i, scale, source, col)
+    step = _check_steps(t, i, scale, source, col)
     decided = _check_rest_slope(t, i, v, scale, source, col["time_s"], capacity_ah)
     if step < FAST_TIME_STEP_S and not (decided and capacity_ah):
         notes.append(
@@ -294,11 +306,20 @@ def _check_temperature(temp, source: str, column: str) -> None:
     raise DataError(f"{source}: column {column!r}: values {temp.min():g}..{temp.max():g}; {hint}")
 
 
-def _check_gaps(t, i, scale: float, source: str, col: dict) -> None:
-    """No logging gap (MAX_GAP_S and GAP_STEPS) after a row that carries a current."""
+def _check_steps(t, i, scale: float, source: str, col: dict) -> float:
+    """The median time step (inf for one sample), at least MIN_TIME_STEP_S, and no logging gap
+    (MAX_GAP_S and GAP_STEPS) after a row that carries a current."""
+    if t.size < 2:
+        return np.inf
     dt = np.diff(t)
-    gap = max(MAX_GAP_S, GAP_STEPS * float(np.median(dt)))
-    under_load = (dt > gap) & (np.abs(i[:-1]) > REST_FRACTION * scale)
+    step = float(np.median(dt))
+    if step < MIN_TIME_STEP_S:
+        raise DataError(
+            f"{source}: column {col['time_s']!r}: median step {step:.3g} s, "
+            f"below {MIN_TIME_STEP_S:g} s; is the time in hours or minutes (need s)?"
+        )
+    gap = max(MAX_GAP_S, GAP_STEPS * step)
+    under_load = (dt > gap) & ~at_rest(i[:-1], scale)
     if under_load.any():
         k = int(np.flatnonzero(under_load)[0])
         raise DataError(
@@ -306,6 +327,7 @@ def _check_gaps(t, i, scale: float, source: str, col: dict) -> None:
             f"a row at {i[k]:.4g} A; the current over it is unknown (the model would draw "
             f"{abs(i[k]) * dt[k] / 3600:.3g} Ah there): split the record at the gap"
         )
+    return step
 
 
 def _check_rest_slope(
@@ -322,7 +344,7 @@ def _check_rest_slope(
         return False
     dt = np.diff(t)
     q = np.r_[0.0, np.cumsum(i[:-1] * dt)] / 3600.0
-    ends = [b for a, b in runs_of(np.abs(i[:-1]) <= REST_FRACTION * scale) if b - a >= 2]
+    ends = [b for a, b in runs_of(at_rest(i[:-1], scale)) if b - a >= 2]
     if len(ends) < 4:
         return False
     qe, ve = q[np.array(ends) - 1], v[np.array(ends) - 1]
@@ -455,15 +477,13 @@ def sign_evidence(time_s, current_a, voltage_v) -> SignEvidence:
     i = np.asarray(current_a, dtype=float)
     v = np.asarray(voltage_v, dtype=float)
     n = t.size
-    if n < 3:
-        return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
-    dt = np.diff(t)
     ii = i[:-1]  # interval currents
     scale = current_scale(ii)
-    if scale <= 0:
+    if n < 3 or scale <= 0:
         return SignEvidence(CANNOT_TELL, 0.0, 0, 0, None, None, VOLTAGE_RESOLUTION_V)
+    dt = np.diff(t)
     line = REST_FRACTION * scale
-    rest = np.abs(ii) <= line
+    rest = at_rest(ii, scale)
     # the voltage noise: differences over steady intervals (the current as in the previous one)
     dv = np.diff(v)
     steady = np.r_[False, np.abs(np.diff(ii)) <= line]
@@ -544,13 +564,15 @@ def require_sign(
 class Checked:
     """A record that passed the checks: its canonical frame (discharge positive), its name, the
     sign evidence, and what is odd about it (warnings for the user and the JSON). ``origin``
-    says how it was read (a canonical CSV, a converted export with its sidecar, a frame)."""
+    says how it was read (a canonical CSV, a converted export with its sidecar, a frame);
+    ``meta`` is its sidecar's content where :func:`read` read one."""
 
     frame: pd.DataFrame
     source: str
     sign: SignEvidence
     warnings: tuple[str, ...] = ()
     origin: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -564,18 +586,34 @@ def check(
     capacity_ah: float | None = None,
     first_row: int = 2,
     origin: dict | None = None,
+    required: tuple[str, ...] = REQUIRED,
+    min_samples: int = 2,
+    current_sign: str = SIGNS[0],
+    judge_sign: bool = True,
+    meta: dict | None = None,
 ) -> Checked:
-    """The one check of a frame already in the pipeline's sign: :func:`validate`,
-    :func:`check_scale` and :func:`sign_evidence`; a contradicted sign is a DataError, a sign
-    the record cannot tell a warning."""
-    clean = validate(frame, source, first_row=first_row)
+    """The one check of a frame: :func:`validate`, the current negated if ``current_sign`` is
+    charge-positive, :func:`check_scale` and :func:`sign_evidence`; a contradicted sign is a
+    DataError, a sign the record cannot tell a warning, unless ``judge_sign`` is False (the input
+    layer judges a command's files together). ``meta``: its sidecar's content."""
+    clean = validate(frame, source, first_row=first_row, min_samples=min_samples,
+                     required=required)  # fmt: skip
+    if current_sign == SIGNS[1]:
+        clean = clean.assign(current_a=-clean["current_a"])
     notes = check_scale(clean, source, capacity_ah)
-    ev = require_sign(
-        clean["time_s"], clean["current_a"], clean["voltage_v"], source, "column 'current_a'"
-    )
-    if ev.verdict == CANNOT_TELL:
+    ev = frame_sign(clean)
+    if judge_sign and ev.contradicts:
+        raise DataError(sign_contradiction(source, "column 'current_a'", current_sign, ev))
+    if judge_sign and ev.verdict == CANNOT_TELL:
         notes = (*notes, sign_unclear(source, "column 'current_a'", ev))
-    return Checked(clean, source, ev, notes, dict(origin or {"read_as": "frame"}))
+    return Checked(clean, source, ev, notes, dict(origin or {"read_as": "frame"}), meta or {})
+
+
+def converted(frame: pd.DataFrame, source: str, info: dict, origin: dict) -> Checked:
+    """A raw export's record as ``real.cycler.convert`` made and checked it: its sign read from
+    the current channel (``info``, the conversion's sidecar), its warnings the conversion's."""
+    ev = SignEvidence.from_dict(info["sign"]["voltage_check"])
+    return Checked(frame, source, ev, tuple(info["warnings"]), origin)
 
 
 def sign_unclear(source: str, where: str, ev: SignEvidence) -> str:
@@ -583,3 +621,100 @@ def sign_unclear(source: str, where: str, ev: SignEvidence) -> str:
         f"{source}: {where}: the voltage does not tell the current's sign "
         f"({ev.describe()}); the declared sign is taken as it is"
     )
+
+
+# ----------------------------------------------------------------------------------------------
+# record files: a CSV and its JSON sidecar
+
+
+def check_source(path: str | Path, sha256_expected: str, *, key: str | None = None) -> Path:
+    """``path`` if it exists and its sha256 is the configured one (an importer's source).
+
+    ``key`` is the file's name in the config's ``real.sources`` (its path relative to the data
+    root); it defaults to ``path`` and only shapes the message.
+    """
+    path = Path(path)
+    key = str(path) if key is None else key
+    if not path.is_file():
+        raise DataError(f"{path}: missing (config real.sources[{key!r}])")
+    got = sha256(path)
+    if got != str(sha256_expected).strip().lower():
+        raise DataError(
+            f"{path}: sha256 {got} does not match config real.sources[{key!r}] "
+            f"({sha256_expected}); the file changed or is another version"
+        )
+    return path
+
+
+def _sidecar_text(sidecar: dict, source: str, keys: tuple[str, ...]) -> str:
+    if not isinstance(sidecar, dict):
+        raise DataError(f"{source}: sidecar is not a mapping ({type(sidecar).__name__})")
+    for key in keys:
+        if key not in sidecar:
+            raise DataError(f"{source}: sidecar field {key!r} missing")
+    try:
+        return json.dumps(sidecar, indent=1, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{source}: sidecar not JSON-able ({exc})") from None
+
+
+def write(
+    frame: pd.DataFrame,
+    sidecar: dict,
+    out_csv: str | Path,
+    *,
+    keys: tuple[str, ...] = SIDECAR_KEYS,
+    required: tuple[str, ...] = COLUMNS,
+    float_format: str | None = None,
+    digest: str | None = None,
+) -> Path:
+    """A record file: the frame :func:`validate`-d (``required`` columns) as ``out_csv`` and
+    ``sidecar`` (holding ``keys``) beside it (:func:`~avoa_pipeline.io.sidecar_of`), both or
+    neither (``io.atomic_paths``); everything is checked before anything is written. ``digest``
+    names a sidecar field that gets the written CSV's sha256 (:func:`read` then refuses a CSV
+    changed since). Returns the sidecar's path."""
+    out_csv = Path(out_csv)
+    source = str(sidecar.get("source_file", out_csv)) if isinstance(sidecar, dict) else str(out_csv)
+    clean = validate(frame, source, first_row=0, required=required)
+    text = _sidecar_text(sidecar, source, keys)
+    side = sidecar_of(out_csv)
+    with atomic_paths(out_csv, side) as (tmp_csv, tmp_side):
+        clean.to_csv(tmp_csv, index=False, float_format=float_format)
+        if digest:
+            text = _sidecar_text({**sidecar, digest: sha256(tmp_csv)}, source, keys)
+        tmp_side.write_text(text)
+    return side
+
+
+def read(
+    path: str | Path,
+    *,
+    keys: tuple[str, ...] | None = SIDECAR_KEYS,
+    required: tuple[str, ...] = COLUMNS,
+    capacity_ah: float | Callable[[dict], float] | None = None,
+    **check_as,
+) -> Checked:
+    """The record file at ``path`` through :func:`check` (``check_as``: its ``current_sign``,
+    ``min_samples``, ``judge_sign``), its sidecar in ``meta``. ``keys``: what the sidecar must
+    hold (an imported record's by default, where it must exist); ``()``: a sidecar is optional;
+    None: it is not read. A sidecar's ``csv_sha256`` (:func:`write`'s ``digest``) must be the
+    CSV's. ``capacity_ah`` may be a function of the sidecar."""
+    path = Path(path)
+    meta, side = {}, sidecar_of(path)
+    if keys:
+        meta = read_json(side, f"sidecar of {path.name}")
+        _sidecar_text(meta, str(side), keys)
+    elif keys is not None:
+        meta = read_sidecar(path)
+    digest = meta.get("csv_sha256")
+    if digest is not None and digest != sha256(path):
+        raise DataError(
+            f"{side}: field 'csv_sha256': does not match {path} (the CSV changed after the "
+            "sidecar was written: regenerate it, or remove the sidecar to use the CSV alone)"
+        )
+    cap = capacity_ah(meta) if callable(capacity_ah) else capacity_ah
+    origin = {"read_as": "canonical CSV", "current_sign": check_as.get("current_sign", SIGNS[0])}
+    if side.is_file():
+        origin["sidecar"] = str(side)
+    return check(read_csv(path), str(path), capacity_ah=cap, origin=origin, meta=meta,
+                 required=required, **check_as)  # fmt: skip

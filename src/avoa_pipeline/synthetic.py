@@ -9,14 +9,12 @@ case). The CSV holds the *cycler* current (positive = discharge); in the load sc
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-from . import __version__, seeds
-from .io import atomic_paths, sha256, sidecar_of
+from . import __version__, records, seeds
 from .model.battery import CASES, PARAM_NAMES, ModelSpec, simulate, vector
 
 CSV_FLOAT = "%.10g"
@@ -124,11 +122,7 @@ def generate(cfg: dict, scenario: int, case: int, noise: bool = True) -> Dataset
 
 
 def write(ds: Dataset, csv_path) -> None:
-    """Write the CSV and its JSON sidecar (``<name>.json``): both or none (``io.atomic_paths``)."""
-    with atomic_paths(csv_path, sidecar(csv_path)) as (tmp, side_tmp):
-        ds.frame().to_csv(tmp, index=False, float_format=CSV_FLOAT)
-        meta = {**ds.meta, "csv_sha256": sha256(tmp)}
-        side_tmp.write_text(json.dumps(meta, indent=1, allow_nan=False) + "\n")
-
-
-sidecar = sidecar_of  # the name the importers and problem.py know it by
+    """The CSV and its JSON sidecar (``<name>.json``, with the CSV's ``csv_sha256``): both or
+    none (``records.write``)."""
+    records.write(ds.frame(), ds.meta, csv_path, keys=(), float_format=CSV_FLOAT,
+                  digest="csv_sha256")  # fmt: skip

@@ -511,7 +511,7 @@ def test_every_real_record_passes_the_records_layer(tmp_path):
     three HPPC files; NASA: the 168 discharges) imports through the records layer's checks, and
     its voltage says its sign, the pipeline's, itself."""
     from avoa_pipeline import config as config_mod
-    from avoa_pipeline.real import canonical, nasa, panasonic, samsung
+    from avoa_pipeline.real import nasa, panasonic, samsung
 
     cfg = config_mod.load(None)
     cfg["real"]["root"] = str(REAL)
@@ -528,8 +528,7 @@ def test_every_real_record_passes_the_records_layer(tmp_path):
     nasa.import_b0005(cfg, out)
     made.append(out)
     for path in made:
-        frame, _ = canonical.read(path)
-        checked = records.check(frame, str(path))
+        checked = records.read(path)
         assert checked.sign.verdict == "discharge-positive", (path, checked.sign)
     assert len(made) == len(panasonic.records(cfg)) + len(cfg["real"]["samsung"]["hppc"]) + 1
 

@@ -9,10 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import records
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.real import canonical, cross_cycle, jobs
+from avoa_pipeline.real import cross_cycle, jobs
 from avoa_pipeline.real import drive_cycles as dc
 
 TRUTH = {"capacity_ah": 2.8, "r0_ohm": 0.03, "r1_ohm": 0.012, "tau1_s": 25.0,
@@ -92,7 +93,7 @@ def _slow_test(tmp_path):
             "test_type": "ocv_c20", "source_file": "made_up.mat", "source_sha256": "0" * 64,
             "citation": "none", "licence": "none"}  # fmt: skip
     path = tmp_path / "slow.csv"
-    canonical.write(frame, side, path)
+    records.write(frame, side, path)
     return path, soc, curve, q
 
 

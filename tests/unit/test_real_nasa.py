@@ -7,8 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.real import canonical, fade, nasa
+from avoa_pipeline.real import fade, nasa
 
 NASA_CFG = {
     "cutoff_v": 2.7,
@@ -56,7 +57,8 @@ def _small_root(real_cfg, root, k_max=3, edit=None):
 
 
 def test_import_all_168_discharges_on_one_time_axis(imported):
-    frame, side = canonical.read(imported)
+    rec = records.read(imported)
+    frame, side = rec.frame, rec.meta
     d = side["discharges"]
     assert [e["discharge"] for e in d] == list(range(1, 169))
     assert sum(e["n_rows"] for e in d) == len(frame)

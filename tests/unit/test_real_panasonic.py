@@ -18,8 +18,8 @@ from scipy.interpolate import PPoly
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
 from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, ise, simulate
-from avoa_pipeline.real import canonical, jobs, panasonic
 from avoa_pipeline.real import drive_cycles as dc
+from avoa_pipeline.real import jobs, panasonic
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -68,9 +68,10 @@ def test_import_drive_cycle(real, tmp_path):
     out = tmp_path / "us06.csv"
     key = _key(real, "0degC", "us06")
     side = panasonic.import_record(real, [key], "drive_cycle:us06", 0.0, out, trim_soak=True)
-    frame, side2 = canonical.read(out)
-    assert side2 == side
-    assert tuple(frame.columns) == canonical.COLUMNS
+    rec = records.read(out)
+    frame = rec.frame
+    assert rec.meta == side
+    assert tuple(frame.columns) == records.COLUMNS
     assert np.array_equal(frame["time_s"], np.arange(len(frame), dtype=float))
     # discharge is positive now: no regen below 10 degC, so nothing is negative beyond noise
     assert frame["current_a"].min() > -0.05
@@ -86,7 +87,7 @@ def test_import_drive_cycle(real, tmp_path):
     assert abs(side["discharged_ah"] - side["discharged_ah_piecewise_constant"]) < 1e-9 * discharged
     assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 1e-3 * discharged
     assert 2.30 < side["discharged_ah"] < 2.34  # the test stops after 2.32 Ah at 0 degC
-    for field in canonical.SIDECAR_KEYS:
+    for field in records.SIDECAR_KEYS:
         assert field in side
     assert side["source_sha256"] == real["sources"][key]
 
@@ -95,7 +96,7 @@ def test_hppc_merge_follows_the_ah_counter(real, tmp_path):
     spec = real["panasonic"]["temperatures"]["0degC"]
     out = tmp_path / "hppc.csv"
     side = panasonic.import_record(real, [spec["hppc"], spec["hppc_steps"]], "hppc", 0.0, out)
-    frame, _ = canonical.read(out)
+    frame = records.read(out).frame
     assert side["merged_blocks"] > 10
     assert side["later_test_rows_dropped"] == 0
     cur = frame["current_a"].to_numpy()
@@ -127,8 +128,8 @@ def test_new_temperature_records_import_and_pass_the_checks(real, cfg, tmp_path,
     for name in names:
         out = tmp_path / f"{jobs.canonical_name(name)}.csv"
         side = panasonic.import_named(local, name, out)
-        frame, _ = canonical.read(out)
-        checked = records.check(frame, str(out), capacity_ah=side["nominal_capacity_ah"])
+        checked = records.read(out, capacity_ah=side["nominal_capacity_ah"])
+        frame = checked.frame
         assert checked.sign.verdict == "discharge-positive", name
         assert checked.warnings == ()
         assert side["ambient_temperature_c"] == float(temp.removesuffix("degC"))

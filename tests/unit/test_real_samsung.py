@@ -7,8 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.real import arrhenius, canonical, samsung
+from avoa_pipeline.real import arrhenius, samsung
 from avoa_pipeline.real.__main__ import main as real_main
 
 KEY20 = "samsung_30q_hppc/DNN01_HPPC_1C_20amb_processed_scrubbed.csv"
@@ -45,8 +46,9 @@ def _head(real_cfg, rows=5000) -> pd.DataFrame:
 
 
 def test_import_builds_time_flips_sign_and_writes_sidecar(imported):
-    frame, side = canonical.read(imported)
-    assert tuple(frame.columns) == canonical.COLUMNS
+    rec = records.read(imported)
+    frame, side = rec.frame, rec.meta
+    assert tuple(frame.columns) == records.COLUMNS
     assert len(frame) == 92320  # every source row kept
     np.testing.assert_array_equal(frame["time_s"].to_numpy(), np.arange(len(frame), dtype=float))
     # the first 1C pulse is a discharge: positive current, voltage below the rest before it
@@ -171,8 +173,8 @@ def test_arrhenius_rejects_bad_input():
 
 
 def test_pulse_table_on_the_real_record(real_cfg, imported):
-    frame, side = canonical.read(imported)
-    rc = arrhenius.pulse_table(frame, side, real_cfg["real"]["samsung"], "20degC")
+    rec = records.read(imported)
+    rc = arrhenius.pulse_table(rec.frame, rec.meta, real_cfg["real"]["samsung"], "20degC")
     assert list(rc["pulse"]) == list(range(1, 21))
     assert rc["soc_pct"].iloc[0] == pytest.approx(100, abs=0.1)
     assert rc["soc_pct"].iloc[-1] == pytest.approx(6.4, abs=1)

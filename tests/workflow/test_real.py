@@ -17,8 +17,8 @@ import pandas as pd
 import pytest
 import yaml
 
+from avoa_pipeline import records
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.real import canonical
 
 REPO = Path(__file__).resolve().parents[2]
 COPY = ("Snakefile", "workflow", "config", "notebooks", "profiles")
@@ -118,8 +118,9 @@ def test_cross_cycle_fits_each_cycle_and_runs_all(workdir):
 def test_canonical_records_and_sidecars(workdir):
     for test in ("hppc", "la92", "us06", "ocv_c20"):
         path = workdir / f"results/real/canonical/panasonic_25degC_{test}.csv"
-        frame, side = canonical.read(path)
-        assert tuple(frame.columns) == canonical.COLUMNS
+        rec = records.read(path)
+        frame, side = rec.frame, rec.meta
+        assert tuple(frame.columns) == records.COLUMNS
         assert side["ambient_temperature_c"] == 25.0
         assert len(side["source_sha256"]) == 64
 

@@ -551,9 +551,12 @@ def paper_record(dataset_json, diagnosis_json, threshold: float = THRESHOLD) -> 
 
 
 def real_record(csv_path, diagnosis_json) -> dict:
+    """One row of the real-record table: the record's sidecar (``records.read``) and its
+    diagnosis."""
+    from ..records import read
+
     diag = json.loads(Path(diagnosis_json).read_text())
-    sidecar = Path(csv_path).with_suffix(".json")
-    meta = json.loads(sidecar.read_text()) if sidecar.is_file() else {}
+    meta = read(csv_path).meta
     return {
         "record": Path(csv_path).stem,
         "cell": meta.get("cell", ""),

@@ -53,7 +53,7 @@ import numba as nb
 import numpy as np
 import pandas as pd
 
-from ..records import REST_FRACTION, current_scale
+from ..records import at_rest, current_scale
 from . import kernel
 
 FARADAY = 96485.33212
@@ -393,10 +393,9 @@ rest is its most relaxed part (docs/gap-diagnosis.md, "Selection judged like pre
 
 def opening(t: np.ndarray, i: np.ndarray, v: np.ndarray) -> tuple[float, float, int]:
     """(voltage, current, samples) that start a record: their means over the last
-    OPENING_WINDOW_S of the opening rest (the leading samples at rest, ``records.REST_FRACTION``),
+    OPENING_WINDOW_S of the opening rest (the leading samples ``records.at_rest``),
     or the first sample if the record starts under load."""
-    line = REST_FRACTION * max(current_scale(i), 1e-6)
-    moving = np.flatnonzero(np.abs(i) > line)
+    moving = np.flatnonzero(~at_rest(i, max(current_scale(i), 1e-6)))
     end = int(moving[0]) if moving.size else i.size
     if end == 0:
         return float(v[0]), float(i[0]), 1
@@ -799,7 +798,7 @@ def paper_rows(P_paper: np.ndarray, qdis_ah: float, soc0: float, fade_factors=No
 
 
 def starts_at_rest(rec: Record) -> bool:
-    return abs(float(rec.i[0])) <= REST_FRACTION * rec.imax()
+    return bool(at_rest(float(rec.i[0]), rec.imax()))
 
 
 def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None = None,

@@ -3,7 +3,7 @@ read by the input layer (``inputs.read_ocv``); this module turns a checked recor
 columns into an :class:`~avoa_pipeline.model.ecm.OcvTable`.
 
 **Slow test** (a checked record: time_s, current_a discharge positive, voltage_v). Every run of
-each sign (current beyond the rest line of ``records.REST_FRACTION``) is considered; a run is
+each sign (current beyond the rest line, ``records.at_rest``) is considered; a run is
 *slow* if its median |I| is at most C/10 of its own charge (``SLOW_C_RATE``), and of each sign the
 slow run that moves the most charge (the widest SOC range) is the branch. Real pseudo-OCV tests
 start with a fast cycle (a C/2 discharge and a CC-CV charge) before the slow branches; those runs
@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError
-from ..records import REST_FRACTION, VOLTAGE_RANGE_V, current_scale, runs_of
+from ..records import VOLTAGE_RANGE_V, at_rest, current_scale, runs_of
 from .ecm import OcvTable
 
 SLOW_C_RATE = 0.1
@@ -63,10 +63,10 @@ charge at least three times faster than over its middle (10-90 %; ratios of 5-30
 def _branches(t, cur, volt):
     """Every run of each sign: (name, first row, end row, charge Ah, median |I| A)."""
     dt = np.diff(t, append=t[-1] + np.median(np.diff(t)))  # zero-order hold: I[k] for dt[k]
-    line = REST_FRACTION * max(current_scale(cur), 1e-12)
+    moving = ~at_rest(cur, max(current_scale(cur), 1e-12))
     out = []
     for name, sign in (("discharge", 1.0), ("charge", -1.0)):
-        for a, b in runs_of(sign * cur > line):
+        for a, b in runs_of(moving & (sign * cur > 0)):
             q = float(np.sum(np.abs(cur[a:b]) * dt[a:b])) / 3600.0
             out.append((name, a, b, q, float(np.median(np.abs(cur[a:b])))))
     return out, dt

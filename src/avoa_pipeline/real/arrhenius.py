@@ -38,12 +38,12 @@ import numpy as np
 import pandas as pd
 from scipy import constants, stats
 
+from .. import records
 from ..errors import DataError
 from ..io import atomic_path
 from ..model import ecm
 from ..model.ecm import Config, OcvTable
 from ..model.fitted import fit_model
-from . import canonical
 
 GAS_CONSTANT = constants.R  # J/(mol K)
 ZERO_C = constants.zero_Celsius
@@ -219,8 +219,8 @@ def rc_vs_temperature(canonical_csvs: Mapping[str, str | Path], cfg_samsung: Map
     """The per-pulse table of every temperature (keys like "20degC" → canonical CSV)."""
     tables = []
     for temperature, path in canonical_csvs.items():
-        frame, sidecar = canonical.read(path)
-        tables.append(pulse_table(frame, sidecar, cfg_samsung, temperature))
+        record = records.read(path)
+        tables.append(pulse_table(record.frame, record.meta, cfg_samsung, temperature))
     rc = pd.concat(tables, ignore_index=True)
     counts = rc.groupby("temperature")["pulse"].max()
     if counts.nunique() != 1:

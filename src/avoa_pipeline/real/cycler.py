@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import json
 import math
 import tempfile
 import warnings
@@ -65,7 +64,7 @@ import pandas as pd
 
 from .. import records
 from ..errors import DataError, UserError
-from ..io import atomic_path, regular_file, sha256
+from ..io import regular_file, sha256
 from ..names import CURRENT_FROM
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)
@@ -1031,7 +1030,7 @@ def convert(
         ev = events[idx]
         load = np.zeros(int(ev[-1]) + 1, dtype=bool)
         inside = ev[:-1] == ev[1:]  # an interval into the next step carries that step's current
-        busy = np.abs(interval) > records.REST_FRACTION * max(i99, 1e-12)
+        busy = ~records.at_rest(interval, max(i99, 1e-12))
         np.logical_or.at(load, ev[:-1][inside], busy[inside])
         present = np.zeros_like(load)
         present[ev] = True
@@ -1213,12 +1212,8 @@ def sheet_path(out: str | Path, sheet: str) -> Path:
 
 
 def write(frame: pd.DataFrame, info: dict, out: str | Path) -> Path:
-    """The CSV and its JSON sidecar (same stem), both or neither."""
+    """The CSV and its JSON sidecar (same stem), both or neither (``records.write``)."""
     out = Path(out)
     if out.suffix.lower() != ".csv":
         raise UserError(f"--out must be a .csv path, got {str(out)!r}")
-    side = out.with_suffix(".json")
-    with atomic_path(out) as csv_tmp, atomic_path(side) as js_tmp:
-        frame.to_csv(csv_tmp, index=False)
-        js_tmp.write_text(json.dumps(info, indent=1, allow_nan=False) + "\n")
-    return side
+    return records.write(frame, info, out, keys=(), required=records.REQUIRED)

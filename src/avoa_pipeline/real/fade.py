@@ -52,9 +52,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
+from .. import records
 from ..errors import DataError
 from ..io import atomic_path
-from . import canonical
 from .nasa import discharge_slices
 
 LOAD_ON_FRACTION = 0.0
@@ -265,8 +265,8 @@ def _write_csv(df: pd.DataFrame, path) -> None:
 
 def run(canonical_csv, cfg_nasa: Mapping, out_states, out_fits):
     """Experiment 3 end to end: both CSV outputs, written atomically; returns both tables."""
-    frame, sidecar = canonical.read(canonical_csv)
-    st = states(frame, sidecar, cfg_nasa, str(canonical_csv))
+    record = records.read(canonical_csv)
+    st = states(record.frame, record.meta, cfg_nasa, str(canonical_csv))
     table, fits = fade_fits(st)
     _write_csv(table, out_states)
     _write_csv(fits, out_fits)

@@ -32,11 +32,11 @@ def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
 
 
 def _frames(paths: dict) -> dict:
-    from . import canonical
+    from .. import records
 
     frames = {}
     for name, path in paths.items():
-        frames[name] = canonical.read(path)[0]
+        frames[name] = records.read(path).frame
         frames[name].attrs["source"] = str(path)  # for error messages that name the file
     return frames
 
@@ -50,15 +50,13 @@ def panasonic_ocv(canonical_csv, out_csv, log=None) -> None:
     from .. import records
     from ..io import atomic_path, write_json
     from ..model import ocv as ocv_mod
-    from . import canonical
 
-    frame, side = canonical.read(canonical_csv)
-    table = ocv_mod.from_slow_test(records.check(frame, str(canonical_csv)).frame,
-                                   str(canonical_csv))  # fmt: skip
+    record = records.read(canonical_csv)
+    table = ocv_mod.from_slow_test(record.frame, str(canonical_csv))
     with atomic_path(out_csv) as tmp:
         pd.DataFrame({"soc": table.grid(), "ocv_v": table.values}).to_csv(tmp, index=False)
     meta = {"capacity_ah": table.capacity_ah, "how": table.how, "source": table.source,
-            "source_file": side["source_file"]}  # fmt: skip
+            "source_file": record.meta["source_file"]}  # fmt: skip
     write_json(meta, Path(out_csv).with_suffix(".json"))
     write_log(log, f"wrote {out_csv}: {table.how}")
 

@@ -36,7 +36,6 @@ import pandas as pd
 from .. import records
 from ..errors import ConfigError, DataError
 from ..io import read_csv
-from . import canonical
 from .samsung import data_root, read_numeric_csv
 
 SOURCE_COLUMNS = ("voltage", "current", "temperature", "time")
@@ -119,7 +118,7 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
     sources = cfg["real"]["sources"]
     if n["index"] not in sources:
         raise ConfigError(f"config: real.sources has no entry for {n['index']!r} (real.nasa.index)")
-    index_path = canonical.check_source(root / n["index"], sources[n["index"]], key=n["index"])
+    index_path = records.check_source(root / n["index"], sources[n["index"]], key=n["index"])
     index = read_index(index_path)
     keys = discharge_keys(cfg)
     if len(index) != len(keys):
@@ -131,7 +130,7 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
     row = 0
     prev_end = -np.inf
     for (k, key, cap_name), (_, ix) in zip(keys, index.iterrows(), strict=True):
-        path = canonical.check_source(root / key, sources[key], key=key)
+        path = records.check_source(root / key, sources[key], key=key)
         listing.append((key, sources[key]))
         raw = read_numeric_csv(path, SOURCE_COLUMNS)
         if abs(ix["capacity"] - cap_name) > CAPACITY_MATCH_AH:
@@ -206,7 +205,7 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
         "discharges": discharges,
         "n_samples": len(merged),
     }
-    canonical.write(merged, sidecar, out_csv)
+    records.write(merged, sidecar, out_csv)
     return merged, sidecar
 
 

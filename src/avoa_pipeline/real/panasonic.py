@@ -48,8 +48,7 @@ import scipy.io
 from scipy.interpolate import PPoly, make_interp_spline
 
 from ..errors import ConfigError, DataError
-from ..records import require_sign
-from . import canonical
+from ..records import check_source, require_sign, write
 
 FIELDS = ("TimeStamp", "Time", "Current", "Voltage", "Ah", "Battery_Temp_degC")
 _NUMERIC = FIELDS[1:]
@@ -297,7 +296,7 @@ def _sources(cfg_real: dict, key: str) -> Path:
     if key not in sources:
         raise ConfigError(f"config field real.sources: no sha256 for {key!r}")
     root = Path(cfg_real["root"])
-    return canonical.check_source(root / key, sources[key], key=key)
+    return check_source(root / key, sources[key], key=key)
 
 
 def _sidecar(cfg_real: dict, test_type: str, keys: list[str], ambient_c: float, **extra):
@@ -375,7 +374,7 @@ def import_record(
     )
     if trimmed:
         side["n_samples"] = len(frame)
-    canonical.write(frame, side, out_csv)
+    write(frame, side, out_csv)
     return side
 
 

@@ -22,7 +22,6 @@ from .. import records
 from ..config import REPO_ROOT
 from ..errors import ConfigError, DataError
 from ..io import read_csv
-from . import canonical
 
 SOURCE_COLUMNS = ("current", "voltage", "temperature", "soc")
 
@@ -113,7 +112,7 @@ def import_hppc(cfg: dict, temperature: str, out_csv: str | Path, root: str | Pa
     root = data_root(cfg) if root is None else Path(root)
     if key not in cfg["real"]["sources"]:
         raise ConfigError(f"config: real.sources has no entry for {key!r} (real.samsung.hppc)")
-    path = canonical.check_source(root / key, cfg["real"]["sources"][key], key=key)
+    path = records.check_source(root / key, cfg["real"]["sources"][key], key=key)
     sample_s = float(s["sample_s"])
     raw = read_numeric_csv(path, SOURCE_COLUMNS)
     frame = to_canonical(raw, str(path), sample_s)
@@ -147,5 +146,5 @@ def import_hppc(cfg: dict, temperature: str, out_csv: str | Path, root: str | Pa
         },
         "n_samples": len(frame),
     }
-    canonical.write(frame, sidecar, out_csv)
+    records.write(frame, sidecar, out_csv)
     return frame, sidecar
