@@ -7,7 +7,7 @@ at the cell's known values.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -18,7 +18,15 @@ from . import records, synthetic
 from .errors import DataError
 from .io import sidecar_of, uniform_step
 from .model import kernel
-from .model.battery import CASES, PARAM_NAMES, ModelSpec, ise, simulate, vector
+from .model.battery import (
+    CASES,
+    PARAM_NAMES,
+    ModelSpec,
+    first_sample_soc0,
+    ise,
+    simulate,
+    vector,
+)
 
 
 @dataclass
@@ -35,6 +43,7 @@ class Problem:
     current_a: np.ndarray
     voltage_v: np.ndarray
     notes: tuple[str, ...] = ()  # what the data could not tell (records.check_scale's warnings)
+    soc0_rule: str = "given"  # or "first_sample": each candidate's own (battery.first_sample_soc0)
 
     @property
     def ts(self) -> float:
@@ -51,7 +60,14 @@ class Problem:
         return P
 
     def objective(self, X: np.ndarray) -> np.ndarray:
-        return ise(self.full(X), self.current_a, self.voltage_v, self.ts, self.spec)
+        P = self.full(X)
+        if self.soc0_rule == "given":
+            return ise(P, self.current_a, self.voltage_v, self.ts, self.spec)
+        s0 = first_sample_soc0(P * self.spec.fade_factors, self.voltage_v[0], self.current_a[0],
+                               self.spec.qdis_ah)  # fmt: skip
+        return np.array([ise(P[r : r + 1], self.current_a, self.voltage_v, self.ts,
+                             replace(self.spec, soc0=float(s0[r])))[0]
+                         for r in range(P.shape[0])])  # fmt: skip
 
     @cached_property
     def _one_args(self) -> tuple:
@@ -72,6 +88,8 @@ class Problem:
 
     def objective_one(self, x: np.ndarray) -> float:
         """:meth:`objective` of one candidate, as a float (the same compiled steps, bit for bit)."""
+        if self.soc0_rule != "given":
+            return float(self.objective(np.asarray(x)[None, :])[0])
         return kernel.ise_one(np.ascontiguousarray(x, dtype=float), *self._one_args)
 
     def simulate(self, x_free) -> dict:
@@ -129,3 +147,19 @@ def build(
         np.asarray(v),
         notes,
     )
+
+
+def on_record(names, lb, ub, current_a, voltage_v, ts: float, dynamics: bool,
+              qdis_ah: float) -> Problem:  # fmt: skip
+    """The paper's model (no load, no fade) on a measured record: ``names`` free in [lb, ub], the
+    others at 0 (τ at 1 s: unused without dynamics, but finite), each candidate started by the
+    record's first sample (``soc0_rule="first_sample"``); no scenario, case or truth."""
+    fixed = np.zeros(len(PARAM_NAMES))
+    fixed[PARAM_NAMES.index("tau")] = 1.0
+    spec = ModelSpec(dynamics=dynamics, fade_factors=np.ones(6), load_ohm=None, soc0=0.0,
+                     qdis_ah=qdis_ah)  # fmt: skip
+    current_a, voltage_v = (np.ascontiguousarray(a, dtype=float) for a in (current_a, voltage_v))
+    time_s = np.arange(current_a.size) * ts  # t[1] − t[0] is ts exactly
+    return Problem(None, None, tuple(names), np.asarray(lb, dtype=float),
+                   np.asarray(ub, dtype=float), fixed, None, spec, time_s, current_a, voltage_v,
+                   soc0_rule="first_sample")  # fmt: skip

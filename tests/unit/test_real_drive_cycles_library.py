@@ -65,15 +65,6 @@ def test_c20_fits_recover_a_known_circuit_and_keep_the_model():
     assert rec["models"]["c20_2rc_lowsoc"]["effects"] == ["second_rc", "soc_resistance"]
 
 
-def test_paper_soc0_is_the_librarys_closed_form():
-    P = np.array([[4.2, 2.9, 3.6, 0.03, 0.01, 20.0], [4.0, 3.1, 3.5, 0.05, 0.01, 20.0]])
-    s = dc.paper_soc0(P, 3.9, 1.5, 1.45)
-    beta = dc._beta(P, 1.45)
-    target = 3.9 + P[:, 3] * 1.5
-    # eq. 5 at s0 gives the target voltage
-    np.testing.assert_allclose(P[:, 0] * s / (1 - beta * (1 - s)), target, rtol=1e-12)
-
-
 def _slow_test(tmp_path):
     """A C/20-like record logged every 10 s: rest, 20 h of discharge at 0.145 A, rest, a charge
     that moves 10 % less."""

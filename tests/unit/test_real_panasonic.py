@@ -17,7 +17,9 @@ from scipy.interpolate import PPoly
 
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, ise, simulate
+from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, first_sample_soc0, ise, simulate
+from avoa_pipeline.model.kernel import paper_beta
+from avoa_pipeline.problem import on_record
 from avoa_pipeline.real import drive_cycles as dc
 from avoa_pipeline.real import jobs, panasonic
 
@@ -277,30 +279,29 @@ def _drive_frame(n=3000, seed=0):
                          "voltage_v": 4.0, "temperature_c": 25.0})  # fmt: skip
 
 
-def test_paper_soc0_inverts_the_rational_ocv():
+def test_first_sample_soc0_inverts_the_rational_ocv():
     P = np.array([[4.1, 2.9, 3.6, 0.03, 0.01, 30.0], [4.3, 2.5, 3.5, 0.05, 0.01, 30.0]])
     target_v, i0 = 3.9, 0.5
-    s0 = dc.paper_soc0(P, target_v - P[:, 3] * i0, i0, qdis=1.45)
-    beta = dc._beta(P, 1.45)
+    s0 = first_sample_soc0(P, target_v - P[:, 3] * i0, i0, qdis_ah=1.45)
+    beta = paper_beta(P[:, 0], P[:, 2], 1.45 / P[:, 1])
     ocv = P[:, 0] * s0 / (1.0 - beta * (1.0 - s0))
     np.testing.assert_allclose(ocv, target_v, rtol=1e-12)
     # above Vnom the cell is full, not beyond
-    assert dc.paper_soc0(P[:1], 4.5, 0.0, 1.45)[0] == 1.0
+    assert first_sample_soc0(P[:1], 4.5, 0.0, 1.45)[0] == 1.0
 
 
 def test_paper_objective_is_the_kernel_ise_from_the_estimated_start():
     frame = _drive_frame()
     truth = np.array([4.1, 2.9, 3.6, 0.03, 0.01, 30.0])
-    s0 = float(dc.paper_soc0(truth[None, :], 4.05, 0.0, 1.45)[0])
+    s0 = float(first_sample_soc0(truth[None, :], 4.05, 0.0, 1.45)[0])
     spec = ModelSpec(True, np.ones(6), None, s0, 1.45)
     frame["voltage_v"] = simulate(truth, frame["current_a"].to_numpy(), 1.0, spec)["voltage_v"]
-    prob = dc.PaperProblem(PARAM_NAMES, np.zeros(6), np.ones(6),
-                           frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy(), 1.0,
-                           True, 1.45)  # fmt: skip
+    prob = on_record(PARAM_NAMES, np.zeros(6), np.ones(6), frame["current_a"].to_numpy(),
+                     frame["voltage_v"].to_numpy(), 1.0, True, 1.45)  # fmt: skip
     X = np.array([truth, truth * 1.01])
     got = prob.objective(X)
     assert got[0] < 1e-20  # the truth, started where its own OCV says, reproduces the record
-    s0b = float(dc.paper_soc0(X[1:], frame["voltage_v"][0], frame["current_a"][0], 1.45)[0])
+    s0b = float(first_sample_soc0(X[1:], frame["voltage_v"][0], frame["current_a"][0], 1.45)[0])
     want = ise(X[1:], frame["current_a"], frame["voltage_v"], 1.0,
                ModelSpec(True, np.ones(6), None, s0b, 1.45))[0]  # fmt: skip
     assert got[1] == pytest.approx(want, rel=1e-12)

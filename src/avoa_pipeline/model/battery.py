@@ -171,3 +171,27 @@ def simulate(p_full: np.ndarray, current: np.ndarray, ts: float, spec: ModelSpec
 def vector(params: dict) -> np.ndarray:
     """Full parameter vector (PARAM_NAMES order) from a name → value mapping."""
     return np.array([float(params[n]) for n in PARAM_NAMES])
+
+
+def first_sample_soc0(P_full: np.ndarray, v0: float, i0: float, qdis_ah: float) -> np.ndarray:
+    """The paper's model on a measured record starts each row of full parameter vectors where its
+    OCV meets the first sample, ohmic drop corrected: Vocv(s0) = V0 + R0·I0 (eq. 5 in closed
+    form, ``ecm.rational_soc0``; β by ``kernel.paper_beta``). The record decides the start, as
+    the library's opening rule does, so no SOC0 is fitted."""
+    from .ecm import rational_soc0
+
+    P = np.atleast_2d(P_full)
+    vnom, q, vdis, r0 = (P[:, PARAM_NAMES.index(n)] for n in ("vnom", "q", "vdis", "r0"))
+    beta = kernel.paper_beta(vnom, vdis, qdis_ah / q)
+    return rational_soc0(vnom, 1.0 - beta, v0 + r0 * i0)
+
+
+def run_on_record(p_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
+                  dynamics: bool, qdis_ah: float) -> np.ndarray:  # fmt: skip
+    """Terminal voltage of the paper's model (no load, no fade) on a measured record, started by
+    :func:`first_sample_soc0`."""
+    p = np.asarray(p_full, dtype=float)
+    s0 = float(first_sample_soc0(p[None, :], voltage[0], current[0], qdis_ah)[0])
+    spec = ModelSpec(dynamics=dynamics, fade_factors=np.ones(6), load_ohm=None, soc0=s0,
+                     qdis_ah=qdis_ah)  # fmt: skip
+    return simulate(p, current, ts, spec)["voltage_v"]

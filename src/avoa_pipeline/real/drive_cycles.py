@@ -34,16 +34,15 @@ candidate because s0 differs between candidates.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from .. import seeds
+from .. import problem, seeds
 from ..errors import ConfigError, DataError
 from ..io import uniform_step
-from ..model import ecm, kernel
-from ..model.battery import PARAM_NAMES, ModelSpec, simulate
+from ..model import ecm
+from ..model.battery import PARAM_NAMES, first_sample_soc0, run_on_record
 from ..model.fitted import fit_model
 from ..optimizers import ALGORITHMS, Budget, minimize
 
@@ -56,61 +55,12 @@ one RC, free capacity)."""
 # --- the paper's model on a measured record ----------------------------------------------------
 
 
-def _beta(P: np.ndarray, qdis: float) -> np.ndarray:
-    return kernel.paper_beta(P[:, 0], P[:, 2], qdis / P[:, 1])
-
-
-def paper_soc0(P: np.ndarray, v0: float, i0: float, qdis: float) -> np.ndarray:
-    """s0 with Vocv(s0) = V0 + R0·I0 for each row of full parameter vectors (the library's
-    closed form for the rational OCV, ``ecm.rational_soc0``)."""
-    P = np.atleast_2d(P)
-    return ecm.rational_soc0(P[:, 0], 1.0 - _beta(P, qdis), v0 + P[:, 3] * i0)
-
-
-@dataclass
-class PaperProblem:
-    """ISE of the paper's model on one record, s0 from the first sample for every candidate."""
-
-    names: tuple[str, ...]
-    lb: np.ndarray
-    ub: np.ndarray
-    current: np.ndarray
-    voltage: np.ndarray
-    ts: float
-    dynamics: bool
-    qdis: float
-
-    def full(self, X) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        P = np.zeros((X.shape[0], len(PARAM_NAMES)))
-        P[:, PARAM_NAMES.index("tau")] = 1.0  # unused without dynamics, must be finite
-        for k, name in enumerate(self.names):
-            P[:, PARAM_NAMES.index(name)] = X[:, k]
-        return P
-
-    def objective(self, X) -> np.ndarray:
-        P = self.full(X)
-        s0 = paper_soc0(P, self.voltage[0], self.current[0], self.qdis)
-        out = np.empty(P.shape[0])
-        for r in range(P.shape[0]):
-            out[r] = kernel.ise_serial(
-                P[r : r + 1], self.current, self.voltage, self.ts, float(s0[r]), self.qdis, 0.0,
-                self.dynamics,
-            )[0]  # fmt: skip
-        return out
-
-    def objective_one(self, x) -> float:
-        return float(self.objective(np.asarray(x)[None, :])[0])
-
-
 def paper_simulate(params: dict, frame: pd.DataFrame, dynamics: bool, qdis: float) -> np.ndarray:
+    """The paper's model with ``params`` on a record, from its first sample
+    (``battery.run_on_record``)."""
     p = np.array([float(params.get(n, 1.0 if n == "tau" else 0.0)) for n in PARAM_NAMES])
-    cur = frame["current_a"].to_numpy()
-    volt = frame["voltage_v"].to_numpy()
-    s0 = float(paper_soc0(p[None, :], volt[0], cur[0], qdis)[0])
-    spec = ModelSpec(dynamics=dynamics, fade_factors=np.ones(6), load_ohm=None, soc0=s0,
-                     qdis_ah=qdis)  # fmt: skip
-    return simulate(p, cur, _step(frame), spec)["voltage_v"]
+    return run_on_record(p, frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy(),
+                         _step(frame), dynamics, qdis)  # fmt: skip
 
 
 def _step(frame: pd.DataFrame) -> float:
@@ -188,16 +138,9 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
     dynamics = PAPER_MODELS[model]
     names = PARAM_NAMES if dynamics else ("vnom", "q", "vdis", "r0")
     box = exp["bounds"]
-    prob = PaperProblem(
-        names=names,
-        lb=np.array([box[n][0] for n in names], dtype=float),
-        ub=np.array([box[n][1] for n in names], dtype=float),
-        current=np.ascontiguousarray(train["current_a"].to_numpy()),
-        voltage=np.ascontiguousarray(train["voltage_v"].to_numpy()),
-        ts=_step(train),
-        dynamics=dynamics,
-        qdis=float(exp["qdis_ah"]),
-    )
+    prob = problem.on_record(names, [box[n][0] for n in names], [box[n][1] for n in names],
+                             train["current_a"].to_numpy(), train["voltage_v"].to_numpy(),
+                             _step(train), dynamics, float(exp["qdis_ah"]))  # fmt: skip
     b = exp["budget"]
     budget = Budget(pop_size=int(b["pop_size"]), iterations=b.get("iterations"),
                     max_nfe=b.get("max_nfe"))  # fmt: skip
@@ -208,12 +151,14 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
         res = minimize(algorithm, prob.objective, prob.lb, prob.ub, budget, rng,
                        objective_one=prob.objective_one)  # fmt: skip
         params = dict(zip(names, map(float, res.best_x), strict=True))
-        n = prob.voltage.size
+        n = prob.voltage_v.size
         run = {
             "seed": int(seed),
             "params": params,
             "soc0_train": float(
-                paper_soc0(prob.full(res.best_x), prob.voltage[0], prob.current[0], prob.qdis)[0]
+                first_sample_soc0(
+                    prob.full(res.best_x), prob.voltage_v[0], prob.current_a[0], prob.spec.qdis_ah
+                )[0]
             ),
             "train_rmse_mv": 1e3 * float(np.sqrt(res.best_f / n)),
             "nfe": int(res.nfe),
@@ -221,8 +166,8 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
             "cycles": {},
         }
         for cycle, frame in tests.items():
-            run["cycles"][cycle] = errors_mv(paper_simulate(params, frame, dynamics, prob.qdis),
-                                             frame)  # fmt: skip
+            run["cycles"][cycle] = errors_mv(
+                paper_simulate(params, frame, dynamics, prob.spec.qdis_ah), frame)  # fmt: skip
         runs.append(run)
     return {"temperature": temp, "model": model, "algorithm": algorithm, "runs": runs}
 
