@@ -63,7 +63,7 @@ def profile(cfg: dict) -> tuple[np.ndarray, np.ndarray, list[dict]]:
     return np.arange(current.size) * ts, current, table
 
 
-def _as_written(x: np.ndarray) -> np.ndarray:
+def as_written(x: np.ndarray) -> np.ndarray:
     """The values exactly as the CSV will hold them (so in-memory and on-disk data agree)."""
     return np.char.mod(CSV_FLOAT, x).astype(float)
 
@@ -118,7 +118,7 @@ def generate(cfg: dict, scenario: int, case: int, noise: bool = True) -> Dataset
         "seed_keys": [cfg["base_seed"], "data", scenario, case],
         "generator": f"avoa_pipeline {__version__}",
     }
-    return Dataset(_as_written(t), _as_written(i), _as_written(v), np.full(t.size, temp), meta)
+    return Dataset(as_written(t), as_written(i), as_written(v), np.full(t.size, temp), meta)
 
 
 def write(ds: Dataset, csv_path) -> None:

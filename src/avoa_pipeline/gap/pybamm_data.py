@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import __version__, seeds
 from ..errors import ConfigError
-from ..synthetic import Dataset, _as_written
+from ..synthetic import Dataset, as_written
 from . import withheld
 
 MODELS = {
@@ -179,5 +179,5 @@ def make(base_seed: int, name: str, c_rate: np.ndarray | None = None) -> Dataset
         "generator": f"avoa_pipeline {__version__} gap.pybamm_data, pybamm {pybamm.__version__}",
     }
     return Dataset(
-        _as_written(clean["time_s"]), _as_written(i), _as_written(v), _as_written(temp), meta
+        as_written(clean["time_s"]), as_written(i), as_written(v), as_written(temp), meta
     )

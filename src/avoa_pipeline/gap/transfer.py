@@ -35,7 +35,7 @@ from .. import __version__, inputs, seeds
 from ..errors import ConfigError
 from ..model.ecm import Config
 from ..model.fitted import fit_model
-from ..synthetic import Dataset, _as_written
+from ..synthetic import Dataset, as_written
 from ..synthetic import write as write_dataset
 from . import pybamm_data, withheld
 
@@ -307,7 +307,7 @@ def make(cell: str, profile: str, ambient_c: float, base_seed: int = 0, scale: f
         "seed_keys": [base_seed, "transfer-noise", name],
         "generator": f"avoa_pipeline {__version__} gap.transfer, pybamm {_pybamm().__version__}",
     }
-    return Dataset(_as_written(t), _as_written(i), _as_written(v), _as_written(temp), meta)
+    return Dataset(as_written(t), as_written(i), as_written(v), as_written(temp), meta)
 
 
 def record_name(cell: str, profile: str, ambient_c: float) -> str:

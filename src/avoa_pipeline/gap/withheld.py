@@ -68,7 +68,7 @@ from scipy.signal import lfilter
 
 from .. import __version__, seeds
 from ..errors import ConfigError
-from ..synthetic import Dataset, _as_written
+from ..synthetic import Dataset, as_written
 from ..synthetic import write as write_dataset
 from . import EFFECTS, VERDICTS
 
@@ -373,9 +373,7 @@ def _dataset(base_seed, key, noise_mv, profile, replicate, head: dict, effect_pa
         "seed_keys": [base_seed, profile, replicate],
         "generator": f"avoa_pipeline {__version__} gap.withheld",
     }
-    return Dataset(
-        _as_written(t), _as_written(i_meas), _as_written(v_meas), _as_written(t_meas), meta
-    )
+    return Dataset(as_written(t), as_written(i_meas), as_written(v_meas), as_written(t_meas), meta)
 
 
 def pair_effects(magnitudes: dict) -> tuple[str, str]:

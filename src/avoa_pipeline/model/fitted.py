@@ -142,7 +142,7 @@ class FittedModel:
                 rep = ecm.PARAMS[n].report
                 flags.append({"parameter": rep, "value": values[rep],
                               "bound": "lower" if x - lo <= hi - x else "upper",
-                              "bounds": self._physical_bounds(n)})  # fmt: skip
+                              "bounds": self.physical_bounds(n)})  # fmt: skip
         return flags
 
     def check_cell(self, frame: pd.DataFrame | None = None, soc0: float | None = None,
@@ -170,7 +170,7 @@ class FittedModel:
             "effects": list(self.config.effects),
             "load_ohm": self.config.load_ohm,
             "parameters": self.parameters(),
-            "bounds": {ecm.PARAMS[n].report: self._physical_bounds(n) for n in self.names},
+            "bounds": {ecm.PARAMS[n].report: self.physical_bounds(n) for n in self.names},
             "knots": {"lo": self.knots.lo, "step": self.knots.step},
             "tref_k": self.tref_k,
             "ocv_table": None if self.config.table is None else ocv_mod.to_json(self.config.table),
@@ -180,7 +180,7 @@ class FittedModel:
             "provenance": self.provenance,
         }
 
-    def _physical_bounds(self, name: str) -> list[float]:
+    def physical_bounds(self, name: str) -> list[float]:
         lo, hi = self.bounds[name]
         t = ecm.PARAMS[name].transform
         if t == "log10":
@@ -551,7 +551,7 @@ def _check_intervals(model: FittedModel, params: dict, source: str) -> None:
                 raise DataError(f"{at}.identified': true, but the parameter has no interval")
             continue
         tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
-        plo, phi = model._physical_bounds(n)
+        plo, phi = model.physical_bounds(n)
         ptol = LIMIT_RTOL * max(abs(plo), abs(phi))
         for key, ok in (("low95", ends["low95"] <= e["value"] + tol),
                         ("high95", ends["high95"] >= e["value"] - tol)):  # fmt: skip
