@@ -17,11 +17,11 @@ it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
    per-batch mean loss differential passes a batch-means t-test (Diebold–Mariano) or a signed-rank
    test, one-sided, Bonferroni over both tests and the candidates at family level ``ALPHA``, and
    (c) its fit to all training data has ΔBIC < ``BIC_MAX``, and (d) it is admitted
-   (docs/admission-rule.md, "Second rule"): the records identify the element (:func:`identified`:
-   its strength jointly off neutral, none of it at a bound or trading with the rest; a rate at a
-   bound only reported, :func:`caveats`) and it predicts no held-out record, or with one record
-   no forward stretch, significantly worse (:func:`harms_somewhere`). A refused would-be winner
-   is kept in ``Context.undecided``.
+   (docs/admission-rule.md, "Second variant"): the records identify the element
+   (:func:`identified`: its strength jointly off neutral, none of it at a bound or free; a rate
+   at a bound or a trade with the rest only reported, :func:`caveats`) and it predicts no
+   held-out record, or with one record no quarter of it held out, significantly worse
+   (:func:`harms_somewhere`). A refused would-be winner is kept in ``Context.undecided``.
 4. **Winner.** Among those that pay, the largest held-out shrink wins, unless a candidate with
    fewer parameters is within one standard error of it (the one-standard-error rule).
 5. **Ladder.** The winner becomes the reference and the remaining elements are tried on top of
@@ -33,7 +33,6 @@ Only training records enter: a record passed for validation is never seen here.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -67,11 +66,12 @@ A true effect whose base residual is r (in noise RMS units) can remove up to r²
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
 
 
-FORWARD_CUTS = (0.5, 0.75)
-"""One training record: the forward stretches start at these shares of its samples; each is
-predicted from a fit to everything before it (docs/admission-rule.md, "Second rule", 2). Two
-stretches of a quarter each: the later half of the record, judged twice, each from at least half
-of it."""
+QUARTERS = 4
+"""One training record: criterion 2 of the admission rule judges the held-out samples in this
+many contiguous parts of the record (docs/admission-rule.md, "Second variant"): quarters, as
+the first rule's forward stretches were, each holding five of the 20 interleaved blocks (one of
+each fold), so every part is predicted by all five folds' fits and carries 25 of the tests'
+100 batches."""
 
 WOULD_DECIDE = {
     "second_rc": "a long rest after a load (relaxation over an hour or more)",
@@ -184,7 +184,6 @@ class ModelRun:
     rss: float
     ho: np.ndarray | None = None  # held-out voltage (each sample from the fit without its fold)
     fold_X: list = field(default_factory=list)
-    forward: list | None = None  # one training record: each forward stretch's squared errors
 
     @property
     def k(self) -> int:
@@ -286,28 +285,6 @@ class Context:
         mr.ho = ho
         return mr
 
-    def predict_forward(self, mr: ModelRun) -> list[np.ndarray]:
-        """One training record: each forward stretch (FORWARD_CUTS) predicted by a fit to the
-        samples before it, warm-started from the full fit; the simulation runs through the whole
-        record, so the stretch starts from the state the model reaches there. Per stretch, the
-        squared errors (cached on ``mr``)."""
-        if mr.forward is not None:
-            return mr.forward
-        (rec,) = self.recs
-        cuts = [int(c * rec.n) for c in FORWARD_CUTS] + [rec.n]
-        out = []
-        for a, b in itertools.pairwise(cuts):
-            mask = np.arange(rec.n) < a
-            st = mr.st
-            if "ocv_shape" in st.effects:  # the correction spans the fitted part's SOC
-                st = replace(st, knots=fitting.knots_for(self.recs, mr.X, [mask]))
-            idxs = fitting.indices(self.recs, [mask], fitting.MAX_FIT_POINTS)
-            X = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100).X
-            self.fits += 1
-            out.append((self.simulate(st, X)[a:b] - self.v[a:b]) ** 2)
-        mr.forward = out
-        return out
-
     def ho_loss(self, mr: ModelRun) -> np.ndarray:
         """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
         return (mr.ho - self.v) ** 2
@@ -389,7 +366,7 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
             pays = bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK)
             row.update(heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
                        p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p)  # fmt: skip
-            if pays:  # docs/admission-rule.md, "Second rule": only what the records identify
+            if pays:  # docs/admission-rule.md, "Second variant": only what the records identify
                 why = admitted(ctx, ref, c, e)
                 if why is not None:
                     row["undecided"] = why
@@ -402,7 +379,7 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
 def admitted(ctx: Context, ref: ModelRun, cand: ModelRun, effect: str) -> str | None:
     """None if ``cand`` (``ref`` + ``effect``, or a model with ``effect`` against ``ref``
     without it) passes the second admission rule's criteria 1 and 2 (docs/admission-rule.md,
-    "Second rule"); else why not, in words."""
+    "Second variant"); else why not, in words."""
     iv = intervals.of_fit(ctx.recs, cand.st, cand.X)
     return identified(iv, effect) or harms_somewhere(ctx, ref, cand)
 
@@ -427,10 +404,10 @@ def strength_names(iv: intervals.Intervals, effect: str) -> list[str]:
 
 def identified(iv: intervals.Intervals, effect: str) -> str | None:
     """None if the records identify ``effect`` in a fit's intervals ``iv`` (docs/admission-rule.md,
-    "Second rule", criterion 1): no strength parameter at a bound or unconstrained, the strength
-    jointly off neutral (Wald χ² at ALPHA), no parameter trading with one outside the element;
-    else why not. A rate at a bound or unconstrained does not block (:func:`caveats`)."""
-    own = [n for n in iv.names if ecm.PARAMS[n].element == effect]
+    "Second variant", criterion 1): no strength parameter at a bound or unconstrained, the
+    strength jointly off neutral (Wald χ² at ALPHA on its marginal covariance, which allows for
+    whatever the parameters outside the element can take over); else why not. A rate at a bound
+    or unconstrained, or a trade with a parameter outside, does not block (:func:`caveats`)."""
     strength = strength_names(iv, effect)
     k = [iv.names.index(n) for n in strength]
     report = iv.report()["parameters"]
@@ -451,18 +428,14 @@ def identified(iv: intervals.Intervals, effect: str) -> str | None:
             names = ", ".join(ecm.PARAMS[n].report for n in strength)
             return (f"{names} not off the value that switches it off (joint Wald "
                     f"χ² {wald:.3g} on {rank} df, p ≥ {ALPHA:g})")  # fmt: skip
-    for a, b, c in iv.pairs():
-        if (a in own) != (b in own):
-            mine, other = (a, b) if a in own else (b, a)
-            return (f"{ecm.PARAMS[mine].report} trades with {ecm.PARAMS[other].report} "
-                    f"(correlation {c:+.3f})")  # fmt: skip
     return None
 
 
 def caveats(iv: intervals.Intervals, effect: str) -> list[str]:
     """The element's rates and time constants (not its strength) that the records leave at a
-    bound of the fit or unconstrained: reported, not blocking (docs/admission-rule.md, "Second
-    rule", criterion 1: the presence is identified, the dynamics are not)."""
+    bound of the fit or unconstrained, and its parameters that trade beyond ±CORR_LIMIT with one
+    outside it: reported, not blocking (docs/admission-rule.md, "Second variant", criterion 1:
+    the presence is identified, the dynamics or the split with the rest are not)."""
     strength = set(strength_names(iv, effect))
     out = []
     for j, n in enumerate(iv.names):
@@ -475,27 +448,32 @@ def caveats(iv: intervals.Intervals, effect: str) -> list[str]:
                        "the records")  # fmt: skip
         elif not np.isfinite(iv.sd[j]):
             out.append(f"{rep} not constrained by these records")
+    own = {n for n in iv.names if ecm.PARAMS[n].element == effect}
+    for a, b, c in iv.pairs():
+        if (a in own) != (b in own):
+            mine, other = (a, b) if a in own else (b, a)
+            out.append(f"{ecm.PARAMS[mine].report} trades with {ecm.PARAMS[other].report} "
+                       f"(correlation {c:+.3f}): the records determine them together")  # fmt: skip
     return out
 
 
 def harms_somewhere(ctx: Context, ref: ModelRun, cand: ModelRun) -> str | None:
-    """Criterion 2 of the second rule: ``cand`` is significantly worse than ``ref`` on no
-    held-out record (two records or more) and no forward stretch (one record): per part, a
-    one-sided batch-means t-test of the squared-error difference cand − ref over
-    BATCHES_PER_RECORD contiguous batches, at ALPHA / (number of parts) (Bonferroni: a
-    candidate that harms no part is refused with probability at most ALPHA). None if it
-    harms none; else which part and the p-value."""
+    """Criterion 2 of the admission rule (docs/admission-rule.md, "Second variant"): ``cand``
+    predicts no held-out record (two records or more), or with one record no contiguous
+    QUARTERS part of its held-out samples, significantly worse than ``ref``: per part, a
+    one-sided batch-means t-test of the squared-error difference cand − ref over the tests'
+    batches lying in it, at ALPHA / (number of parts) (Bonferroni: a candidate that harms no
+    part is refused with probability at most ALPHA). None if it harms none; else which part."""
+    lr, lc = ctx.ho_loss(ref), ctx.ho_loss(cand)
     if ctx.layout.by_record:
-        lr, lc = ctx.ho_loss(ref), ctx.ho_loss(cand)
-        parts = [(ctx.recs[r].source, lc[f], lr[f]) for r, f in enumerate(ctx.layout.folds)]
+        parts = [(ctx.recs[r].source, f) for r, f in enumerate(ctx.layout.folds)]
     else:
-        parts = [(f"the record forward from {cut:.0%} of it", c, r)
-                 for cut, c, r in zip(FORWARD_CUTS, ctx.predict_forward(cand),
-                                      ctx.predict_forward(ref), strict=True)]  # fmt: skip
+        parts = [(f"held-out part {q + 1}/{QUARTERS} of the record", idx)
+                 for q, idx in enumerate(np.array_split(np.arange(ctx.n), QUARTERS))]  # fmt: skip
     level = ALPHA / len(parts)
-    for name, c, r in parts:
-        batches = np.array_split(np.arange(c.size), min(BATCHES_PER_RECORD, c.size))
-        _, p, _ = loss_test(c, r, batches)  # is the reference's loss lower than the candidate's?
+    for name, idx in parts:
+        batches = [b for b in ctx.layout.batches if idx[0] <= b[0] <= idx[-1]]
+        _, p, _ = loss_test(lc, lr, batches)  # is the reference's loss lower than the candidate's?
         if p < level:
             return f"predicts {name} significantly worse (one-sided p {p:.2g} < {level:.2g})"
     return None
