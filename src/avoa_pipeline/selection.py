@@ -16,12 +16,7 @@ it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
    ``MIN_SHRINK`` of the reference's held-out squared error, (b) by more than noise explains: the
    per-batch mean loss differential passes a batch-means t-test (Diebold–Mariano) or a signed-rank
    test, one-sided, Bonferroni over both tests and the candidates at family level ``ALPHA``, and
-   (c) its fit to all training data has ΔBIC < ``BIC_MAX``, and (d) it is admitted
-   (docs/admission-rule.md, "Second variant"): the records identify the element
-   (:func:`identified`: its strength jointly off neutral, none of it at a bound or free; a rate
-   at a bound or a trade with the rest only reported, :func:`caveats`) and it predicts no
-   held-out record, or with one record no quarter of it held out, significantly worse
-   (:func:`harms_somewhere`). A refused would-be winner is kept in ``Context.undecided``.
+   (c) its fit to all training data has ΔBIC < ``BIC_MAX``.
 4. **Winner.** Among those that pay, the largest held-out shrink wins, unless a candidate with
    fewer parameters is within one standard error of it (the one-standard-error rule).
 5. **Ladder.** The winner becomes the reference and the remaining elements are tried on top of
@@ -36,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
 from .model import ecm, fitting, intervals
 from .model.ecm import Config, Knots, Record
@@ -65,13 +60,6 @@ is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 %
 A true effect whose base residual is r (in noise RMS units) can remove up to r²/(1 + r²): 5 % bites
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
 
-
-QUARTERS = 4
-"""One training record: criterion 2 of the admission rule judges the held-out samples in this
-many contiguous parts of the record (docs/admission-rule.md, "Second variant"): quarters, as
-the first rule's forward stretches were, each holding five of the 20 interleaved blocks (one of
-each fold), so every part is predicted by all five folds' fits and carries 25 of the tests'
-100 batches."""
 
 WOULD_DECIDE = {
     "second_rc": "a long rest after a load (relaxation over an hour or more)",
@@ -209,7 +197,6 @@ class Context:
         # each sample weighs n/(R·n_r): every record's mean squared error counts once
         self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
-        self.undecided: dict[str, dict] = {}  # element → why it was not admitted (the last)
         self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
 
     def say(self, what: str) -> None:
@@ -363,119 +350,37 @@ def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]
             # batches (an effect that acts only in pulses), the rank test a gain spread over
             # most batches that one unpredictable block hides from the mean
             p = min(1.0, 2.0 * min(p_mean, p_rank))
-            pays = bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK)
-            row.update(heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
-                       p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p)  # fmt: skip
-            if pays:  # docs/admission-rule.md, "Second variant": only what the records identify
-                why = admitted(ctx, ref, c, e)
-                if why is not None:
-                    row["undecided"] = why
-                    pays = False
-            row["pays"] = pays
+            row.update(
+                heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
+                p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
+                pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
+            )  # fmt: skip
         out.append(row)
     return out
 
 
-def admitted(ctx: Context, ref: ModelRun, cand: ModelRun, effect: str) -> str | None:
-    """None if ``cand`` (``ref`` + ``effect``, or a model with ``effect`` against ``ref``
-    without it) passes the second admission rule's criteria 1 and 2 (docs/admission-rule.md,
-    "Second variant"); else why not, in words."""
-    iv = intervals.of_fit(ctx.recs, cand.st, cand.X)
-    return identified(iv, effect) or harms_somewhere(ctx, ref, cand)
-
-
-def note_undecided(ctx: Context, ref: ModelRun, rows: list[dict], cands) -> None:
-    """Criterion 3: if the winner by the existing criteria alone was refused admission, keep
-    it in ``ctx.undecided`` with the reason (the rows' ``pays`` already excludes it)."""
-    would = [{**r, "pays": True} if "undecided" in r else r for r in rows]
-    e = choose(ctx, would, cands)
-    r = next((r for r in rows if r["effect"] == e), None)
-    if r is not None and "undecided" in r:
-        ctx.undecided[e] = {"effect": e, "against": list(ref.effects), "why": r["undecided"]}
-
-
-def strength_names(iv: intervals.Intervals, effect: str) -> list[str]:
-    """The element's strength parameters among a fit's free ones: linear, with a neutral value
-    that switches the element off (a resistance, a gain, an offset, a factor, each knot of a
-    vector element); an initial state is not one."""
-    return [n for n in iv.names if ecm.PARAMS[n].element == effect
-            and ecm.PARAMS[n].transform == "lin" and not ecm.PARAMS[n].per_record]  # fmt: skip
-
-
 def identified(iv: intervals.Intervals, effect: str) -> str | None:
-    """None if the records identify ``effect`` in a fit's intervals ``iv`` (docs/admission-rule.md,
-    "Second variant", criterion 1): no strength parameter at a bound or unconstrained, the
-    strength jointly off neutral (Wald χ² at ALPHA on its marginal covariance, which allows for
-    whatever the parameters outside the element can take over); else why not. A rate at a bound
-    or unconstrained, or a trade with a parameter outside, does not block (:func:`caveats`)."""
-    strength = strength_names(iv, effect)
-    k = [iv.names.index(n) for n in strength]
+    """None if the records identify ``effect``'s parameters in a fit's intervals ``iv``
+    (docs/admission-rule.md, criterion 1: none at a bound or unconstrained, a strength
+    parameter's interval off its neutral value, none trading with the rest); else why not."""
+    own = [n for n in iv.names if ecm.PARAMS[n].element == effect]
+    k = {n: iv.names.index(n) for n in own}
     report = iv.report()["parameters"]
-    for n, j in zip(strength, k, strict=True):
+    for n in own:
         rep = ecm.PARAMS[n].report
-        if iv.at_bound[j]:
+        if iv.at_bound[k[n]]:
             return f"{rep} at a bound of its fit ({report[rep]['value']:.4g})"
-        if not np.isfinite(iv.sd[j]):
+        if not np.isfinite(iv.sd[k[n]]):
             return f"{rep} not constrained by these records"
-    if strength:
-        d = iv.value[k] - np.array([ecm.PARAMS[n].neutral for n in strength])
-        cov = iv.corr[np.ix_(k, k)] * np.outer(iv.sd[k], iv.sd[k])
-        # the joint test of "every strength parameter neutral": on the directions the
-        # covariance has (a vector element's knots may be nearly collinear), χ² with its rank
-        inv, rank = linalg.pinvh(cov, return_rank=True)
-        wald = float(d @ inv @ d)
-        if rank == 0 or stats.chi2.sf(wald, rank) >= ALPHA:
-            names = ", ".join(ecm.PARAMS[n].report for n in strength)
-            return (f"{names} not off the value that switches it off (joint Wald "
-                    f"χ² {wald:.3g} on {rank} df, p ≥ {ALPHA:g})")  # fmt: skip
-    return None
-
-
-def caveats(iv: intervals.Intervals, effect: str) -> list[str]:
-    """The element's rates and time constants (not its strength) that the records leave at a
-    bound of the fit or unconstrained, and its parameters that trade beyond ±CORR_LIMIT with one
-    outside it: reported, not blocking (docs/admission-rule.md, "Second variant", criterion 1:
-    the presence is identified, the dynamics or the split with the rest are not)."""
-    strength = set(strength_names(iv, effect))
-    out = []
-    for j, n in enumerate(iv.names):
-        if ecm.PARAMS[n].element != effect or n in strength:
-            continue
-        rep = ecm.PARAMS[n].report
-        if iv.at_bound[j]:
-            value = iv.report()["parameters"][rep]["value"]
-            out.append(f"{rep} at a bound of its fit ({value:.4g}): set by the bound, not by "
-                       "the records")  # fmt: skip
-        elif not np.isfinite(iv.sd[j]):
-            out.append(f"{rep} not constrained by these records")
-    own = {n for n in iv.names if ecm.PARAMS[n].element == effect}
+    strength = [n for n in own if ecm.PARAMS[n].transform == "lin"]
+    if strength and not any(iv.excludes(n, ecm.PARAMS[n].neutral) for n in strength):
+        names = ", ".join(ecm.PARAMS[n].report for n in strength)
+        return f"the 95 % interval of {names} includes the value that switches it off"
     for a, b, c in iv.pairs():
         if (a in own) != (b in own):
             mine, other = (a, b) if a in own else (b, a)
-            out.append(f"{ecm.PARAMS[mine].report} trades with {ecm.PARAMS[other].report} "
-                       f"(correlation {c:+.3f}): the records determine them together")  # fmt: skip
-    return out
-
-
-def harms_somewhere(ctx: Context, ref: ModelRun, cand: ModelRun) -> str | None:
-    """Criterion 2 of the admission rule (docs/admission-rule.md, "Second variant"): ``cand``
-    predicts no held-out record (two records or more), or with one record no contiguous
-    QUARTERS part of its held-out samples, significantly worse than ``ref``: per part, a
-    one-sided batch-means t-test of the squared-error difference cand − ref over the tests'
-    batches lying in it, at ALPHA / (number of parts) (Bonferroni: a candidate that harms no
-    part is refused with probability at most ALPHA). None if it harms none; else which part."""
-    lr, lc = ctx.ho_loss(ref), ctx.ho_loss(cand)
-    if ctx.layout.by_record:
-        parts = [(ctx.recs[r].source, f) for r, f in enumerate(ctx.layout.folds)]
-    else:
-        parts = [(f"held-out part {q + 1}/{QUARTERS} of the record", idx)
-                 for q, idx in enumerate(np.array_split(np.arange(ctx.n), QUARTERS))]  # fmt: skip
-    level = ALPHA / len(parts)
-    for name, idx in parts:
-        batches = [b for b in ctx.layout.batches if idx[0] <= b[0] <= idx[-1]]
-        _, p, _ = loss_test(lc, lr, batches)  # is the reference's loss lower than the candidate's?
-        if p < level:
-            return f"predicts {name} significantly worse (one-sided p {p:.2g} < {level:.2g})"
+            return (f"{ecm.PARAMS[mine].report} trades with {ecm.PARAMS[other].report} "
+                    f"(correlation {c:+.3f})")  # fmt: skip
     return None
 
 
@@ -523,9 +428,7 @@ def climb(ctx: Context, base: ModelRun, first: str, first_run: ModelRun, candida
         if not now:
             break
         step = try_effects(ctx, final, now, cv=True, rung=len(rows) + 1)
-        judged = judge(ctx, final, step)
-        note_undecided(ctx, final, judged, step)
-        nxt = choose(ctx, judged, step)
+        nxt = choose(ctx, judge(ctx, final, step), step)
         if nxt is None:
             break
         rows.append(ladder_row(ctx, nxt, step[nxt], final, base))
@@ -588,7 +491,6 @@ def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
             ctx.fits += 1
             ctx.cross_validate(reduced)
             (row,) = judge(ctx, reduced, {e: final})
-            note_undecided(ctx, reduced, [row], {e: final})
             ctx.say(f"pruning: {e} {'stays' if row['pays'] else 'dropped'}")
             if not row["pays"]:
                 dropped.append({**row, "from": list(final.effects)})
@@ -623,7 +525,6 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
             ctx.cross_validate(c)
             ctx.say(f"rung 1: {e} held out")
     rows = judge(ctx, base, cands)
-    note_undecided(ctx, base, rows, cands)
     winner = choose(ctx, rows, cands)
     ctx.say(f"rung 1: {len(cands)} candidates, {winner or 'none'} wins")
     skipped = [{"effect": e, "applicable": False,

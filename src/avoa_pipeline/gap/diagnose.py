@@ -615,15 +615,13 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             else "a misfit beyond the noise floor that no candidate explains on held-out data"
         )
     iv = intervals.of_fit(ctx.recs, final.st, final.X)
-    undecided = [  # would have won, not admitted (docs/admission-rule.md, "Second rule", 3)
-        {**u, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
+    undecided = [  # selected, but the records do not identify it (docs/admission-rule.md)
+        {"effect": e, "why": why, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
          + ("; or a second profile of the cell" if len(recs) == 1 else "")}
-        for e, u in ctx.undecided.items() if e not in final.effects
+        for e in final.effects if (why := selection.identified(iv, e)) is not None
     ]  # fmt: skip
-    if undecided:  # say so, keep the simpler model
+    if undecided:
         verdict["cannot_tell"] = [u["effect"] for u in undecided]
-    # admitted, but a rate or time constant is the bound's or free: reported, not blocking
-    caveats = [{"effect": e, "note": c} for e in final.effects for c in selection.caveats(iv, e)]
     remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
     selected_name = "+".join(final.effects) or "base"
     model = fitted_model(ctx, final, provenance={
@@ -636,7 +634,6 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
         "undecided": undecided,
-        "caveats": caveats,
         "intervals": iv.report(),
         "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
         "n_samples": rec.n,
