@@ -201,6 +201,12 @@ def at_rest(current, scale: float | None = None) -> np.ndarray:
     return a <= REST_FRACTION * (current_scale(a) if scale is None else scale)
 
 
+def direction(current, scale: float | None = None) -> np.ndarray:
+    """Per sample: +1 discharging, −1 charging, 0 at rest (:func:`at_rest`, the one rest line)."""
+    i = np.asarray(current, dtype=float)
+    return np.where(at_rest(i, scale), 0.0, np.sign(i))
+
+
 def charge_swing_ah(time_s, current_a) -> float:
     """The largest charge (Ah) the record moves between its fullest and its emptiest instant,
     within stretches that no logging gap (MAX_GAP_S, GAP_STEPS) interrupts."""

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from . import records
 from .model import ecm, fitting, intervals
 from .model.ecm import Config, Knots, Record
-from .records import REST_FRACTION
 
 N_FOLDS = 5
 BLOCKS_PER_FOLD = 4
@@ -296,7 +296,7 @@ def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> t
             return False, "no temperature_c column"
         return False, f"temperature_c spans less than {ecm.THERMAL_MIN_RANGE_C:g} °C"
     if effect == "coulombic_efficiency" and not any(
-        (r.i < -REST_FRACTION * imax).any() for r in recs
+        (records.direction(r.i, imax) < 0).any() for r in recs
     ):
         return False, "no charge current"
     if effect in ecm.REQUIRES and ecm.REQUIRES[effect] not in effects_now:

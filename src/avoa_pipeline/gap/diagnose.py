@@ -45,7 +45,13 @@ from .. import __version__, records, selection
 from ..errors import DataError, UserError
 from ..model import ecm, fitting, intervals
 from ..model.ecm import Record
-from ..model.fitted import FittedModel, fit_model, training_current_scale
+from ..model.fitted import (
+    FittedModel,
+    fit_model,
+    model_of,
+    prediction_errors,
+    reference_temperature,
+)
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
 
 MIN_SAMPLES = 2000
@@ -178,12 +184,12 @@ def region_masks(rec: Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarra
     """(group, region, mask) for every operating region of the localization."""
     imax = rec.imax()
     a = np.abs(rec.i)
-    rest = a <= REST_FRACTION * imax
+    d = records.direction(rec.i, imax)
     out = [
-        ("mode", "rest", rest),
-        ("mode", "load", ~rest),
-        ("direction", "discharge", rec.i > REST_FRACTION * imax),
-        ("direction", "charge", rec.i < -REST_FRACTION * imax),
+        ("mode", "rest", d == 0),
+        ("mode", "load", d != 0),
+        ("direction", "discharge", d > 0),
+        ("direction", "charge", d < 0),
     ]
     since = time_since_step(rec)
     out += [
@@ -274,9 +280,8 @@ def gap_region(regions: list[dict], n: int) -> dict:
 def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of) -> dict:
     """Per effect: what the base residual looks like where that effect would act."""
     imax = rec.imax()
-    rest = np.abs(rec.i) <= REST_FRACTION * imax
-    charge = rec.i < -REST_FRACTION * imax
-    dis = rec.i > REST_FRACTION * imax
+    d = records.direction(rec.i, imax)
+    rest, charge, dis = d == 0, d < 0, d > 0
     since = time_since_step(rec)
     mv = 1e3
     out = {}
@@ -378,8 +383,7 @@ def _slope(x, y):
 
 def _last_direction(rec):
     """+1 after discharge, −1 after charge, 0 before any current (per sample)."""
-    thr = REST_FRACTION * rec.imax()
-    d = np.where(rec.i > thr, 1.0, np.where(rec.i < -thr, -1.0, 0.0))
+    d = records.direction(rec.i, rec.imax())
     idx = np.where(d != 0, np.arange(rec.n), 0)
     idx = np.maximum.accumulate(idx)
     return d[idx]
@@ -412,35 +416,6 @@ def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) ->
 # the diagnosis
 
 
-def concat(recs: list[Record]) -> Record:
-    """One record of several, end to end (time made continuous), for the localization and the
-    signatures, which read the residual against current, time and temperature."""
-    if len(recs) == 1:
-        return recs[0]
-    t, start = [], 0.0
-    for r in recs:
-        t.append(r.t - r.t[0] + start)
-        start = t[-1][-1] + float(np.median(r.dt))
-    temps = None
-    if all(r.temp_c is not None for r in recs):
-        temps = np.concatenate([r.temp_c for r in recs])
-    return Record(
-        t=np.concatenate(t), i=np.concatenate([r.i for r in recs]),
-        v=np.concatenate([r.v for r in recs]), temp_c=temps,
-        dt=np.concatenate([r.dt for r in recs]), uniform=False, tref_k=recs[0].tref_k,
-        dinv_t=np.concatenate([r.dinv_t for r in recs]),
-        two_rt_f=np.concatenate([r.two_rt_f for r in recs]),
-        source="+".join(r.source for r in recs),
-    )  # fmt: skip
-
-
-def reference_temperature(frames: list[pd.DataFrame]) -> float | None:
-    """One reference temperature for all training records (the thermal and Butler–Volmer
-    parameters are shared): the mean of every measured sample."""
-    temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
-    return float(np.mean(np.concatenate(temps))) + 273.15 if temps else None
-
-
 def parameters(ctx: selection.Context, run: selection.ModelRun) -> dict:
     """Report-named parameters of a run: the cell's, then each record's initial SOC as the rule
     set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
@@ -459,26 +434,7 @@ def parameters(ctx: selection.Context, run: selection.ModelRun) -> dict:
 
 
 def fitted_model(ctx: selection.Context, run: selection.ModelRun, provenance=None) -> FittedModel:
-    b = fitting.bounds_for(ctx.recs)
-    names = [n for n in run.st.config.names() if not ecm.PARAMS[n].per_record]
-    bounds = {n: b[n] for n in names}
-    if ctx.fix_q:
-        bounds["lq"] = (run.X[0, ecm.IDX["lq"]],) * 2
-    return FittedModel(run.st.config, run.X[0].copy(), run.st.knots, ctx.recs[0].tref_k, bounds,
-                       provenance or {}, training_current_scale(ctx.recs))  # fmt: skip
-
-
-def _errors(model_v: np.ndarray, v: np.ndarray, mask: np.ndarray | None = None) -> dict:
-    e = model_v - v
-    out = {
-        "rmse_mv": 1e3 * float(np.sqrt(np.mean(e**2))),
-        "max_err_mv": 1e3 * float(np.max(np.abs(e))),
-    }
-    if mask is not None:
-        out["rmse_in_training_soc_mv"] = (1e3 * float(np.sqrt(np.mean(e[mask] ** 2)))
-                                          if mask.any() else None)  # fmt: skip
-        out["share_in_training_soc"] = float(np.mean(mask))
-    return out
+    return model_of(ctx.recs, run.st.config, run.X, run.st.knots, ctx.fix_q, provenance)
 
 
 def training_soc_range(ctx: selection.Context, run: selection.ModelRun) -> tuple[float, float]:
@@ -514,7 +470,7 @@ def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.D
         for source, frame in frames.items():
             v, tr = fm.simulate(frame, traces=True)
             inside = (tr[0] >= lo) & (tr[0] <= hi)
-            err = _errors(v, frame["voltage_v"].to_numpy(), inside)
+            err = prediction_errors(v, frame["voltage_v"].to_numpy(), inside)
             rows.append({"record": source, "model": name, "effects": list(run.effects),
                          "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
                          "soc0": float(tr[0][0]), "training_soc_range": [lo, hi], **err,
@@ -565,7 +521,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         r["applicable"] = True
 
     # 2. where (the base residual, against the noise floor)
-    rec = concat(recs)
+    rec = Record.join(recs)
     resid = ctx.v - base.v
     soc = np.concatenate([ecm.simulate_rows(r, base.X[j], base.st.knots, table, traces=True)[1][0]
                           for j, r in enumerate(recs)])  # fmt: skip

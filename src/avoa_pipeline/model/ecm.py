@@ -454,6 +454,25 @@ class Record:
             v_open=v_open, i_open=i_open,
         )  # fmt: skip
 
+    @classmethod
+    def join(cls, recs: list[Record]) -> Record:
+        """One record of several, end to end (time made continuous, the next record a median
+        step after the last sample), for what reads the residual against current, time and
+        temperature (the diagnosis's localization and signatures)."""
+        if len(recs) == 1:
+            return recs[0]
+        t, start = [], 0.0
+        for r in recs:
+            t.append(r.t - r.t[0] + start)
+            start = t[-1][-1] + float(np.median(r.dt))
+        temps = None
+        if all(r.temp_c is not None for r in recs):
+            temps = np.concatenate([r.temp_c for r in recs])
+        joined = {k: np.concatenate([getattr(r, k) for r in recs])
+                  for k in ("i", "v", "dt", "dinv_t", "two_rt_f")}  # fmt: skip
+        return cls(t=np.concatenate(t), temp_c=temps, uniform=False, tref_k=recs[0].tref_k,
+                   source="+".join(r.source for r in recs), **joined)  # fmt: skip
+
     def charge_ah(self) -> np.ndarray:
         """Charge removed since the start (Ah) at each sample (discharge positive)."""
         return np.concatenate([[0.0], np.cumsum(self.i[:-1] * self.dt[:-1])]) / 3600.0

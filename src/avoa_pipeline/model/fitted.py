@@ -729,9 +729,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     from . import fitting, intervals
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
-    temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
-    tref = float(np.mean(np.concatenate(temps))) + 273.15 if temps else None
-    recs = [Record.from_frame(f, tref_k=tref) for f in frames]
+    recs = [Record.from_frame(f, tref_k=reference_temperature(frames)) for f in frames]
     base_cfg = Config((), config.table, config.load_ohm)
     fix_q, fix_s = capacity_ah is not None, soc0 is not None
     st = fitting.structure(recs, base_cfg, None, fix_q, fix_s)
@@ -745,14 +743,49 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
         nfev, X = nfev + res.nfev, res.X
     st = fitting.structure(recs, config, knots, fix_q, fix_s)
     X = fitting.complete(st, recs, X)
-    b = fitting.bounds_for(recs)
-    bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
-    if fix_q:
-        bounds["lq"] = (X[0, IDX["lq"]],) * 2
     mse = [float(np.mean((ecm.simulate_rows(rec, X[r], knots, config.table,
                                             config.load_ohm)[:, 0] - rec.v) ** 2))
            for r, rec in enumerate(recs)]  # fmt: skip
-    model = FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
-                        training_current_scale(recs),
-                        intervals.of_fit(recs, st, X).report())  # fmt: skip
+    model = model_of(recs, config, X, knots, fix_q, provenance)
+    model.intervals = intervals.of_fit(recs, st, X).report()
     return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)
+
+
+def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bool,
+             provenance: dict | None = None) -> FittedModel:  # fmt: skip
+    """The fitted model of ``config`` fitted as rows ``X`` to ``recs``: the cell's parameters
+    (the first row's), the bounds the fit searched (``fitting.bounds_for``; a given capacity
+    held at its value), the records' reference temperature and current scale."""
+    from . import fitting
+
+    b = fitting.bounds_for(recs)
+    bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
+    if fix_capacity:
+        bounds["lq"] = (X[0, IDX["lq"]],) * 2
+    return FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
+                       training_current_scale(recs))  # fmt: skip
+
+
+def reference_temperature(frames) -> float | None:
+    """One reference temperature (K) for records fitted together (the thermal and
+    Butler–Volmer parameters are shared): the mean of every measured sample; None without a
+    temperature column (each record then takes its own, ``Record.from_frame``)."""
+    temps = [f["temperature_c"].to_numpy() for f in frames if "temperature_c" in f.columns]
+    return float(np.mean(np.concatenate(temps))) + 273.15 if temps else None
+
+
+def prediction_errors(model_v, measured_v, inside: np.ndarray | None = None) -> dict:
+    """RMSE and largest |error| (mV) of a model's voltage against a record's; infinite where
+    the model gave a non-finite value. With ``inside`` (a mask), also the RMSE over it and its
+    share of the samples (a diagnosis's validation: inside the SOC range it trained on)."""
+    e = np.asarray(model_v, dtype=float) - np.asarray(measured_v, dtype=float)
+    if not np.all(np.isfinite(e)):
+        out = {"rmse_mv": float("inf"), "max_err_mv": float("inf")}
+    else:
+        out = {"rmse_mv": 1e3 * float(np.sqrt(np.mean(e**2))),
+               "max_err_mv": 1e3 * float(np.max(np.abs(e)))}  # fmt: skip
+    if inside is not None:
+        out["rmse_in_training_soc_mv"] = (1e3 * float(np.sqrt(np.mean(e[inside] ** 2)))
+                                          if inside.any() else None)  # fmt: skip
+        out["share_in_training_soc"] = float(np.mean(inside))
+    return out

@@ -43,7 +43,7 @@ from ..errors import ConfigError, DataError
 from ..io import uniform_step
 from ..model import ecm
 from ..model.battery import PARAM_NAMES, first_sample_soc0, run_on_record
-from ..model.fitted import fit_model
+from ..model.fitted import fit_model, prediction_errors
 from ..optimizers import ALGORITHMS, Budget, minimize
 
 PAPER_MODELS = {"paper_rc": True, "paper_norc": False}  # name → dynamics (the RC branch)
@@ -105,13 +105,7 @@ def unseen_cycles(cfg: dict, temp: str) -> list[str]:
 
 
 def errors_mv(model_v: np.ndarray, frame: pd.DataFrame) -> dict:
-    e = np.asarray(model_v) - frame["voltage_v"].to_numpy()
-    if not np.all(np.isfinite(e)):
-        return {"rmse_mv": float("inf"), "max_err_mv": float("inf")}
-    return {
-        "rmse_mv": 1e3 * float(np.sqrt(np.mean(e**2))),
-        "max_err_mv": 1e3 * float(np.max(np.abs(e))),
-    }
+    return prediction_errors(model_v, frame["voltage_v"].to_numpy())
 
 
 # --- fits ------------------------------------------------------------------------------------
