@@ -289,24 +289,9 @@ def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of
     def mean(m):
         return mv * float(np.mean(resid[m])) if m.any() else None
 
-    # second_rc: the residual after current steps, signed by the step's direction
-    di = np.diff(rec.i)
-    steps = np.flatnonzero(np.abs(di) > STEP_FRACTION * imax) + 1
-    sign = np.zeros(rec.n)
-    last = np.zeros(rec.n, dtype=int)
-    last[steps] = steps
-    last = np.maximum.accumulate(last)
-    sign[steps] = np.sign(di[steps - 1])
-    sgn = sign[last]
-    aligned = {}
-    for lo, hi in ((0, 10), (10, 60), (60, 600), (600, np.inf)):
-        m = (since >= lo) & (since < hi) & (sgn != 0)
-        aligned[f"{lo}-{hi if np.isfinite(hi) else 'end'} s"] = (
-            mv * float(np.mean(-sgn[m] * resid[m])) if m.any() else None
-        )
     out["second_rc"] = {
         "acts": "relaxation after current steps (10-600 s), beyond one time constant",
-        "step_aligned_residual_mv": aligned,
+        "step_aligned_residual_mv": _step_aligned(rec, resid, since, imax),
     }
     # hysteresis: rest voltage depends on the last current's direction
     last_dir = _last_direction(rec)
@@ -317,17 +302,9 @@ def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of
         "charge_mv": mean(charge),
         "discharge_mv": mean(dis),
     }
-    # butler_volmer: overpotential not linear in current
-    bands = {}
-    a = np.abs(rec.i)
-    for lo, hi in ((REST_FRACTION, 1 / 3), (1 / 3, 2 / 3), (2 / 3, np.inf)):
-        m = (a >= lo * imax) & (a < hi * imax)
-        bands[f"{lo:.2f}-{hi:.2f} Imax"] = (
-            mv * float(np.mean(np.sign(rec.i[m]) * resid[m])) if m.any() else None
-        )
     out["butler_volmer"] = {
         "acts": "load: sign(I)·residual changes with |I| (a linear R0 cannot follow asinh)",
-        "signed_residual_by_current_mv": bands,
+        "signed_residual_by_current_mv": _current_bands(rec, resid, imax),
     }
     # thermal
     if rec.temperature_varies:
@@ -373,6 +350,39 @@ def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of
             out[e]["explained_share"] = 1.0 - float(np.sum((r - delta) ** 2)) / den if den else 0.0
             out[e]["correction_rms_mv"] = mv * float(np.sqrt(np.mean(delta**2)))
     return out
+
+
+def _step_aligned(rec, resid, since, imax) -> dict:
+    """second_rc's signature: the mean residual after current steps, signed by the step's
+    direction, in windows of the time since the step."""
+    di = np.diff(rec.i)
+    steps = np.flatnonzero(np.abs(di) > STEP_FRACTION * imax) + 1
+    sign = np.zeros(rec.n)
+    last = np.zeros(rec.n, dtype=int)
+    last[steps] = steps
+    last = np.maximum.accumulate(last)
+    sign[steps] = np.sign(di[steps - 1])
+    sgn = sign[last]
+    aligned = {}
+    for lo, hi in ((0, 10), (10, 60), (60, 600), (600, np.inf)):
+        m = (since >= lo) & (since < hi) & (sgn != 0)
+        aligned[f"{lo}-{hi if np.isfinite(hi) else 'end'} s"] = (
+            1e3 * float(np.mean(-sgn[m] * resid[m])) if m.any() else None
+        )
+    return aligned
+
+
+def _current_bands(rec, resid, imax) -> dict:
+    """butler_volmer's signature: sign(I)·residual in bands of |I| (an overpotential that is not
+    linear in the current)."""
+    bands = {}
+    a = np.abs(rec.i)
+    for lo, hi in ((REST_FRACTION, 1 / 3), (1 / 3, 2 / 3), (2 / 3, np.inf)):
+        m = (a >= lo * imax) & (a < hi * imax)
+        bands[f"{lo:.2f}-{hi:.2f} Imax"] = (
+            1e3 * float(np.mean(np.sign(rec.i[m]) * resid[m])) if m.any() else None
+        )
+    return bands
 
 
 def _slope(x, y):
@@ -495,61 +505,138 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     train = _checked(train, source)
     validate = _checked(validate, "<validate>") if validate is not None and len(validate) else []
     check_options(train, validate, capacity_ah, soc0, ocv_table)
-    frames = [c.frame for c in train]
     sources = [c.source for c in train]
     vframes = {c.source: c.frame for c in validate}
     notes = list(dict.fromkeys([*warnings, *(w for c in (*train, *validate) for w in c.warnings)]))
-    tref = reference_temperature(frames)
-    recs = [Record.from_frame(f, tref_k=tref, source=s) for f, s in zip(frames, sources,
-                                                                        strict=True)]  # fmt: skip
-    ctx = selection.Context(recs, ocv_table, capacity_ah, soc0)
+    ctx = _context(train, ocv_table, capacity_ah, soc0)
     ctx.progress = Progress(sys.stderr if progress is True else progress or None, t_start)
-    table = ocv_table
 
     # 1. base fit, and the sanity gate before anything else is spent on it
-    base = selection.fit_base(ctx, capacity_ah, soc0)
-    sanity(float(np.sqrt(base.rss / ctx.n)), ctx.v, sources)
-    ctx.say(f"base fit done ({ctx.n:,} samples, "
-            f"{sum(i.size for i in fitting.indices(recs, None, fitting.MAX_FIT_POINTS)):,} "
-            "fitted)")  # fmt: skip
+    base = _fit_base(ctx, sources, capacity_ah, soc0)
 
     # 3. which, and the whole ladder: the one selection method
     lad = selection.ladder(ctx, base)
-    base, cands, rows, winner, final = lad.base, lad.candidates, lad.rows, lad.winner, lad.selected
+    base, cands, rows, final = lad.base, lad.candidates, lad.rows, lad.selected
     for r in rows:
         r["params"] = parameters(ctx, cands[r["effect"]])
         r["applicable"] = True
 
     # 2. where (the base residual, against the noise floor)
-    rec = Record.join(recs)
-    resid = ctx.v - base.v
-    soc = np.concatenate([ecm.simulate_rows(r, base.X[j], base.st.knots, table, traces=True)[1][0]
-                          for j, r in enumerate(recs)])  # fmt: skip
-    noise_v = noise_floor(rec, resid)
-    regions, windows = localize(rec, resid, soc, noise_v)
+    rec, soc, noise_v, regions, windows = _where(ctx, base)
     gap = gap_region(regions, rec.n)
-    sig = signatures(rec, resid, soc, cands, base, ctx.layout.batches)
+    sig = signatures(rec, ctx.v - base.v, soc, cands, base, ctx.layout.batches)
 
     # 4. how far
-    gap_mask = {name: m for _, name, m in region_masks(rec, soc)}[gap["region"]]
+    iv = intervals.of_fit(ctx.recs, final.st, final.X)
+    undecided = _undecided(final, iv, len(ctx.recs))
+    verdict, rungs = _verdict(ctx, lad, rec, soc, gap, noise_v, undecided)
+    remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
+    model = _selected_model(ctx, final, iv)
+    selected = _selected(ctx, final)
 
-    def heldout_mv(run, m=None):
-        return 1e3 * float(np.sqrt(ctx.ho_mse(run, m)))
+    report = {
+        "source": sources[0] if len(sources) == 1 else sources,
+        "undecided": undecided,
+        "intervals": model.intervals,
+        "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
+        "n_samples": rec.n,
+        "samples": samples_used(ctx, {"base": base, "selected": final}),
+        "duration_s": float(sum(r.t[-1] - r.t[0] for r in ctx.recs)),
+        "records": _records(ctx.recs, train),
+        "warnings": notes,
+        "ocv": _ocv(ctx.table),
+        "base": _base(ctx, base, rec.n, noise_v, capacity_ah, soc0),
+        "localization": regions,
+        "time_windows": windows,
+        "gap_region": gap["region"],
+        "candidates": rows + lad.skipped,
+        "verdict": verdict,
+        "ladder": lad.rungs,
+        "pruned": [{k: v for k, v in p.items() if k != "params"} for p in lad.pruned],
+        "selected": selected,
+        "final_heldout_rmse_to_noise": remaining,
+        "signatures": sig,
+        "method": _method(ctx),
+        "wall_s": time.perf_counter() - t_start,
+        "version": __version__,
+    }
+    if vframes:  # records never used for any choice, predicted by every rung
+        ctx.say(f"ladder done ({selected['name']}); validation records")
+        floor = floors(ctx, final, vframes, capacity_ah)
+        report["validation"] = validation(ctx, rungs, vframes, floor)
+        report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
+    return _jsonable(report), _arrays(ctx, lad, rec, soc), model
 
+
+def _fit_base(ctx: selection.Context, sources, capacity_ah, soc0) -> selection.ModelRun:
+    """The base fit, refused (``sanity``) before anything else is spent on a base that does not
+    fit at all."""
+    base = selection.fit_base(ctx, capacity_ah, soc0)
+    sanity(float(np.sqrt(base.rss / ctx.n)), ctx.v, sources)
+    ctx.say(f"base fit done ({ctx.n:,} samples, "
+            f"{sum(i.size for i in fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)):,} "
+            "fitted)")  # fmt: skip
+    return base
+
+
+def _context(train: list[Checked], table, capacity_ah, soc0) -> selection.Context:
+    """The selection's context of the training records: one reference temperature for all."""
+    frames = [c.frame for c in train]
+    tref = reference_temperature(frames)
+    recs = [Record.from_frame(c.frame, tref_k=tref, source=c.source) for c in train]
+    return selection.Context(recs, table, capacity_ah, soc0)
+
+
+def _where(ctx: selection.Context, base: selection.ModelRun):
+    """The records joined, the base's SOC, the noise floor, and where the base misses beyond it
+    (``localize``)."""
+    rec = Record.join(ctx.recs)
+    resid = ctx.v - base.v
+    soc = np.concatenate([ecm.simulate_rows(r, base.X[j], base.st.knots, ctx.table,
+                                            traces=True)[1][0]
+                          for j, r in enumerate(ctx.recs)])  # fmt: skip
+    noise_v = noise_floor(rec, resid)
+    regions, windows = localize(rec, resid, soc, noise_v)
+    return rec, soc, noise_v, regions, windows
+
+
+def _selected_model(ctx, final: selection.ModelRun, iv: intervals.Intervals) -> FittedModel:
+    """The model.json of the selection, with its intervals (diagnosis.json carries the same)."""
+    table = ctx.table
+    model = fitted_model(ctx, final, provenance={
+        "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
+        "training": [{"source": r.source, "n_samples": r.n} for r in ctx.recs],
+        "ocv": None if table is None else {"source": table.source, "how": table.how},
+        "package_version": __version__,
+    })  # fmt: skip
+    model.intervals = iv.report()
+    return model
+
+
+def _heldout_mv(ctx: selection.Context, run: selection.ModelRun, m=None) -> float:
+    return 1e3 * float(np.sqrt(ctx.ho_mse(run, m)))
+
+
+def _verdict(ctx, lad, rec: Record, soc: np.ndarray, gap: dict, noise_v: float, undecided):
+    """The verdict (the ladder's first rung against the base, on held-out data and inside the
+    gap region; ``cannot_tell``: the selected elements the records do not identify) and the
+    models of the ladder by name (base, each rung, the pruned selection)."""
+    base, cands, rows, winner, final = lad.base, lad.candidates, lad.rows, lad.winner, lad.selected
     verdict = {"effect": "none", "shrink": 0.0}
     rungs = {"base": base}
     if winner is not None:
+        gap_mask = {name: m for _, name, m in region_masks(rec, soc)}[gap["region"]]
         w = cands[winner]
         row = next(r for r in rows if r["effect"] == winner)
         loss_b, loss_w = ctx.w * ctx.ho_loss(base), ctx.w * ctx.ho_loss(w)
         verdict = {
             "effect": winner,
             "shrink": row["shrink"],
-            "heldout_rmse_before_mv": heldout_mv(base),
-            "heldout_rmse_after_mv": heldout_mv(w),
+            "heldout_rmse_before_mv": _heldout_mv(ctx, base),
+            "heldout_rmse_after_mv": _heldout_mv(ctx, w),
             "region": gap["region"],
-            "region_heldout_rmse_before_mv": heldout_mv(base, gap_mask),
-            "region_heldout_rmse_after_mv": heldout_mv(w, gap_mask),
+            "region_heldout_rmse_before_mv": _heldout_mv(ctx, base, gap_mask),
+            "region_heldout_rmse_after_mv": _heldout_mv(ctx, w, gap_mask),
             "region_shrink": 1.0 - float(loss_w[gap_mask].sum() / loss_b[gap_mask].sum()),
             "delta_bic": row["delta_bic"],
             "t": row["t"],
@@ -559,118 +646,111 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
             rungs["+".join(r.effects)] = r
         rungs.setdefault("+".join(final.effects) or "base", final)  # after pruning
     else:
-        best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"],
-                   default=None)  # fmt: skip
-        if best is not None:
-            verdict["best_candidate"] = best["effect"]
-            verdict["best_candidate_shrink"] = best["shrink"]
-        ratio = float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else np.inf
-        verdict["note"] = (
-            "the base model fits to about the noise floor"
-            if ratio < UNEXPLAINED_RATIO
-            else "a misfit beyond the noise floor that no candidate explains on held-out data"
-        )
-    iv = intervals.of_fit(ctx.recs, final.st, final.X)
-    undecided = [  # selected, but the records do not identify it (docs/admission-rule.md)
-        {"effect": e, "why": why, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
-         + ("; or a second profile of the cell" if len(recs) == 1 else "")}
-        for e in final.effects if (why := selection.identified(iv, e)) is not None
-    ]  # fmt: skip
+        _no_winner(verdict, lad, rec, noise_v)
     if undecided:
         verdict["cannot_tell"] = [u["effect"] for u in undecided]
-    remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
-    selected_name = "+".join(final.effects) or "base"
-    model = fitted_model(ctx, final, provenance={
-        "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
-        "training": [{"source": r.source, "n_samples": r.n} for r in recs],
-        "ocv": None if table is None else {"source": table.source, "how": table.how},
-        "package_version": __version__,
-    })  # fmt: skip
-    model.intervals = iv.report()  # model.json and diagnosis.json carry the same intervals
+    return verdict, rungs
 
-    report = {
-        "source": sources[0] if len(sources) == 1 else sources,
-        "undecided": undecided,
-        "intervals": model.intervals,
-        "at_bounds": model.at_bounds(),  # set by the bounds, not by the records
-        "n_samples": rec.n,
-        "samples": samples_used(ctx, {"base": base, "selected": final}),
-        "duration_s": float(sum(r.t[-1] - r.t[0] for r in recs)),
-        "records": [
-            {
-                "source": r.source,
-                "n_samples": r.n,
-                "starts_at_rest": ecm.starts_at_rest(r),
-                "step_resistance_ohm": c.sign.resistance_ohm,
-                "sign": c.sign.as_dict(),
-                "read_as": c.origin.get("read_as", "frame"),
-            }
-            for r, c in zip(recs, train, strict=True)
-        ],
-        "warnings": notes,
-        "ocv": {"kind": "rational (eq. 5), Vnom and beta free"}
-        if table is None
-        else {
-            "kind": "measured table + fitted offset",
-            "source": table.source,
-            "how": table.how,
-            "capacity_ah": table.capacity_ah,
-        },
-        "base": {
-            "model": (
-                "1-RC, "
-                + ("rational OCV" if table is None else "measured OCV + offset")
-                + ", free capacity; each record started by the opening rule"
-            ),
-            "parameters": parameters(ctx, base),
-            "rmse_mv": 1e3 * float(np.sqrt(base.rss / rec.n)),
-            "heldout_rmse_mv": heldout_mv(base),
-            "noise_floor_mv": 1e3 * noise_v,
-            "rmse_to_noise": float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else None,
-            "n_params": base.k,
-            "capacity_given": capacity_ah is not None,
-            "soc0_given": soc0 is not None,
-        },
-        "localization": regions,
-        "time_windows": windows,
-        "gap_region": gap["region"],
-        "candidates": rows + lad.skipped,
-        "verdict": verdict,
-        "ladder": lad.rungs,
-        "pruned": [{k: v for k, v in p.items() if k != "params"} for p in lad.pruned],
-        "selected": {
-            "name": selected_name,
-            "effects": list(final.effects),
-            "heldout_rmse_mv": heldout_mv(final),
-            "parameters": parameters(ctx, final),
-        },
-        "final_heldout_rmse_to_noise": remaining,
-        "signatures": sig,
-        "method": {
-            "held_out": "whole records (leave one out)"
-            if ctx.layout.by_record
-            else "interleaved blocks",
-            "folds": len(ctx.layout.folds),
-            "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
-            "batches": len(ctx.layout.batches),
-            "records_weighted_alike": True,
-            "initial_state": "SOC0 from the opening rest's last "
-            f"{ecm.OPENING_WINDOW_S:g} s (or the first sample under load), h0 = 0",
-            "min_shrink": selection.MIN_SHRINK,
-            "alpha_family": selection.ALPHA,
-            "bic_max": selection.BIC_MAX,
-            "fit_points_max": fitting.MAX_FIT_POINTS,
-            "fits": ctx.fits,
-        },
-        "wall_s": time.perf_counter() - t_start,
-        "version": __version__,
+
+def _no_winner(verdict: dict, lad, rec: Record, noise_v: float) -> None:
+    """What the verdict says when no element pays: the best candidate, and whether the base
+    already fits to the noise."""
+    rows, base = lad.rows, lad.base
+    best = max((r for r in rows if r["shrink"] is not None), key=lambda r: r["shrink"],
+               default=None)  # fmt: skip
+    if best is not None:
+        verdict["best_candidate"] = best["effect"]
+        verdict["best_candidate_shrink"] = best["shrink"]
+    ratio = float(np.sqrt(base.rss / rec.n)) / noise_v if noise_v > 0 else np.inf
+    verdict["note"] = (
+        "the base model fits to about the noise floor"
+        if ratio < UNEXPLAINED_RATIO
+        else "a misfit beyond the noise floor that no candidate explains on held-out data"
+    )
+
+
+def _selected(ctx: selection.Context, final: selection.ModelRun) -> dict:
+    return {
+        "name": "+".join(final.effects) or "base",
+        "effects": list(final.effects),
+        "heldout_rmse_mv": _heldout_mv(ctx, final),
+        "parameters": parameters(ctx, final),
     }
-    if vframes:
-        ctx.say(f"ladder done ({selected_name}); validation records")
-        floor = floors(ctx, final, vframes, capacity_ah)
-        report["validation"] = validation(ctx, rungs, vframes, floor)
-        report["floors"] = [{"record": k, "model": selected_name, **f} for k, f in floor.items()]
-    arrays = {
+
+
+def _undecided(final: selection.ModelRun, iv: intervals.Intervals, n_records: int) -> list:
+    """The selected elements the records do not identify (docs/admission-rule.md), each with the
+    record that would decide it."""
+    return [
+        {"effect": e, "why": why, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
+         + ("; or a second profile of the cell" if n_records == 1 else "")}
+        for e in final.effects if (why := selection.identified(iv, e)) is not None
+    ]  # fmt: skip
+
+
+def _records(recs: list[Record], train: list[Checked]) -> list[dict]:
+    return [
+        {
+            "source": r.source,
+            "n_samples": r.n,
+            "starts_at_rest": ecm.starts_at_rest(r),
+            "step_resistance_ohm": c.sign.resistance_ohm,
+            "sign": c.sign.as_dict(),
+            "read_as": c.origin.get("read_as", "frame"),
+        }
+        for r, c in zip(recs, train, strict=True)
+    ]
+
+
+def _ocv(table) -> dict:
+    if table is None:
+        return {"kind": "rational (eq. 5), Vnom and beta free"}
+    return {"kind": "measured table + fitted offset", "source": table.source, "how": table.how,
+            "capacity_ah": table.capacity_ah}  # fmt: skip
+
+
+def _base(ctx, base: selection.ModelRun, n: int, noise_v: float, capacity_ah, soc0) -> dict:
+    rmse = float(np.sqrt(base.rss / n))
+    return {
+        "model": (
+            "1-RC, "
+            + ("rational OCV" if ctx.table is None else "measured OCV + offset")
+            + ", free capacity; each record started by the opening rule"
+        ),
+        "parameters": parameters(ctx, base),
+        "rmse_mv": 1e3 * rmse,
+        "heldout_rmse_mv": _heldout_mv(ctx, base),
+        "noise_floor_mv": 1e3 * noise_v,
+        "rmse_to_noise": rmse / noise_v if noise_v > 0 else None,
+        "n_params": base.k,
+        "capacity_given": capacity_ah is not None,
+        "soc0_given": soc0 is not None,
+    }
+
+
+def _method(ctx: selection.Context) -> dict:
+    return {
+        "held_out": (
+            "whole records (leave one out)" if ctx.layout.by_record else "interleaved blocks"
+        ),
+        "folds": len(ctx.layout.folds),
+        "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
+        "batches": len(ctx.layout.batches),
+        "records_weighted_alike": True,
+        "initial_state": "SOC0 from the opening rest's last "
+        f"{ecm.OPENING_WINDOW_S:g} s (or the first sample under load), h0 = 0",
+        "min_shrink": selection.MIN_SHRINK,
+        "alpha_family": selection.ALPHA,
+        "bic_max": selection.BIC_MAX,
+        "fit_points_max": fitting.MAX_FIT_POINTS,
+        "fits": ctx.fits,
+    }
+
+
+def _arrays(ctx: selection.Context, lad, rec: Record, soc: np.ndarray) -> dict:
+    """What the diagnosis figure draws."""
+    base, final, cands, winner = lad.base, lad.selected, lad.candidates, lad.winner
+    return {
         "t": rec.t,
         "i": rec.i,
         "v": rec.v,
@@ -684,7 +764,6 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         "fold": ctx.layout.fold_of(),
         "by_record": ctx.layout.by_record,
     }
-    return _jsonable(report), arrays, model
 
 
 def diagnose(train, capacity_ah: float | None = None, soc0: float | None = None,
