@@ -36,6 +36,7 @@ from scipy import stats
 from . import records
 from .model import ecm, fitting, intervals
 from .model.ecm import Config, Knots, Record
+from .model.fitted import FittedModel, fit_model, model_of, prediction_errors
 
 N_FOLDS = 5
 BLOCKS_PER_FOLD = 4
@@ -533,3 +534,68 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
     rungs, runs = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
     final, pruned = prune(ctx, runs[-1]) if runs else (base, [])
     return Ladder(base, cands, rows, skipped, winner, rungs, runs, pruned, final)
+
+
+# ----------------------------------------------------------------------------------------------
+# what the ladder's models say and predict (the diagnosis reports it; nothing here is a choice)
+
+
+def parameters(ctx: Context, run: ModelRun) -> dict:
+    """Report-named parameters of a run: the cell's, then each record's initial SOC as the rule
+    set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
+    fm = fitted_model(ctx, run)
+    out = fm.parameters()
+    per = [{"soc0": float(run.X[r, ecm.IDX["soc0"]])} for r in range(len(ctx.recs))]
+    if len(per) == 1:
+        out.update(per[0])
+    else:
+        out["per_record"] = [
+            {"source": rec.source, **p} for rec, p in zip(ctx.recs, per, strict=True)
+        ]
+    if {"thermal", "butler_volmer"} & set(run.effects):
+        out["tref_k"] = ctx.recs[0].tref_k
+    return out
+
+
+def fitted_model(ctx: Context, run: ModelRun, provenance=None) -> FittedModel:
+    return model_of(ctx.recs, run.st.config, run.X, run.st.knots, ctx.fix_q, provenance)
+
+
+def training_soc_range(ctx: Context, run: ModelRun) -> tuple[float, float]:
+    """The SOC range the training records cover under a model (its own SOC trajectory)."""
+    lo, hi = np.inf, -np.inf
+    for r, rec in enumerate(ctx.recs):
+        _, tr = ecm.simulate_rows(rec, run.X[r], run.st.knots, run.st.config.table, traces=True)
+        lo, hi = min(lo, float(tr[0].min())), max(hi, float(tr[0].max()))
+    return lo, hi
+
+
+def floors(ctx, selected: ModelRun, frames: dict, capacity_ah=None) -> dict[str, dict]:
+    """Per validation record, the selected configuration fitted to that record alone (started by
+    the same rule): what the model family reaches on it when it may see it."""
+    out = {}
+    for source, frame in frames.items():
+        fit = fit_model(frame, selected.st.config, capacity_ah)
+        out[source] = {"rmse_mv": fit.train_rmse_mv, "parameters": fit.model.parameters()}
+    return out
+
+
+def validation(ctx, rungs: dict[str, ModelRun], frames: dict,
+               floor: dict[str, dict]) -> list[dict]:  # fmt: skip
+    """One row per validation record × model of the ladder: errors over the record and inside
+    the SOC range the training data covered, and beside each the record's floor (the selected
+    configuration fitted to it). Nothing here feeds back into any choice."""
+    rows = []
+    for name, run in rungs.items():
+        fm = fitted_model(ctx, run)
+        lo, hi = training_soc_range(ctx, run)
+        for source, frame in frames.items():
+            v, tr = fm.simulate(frame, traces=True)
+            inside = (tr[0] >= lo) & (tr[0] <= hi)
+            err = prediction_errors(v, frame["voltage_v"].to_numpy(), inside)
+            rows.append({"record": source, "model": name, "effects": list(run.effects),
+                         "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
+                         "soc0": float(tr[0][0]), "training_soc_range": [lo, hi], **err,
+                         "floor_rmse_mv": floor[source]["rmse_mv"],
+                         "above_floor_mv": err["rmse_mv"] - floor[source]["rmse_mv"]})  # fmt: skip
+    return rows

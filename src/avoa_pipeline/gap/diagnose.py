@@ -47,9 +47,6 @@ from ..model import ecm, fitting, intervals
 from ..model.ecm import Record
 from ..model.fitted import (
     FittedModel,
-    fit_model,
-    model_of,
-    prediction_errors,
     reference_temperature,
 )
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
@@ -426,69 +423,6 @@ def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) ->
 # the diagnosis
 
 
-def parameters(ctx: selection.Context, run: selection.ModelRun) -> dict:
-    """Report-named parameters of a run: the cell's, then each record's initial SOC as the rule
-    set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
-    fm = fitted_model(ctx, run)
-    out = fm.parameters()
-    per = [{"soc0": float(run.X[r, ecm.IDX["soc0"]])} for r in range(len(ctx.recs))]
-    if len(per) == 1:
-        out.update(per[0])
-    else:
-        out["per_record"] = [
-            {"source": rec.source, **p} for rec, p in zip(ctx.recs, per, strict=True)
-        ]
-    if {"thermal", "butler_volmer"} & set(run.effects):
-        out["tref_k"] = ctx.recs[0].tref_k
-    return out
-
-
-def fitted_model(ctx: selection.Context, run: selection.ModelRun, provenance=None) -> FittedModel:
-    return model_of(ctx.recs, run.st.config, run.X, run.st.knots, ctx.fix_q, provenance)
-
-
-def training_soc_range(ctx: selection.Context, run: selection.ModelRun) -> tuple[float, float]:
-    """The SOC range the training records cover under a model (its own SOC trajectory)."""
-    lo, hi = np.inf, -np.inf
-    for r, rec in enumerate(ctx.recs):
-        _, tr = ecm.simulate_rows(rec, run.X[r], run.st.knots, run.st.config.table, traces=True)
-        lo, hi = min(lo, float(tr[0].min())), max(hi, float(tr[0].max()))
-    return lo, hi
-
-
-def floors(
-    ctx, selected: selection.ModelRun, frames: dict[str, pd.DataFrame], capacity_ah=None
-) -> dict[str, dict]:
-    """Per validation record, the selected configuration fitted to that record alone (started by
-    the same rule): what the model family reaches on it when it may see it."""
-    out = {}
-    for source, frame in frames.items():
-        fit = fit_model(frame, selected.st.config, capacity_ah)
-        out[source] = {"rmse_mv": fit.train_rmse_mv, "parameters": fit.model.parameters()}
-    return out
-
-
-def validation(ctx, rungs: dict[str, selection.ModelRun], frames: dict[str, pd.DataFrame],
-               floor: dict[str, dict]) -> list[dict]:  # fmt: skip
-    """One row per validation record × model of the ladder: errors over the record and inside
-    the SOC range the training data covered, and beside each the record's floor (the selected
-    configuration fitted to it). Nothing here feeds back into any choice."""
-    rows = []
-    for name, run in rungs.items():
-        fm = fitted_model(ctx, run)
-        lo, hi = training_soc_range(ctx, run)
-        for source, frame in frames.items():
-            v, tr = fm.simulate(frame, traces=True)
-            inside = (tr[0] >= lo) & (tr[0] <= hi)
-            err = prediction_errors(v, frame["voltage_v"].to_numpy(), inside)
-            rows.append({"record": source, "model": name, "effects": list(run.effects),
-                         "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
-                         "soc0": float(tr[0][0]), "training_soc_range": [lo, hi], **err,
-                         "floor_rmse_mv": floor[source]["rmse_mv"],
-                         "above_floor_mv": err["rmse_mv"] - floor[source]["rmse_mv"]})  # fmt: skip
-    return rows
-
-
 def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=(),
         warnings=(), progress=True):  # fmt: skip
     """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
@@ -518,7 +452,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     lad = selection.ladder(ctx, base)
     base, cands, rows, final = lad.base, lad.candidates, lad.rows, lad.selected
     for r in rows:
-        r["params"] = parameters(ctx, cands[r["effect"]])
+        r["params"] = selection.parameters(ctx, cands[r["effect"]])
         r["applicable"] = True
 
     # 2. where (the base residual, against the noise floor)
@@ -562,8 +496,8 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     }
     if vframes:  # records never used for any choice, predicted by every rung
         ctx.say(f"ladder done ({selected['name']}); validation records")
-        floor = floors(ctx, final, vframes, capacity_ah)
-        report["validation"] = validation(ctx, rungs, vframes, floor)
+        floor = selection.floors(ctx, final, vframes, capacity_ah)
+        report["validation"] = selection.validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
 
@@ -603,7 +537,7 @@ def _where(ctx: selection.Context, base: selection.ModelRun):
 def _selected_model(ctx, final: selection.ModelRun, iv: intervals.Intervals) -> FittedModel:
     """The model.json of the selection, with its intervals (diagnosis.json carries the same)."""
     table = ctx.table
-    model = fitted_model(ctx, final, provenance={
+    model = selection.fitted_model(ctx, final, provenance={
         "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
         "training": [{"source": r.source, "n_samples": r.n} for r in ctx.recs],
         "ocv": None if table is None else {"source": table.source, "how": table.how},
@@ -642,7 +576,7 @@ def _verdict(ctx, lad, rec: Record, soc: np.ndarray, gap: dict, noise_v: float, 
             "t": row["t"],
         }
         for lr, r in zip(lad.rungs, lad.runs, strict=True):
-            lr["parameters"] = parameters(ctx, r)
+            lr["parameters"] = selection.parameters(ctx, r)
             rungs["+".join(r.effects)] = r
         rungs.setdefault("+".join(final.effects) or "base", final)  # after pruning
     else:
@@ -674,7 +608,7 @@ def _selected(ctx: selection.Context, final: selection.ModelRun) -> dict:
         "name": "+".join(final.effects) or "base",
         "effects": list(final.effects),
         "heldout_rmse_mv": _heldout_mv(ctx, final),
-        "parameters": parameters(ctx, final),
+        "parameters": selection.parameters(ctx, final),
     }
 
 
@@ -717,7 +651,7 @@ def _base(ctx, base: selection.ModelRun, n: int, noise_v: float, capacity_ah, so
             + ("rational OCV" if ctx.table is None else "measured OCV + offset")
             + ", free capacity; each record started by the opening rule"
         ),
-        "parameters": parameters(ctx, base),
+        "parameters": selection.parameters(ctx, base),
         "rmse_mv": 1e3 * rmse,
         "heldout_rmse_mv": _heldout_mv(ctx, base),
         "noise_floor_mv": 1e3 * noise_v,
