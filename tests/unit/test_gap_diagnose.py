@@ -358,7 +358,7 @@ def test_cli_takes_several_training_records_and_validation(tmp_path):
 def test_a_held_out_record_is_predicted_as_simulate_predicts_it():
     """Leave one record out: the held-out voltage of a record is what ``FittedModel.simulate``
     gives for it from the parameters fitted to the other record (started by the same rule)."""
-    from avoa_pipeline.gap.diagnose import fitted_model
+    from avoa_pipeline.selection import fitted_model
 
     a = _good()
     other = profile_frame([(300, 0.0), (1500, 1.5), (600, 0.0), (900, -1.0), (300, 0.0)])
