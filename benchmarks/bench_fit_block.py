@@ -8,8 +8,8 @@ algorithm) against its kernel bound, single-threaded as in a workflow job (numba
 
 First measures the population kernel's ns per candidate-sample on the block's rows (seeds ×
 pop_size, all seeds' candidates in one call; ``bench_kernel.ns_per_candidate_sample``), then runs
-``workflow.fit_batch`` for each algorithm on the dataset the workflow would write, and prints per
-algorithm and in total: wall time, process CPU, candidate-samples (evaluations × samples, from
+``jobs.identify.fit_batch`` for each algorithm on the dataset the workflow would write, and prints
+per algorithm and in total: wall time, process CPU, candidate-samples (evaluations × samples, from
 the records), the kernel bound (candidate-samples × ns) and the ratio wall ÷ kernel bound.
 ``--compare`` checks each record's numbers (best parameters, best ISE, evaluations, iterations,
 history of best ISE and evaluations) against the record of the same seed in another directory,
@@ -33,8 +33,10 @@ from pathlib import Path  # noqa: E402
 import numba  # noqa: E402
 from bench_kernel import ns_per_candidate_sample  # noqa: E402
 
-from avoa_pipeline import config, problem, workflow  # noqa: E402
+from avoa_pipeline import config, problem  # noqa: E402
 from avoa_pipeline.fit import same_record  # noqa: E402
+from avoa_pipeline.jobs import data as data_jobs  # noqa: E402
+from avoa_pipeline.jobs import identify  # noqa: E402
 from avoa_pipeline.names import ALGORITHMS  # noqa: E402
 
 
@@ -55,7 +57,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp) / "fits"
         data = Path(tmp) / f"s{s}c{c}.csv"
-        workflow.dataset(cfg, s, c, str(data))
+        data_jobs.dataset(cfg, s, c, str(data))
         prob = problem.build(cfg, s, c, data=data)
         rows = len(seeds) * cfg["budget"]["pop_size"]
         ns = ns_per_candidate_sample(prob, rows)
@@ -70,7 +72,7 @@ def main() -> None:
             for p in paths:
                 p.unlink(missing_ok=True)  # a kept record would not be timed
             t0, cpu0 = time.perf_counter(), time.process_time()
-            workflow.fit_batch(cfg, str(data), s, c, alg, seeds, [str(p) for p in paths])
+            identify.fit_batch(cfg, str(data), s, c, alg, seeds, [str(p) for p in paths])
             wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
             recs = [json.loads(p.read_text()) for p in paths]
             cs = float(sum(r["nfe"] * r["n_samples"] for r in recs))

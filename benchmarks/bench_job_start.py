@@ -40,7 +40,7 @@ FIT_CHILD = """
 import json, sys, time
 t0 = time.perf_counter()
 from avoa_pipeline import jobs
-from avoa_pipeline.workflow import fit_algorithms
+from avoa_pipeline.jobs.identify import fit_algorithms
 t1 = time.perf_counter()
 import numpy as np
 from avoa_pipeline import config, problem
@@ -54,7 +54,7 @@ DIAG_CHILD = """
 import json, sys, time
 t0 = time.perf_counter()
 from avoa_pipeline import jobs
-from avoa_pipeline.gap.evaluate import diagnose_file
+from avoa_pipeline.jobs.gap import diagnose_file
 t1 = time.perf_counter()
 diagnose_file(sys.argv[1], sys.argv[2])
 t2 = time.perf_counter()
@@ -94,12 +94,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    from avoa_pipeline import config, workflow
+    from avoa_pipeline import config
+    from avoa_pipeline.jobs import data as data_jobs
 
     cfg = config.load()
     tmp = Path(tempfile.mkdtemp(prefix="bench_job_start_"))
     data = tmp / "s4c4.csv"
-    workflow.dataset(cfg, 4, 4, str(data))
+    data_jobs.dataset(cfg, 4, 4, str(data))
     nb = tmp / "start.ipynb"
     nb.write_text(json.dumps(NOTEBOOK))
     fit_cmd = [PY, "-c", FIT_CHILD, str(data)]

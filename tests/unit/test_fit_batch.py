@@ -4,8 +4,9 @@ records on disk computes only what is new."""
 import copy
 import json
 
-from avoa_pipeline import synthetic, workflow
+from avoa_pipeline import synthetic
 from avoa_pipeline.cli import main
+from avoa_pipeline.jobs import identify
 
 
 def _small(cfg):
@@ -23,7 +24,7 @@ def test_batch_equals_single_fits_and_computes_only_new_seeds(cfg, tmp_path):
     data = tmp_path / "s1c2.csv"
     synthetic.write(synthetic.generate(c, 1, 2), data)
     outs = [tmp_path / f"seed{s}.json" for s in (1, 2, 3)]
-    got = workflow.fit_batch(c, str(data), 1, 2, "gwo", [1, 2], outs[:2])
+    got = identify.fit_batch(c, str(data), 1, 2, "gwo", [1, 2], outs[:2])
     assert got == {"computed": 2, "kept": 0}
     single = tmp_path / "single.json"  # the command line's one fit: the same record
     args = [
@@ -49,13 +50,13 @@ def test_batch_equals_single_fits_and_computes_only_new_seeds(cfg, tmp_path):
     assert _strip(json.loads(outs[1].read_text())) == _strip(json.loads(single.read_text()))
 
     before = [p.read_bytes() for p in outs[:2]]
-    got = workflow.fit_batch(c, str(data), 1, 2, "gwo", [1, 2, 3], outs)
+    got = identify.fit_batch(c, str(data), 1, 2, "gwo", [1, 2, 3], outs)
     assert got == {"computed": 1, "kept": 2}
     assert [p.read_bytes() for p in outs[:2]] == before  # untouched
     assert json.loads(outs[2].read_text())["seed"] == 3
 
     c2 = copy.deepcopy(c)
     c2["budget"]["iterations"] = 6  # another budget: every record is stale
-    got = workflow.fit_batch(c2, str(data), 1, 2, "gwo", [1, 2, 3], outs)
+    got = identify.fit_batch(c2, str(data), 1, 2, "gwo", [1, 2, 3], outs)
     assert got == {"computed": 3, "kept": 0}
     assert json.loads(outs[0].read_text())["iterations"] == 6

@@ -9,9 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from avoa_pipeline import plan as plan_mod
 from avoa_pipeline.errors import ConfigError
 from avoa_pipeline.gap import evaluate as ev
 from avoa_pipeline.gap import withheld as W
+from avoa_pipeline.jobs import gap as gap_jobs
 
 SEED = 7
 NOISE = 2.0
@@ -175,7 +177,7 @@ def test_pair_names_and_the_batch_with_its_alone_references(tmp_path):
 def test_plan_lists_the_pair_records_and_their_table():
     gcfg = _gcfg({"noise_mv": [1.0, 2.0], "magnitudes": [{"second_rc": 0.03, "thermal": 1e4}]})
     gcfg["profiles"] = ["pulse", "drive"]
-    plan = ev.plan(gcfg)
+    plan = plan_mod.gap(gcfg)
     assert plan["pair_names"] == ["second_rc-thermal_m0_n0", "second_rc-thermal_m0_n1"]
     assert plan["pair_records"] == [
         "pulse/r1/second_rc-thermal_m0_n0",
@@ -185,7 +187,7 @@ def test_plan_lists_the_pair_records_and_their_table():
     ]
     assert "results/gap/pairs.csv" in plan["outputs"]
     assert not set(plan["pair_records"]) & set(plan["records"])
-    without = ev.plan({k: v for k, v in gcfg.items() if k != "pairs"})
+    without = plan_mod.gap({k: v for k, v in gcfg.items() if k != "pairs"})
     assert without["pair_records"] == []
     assert "results/gap/pairs.csv" not in without["outputs"]
 
@@ -299,7 +301,7 @@ def test_pair_target_counts_the_clearly_detectable_records(tmp_path):
 def test_pair_table_and_target_rows_from_files(tmp_path):
     files = _pair_files(tmp_path)
     out_csv = tmp_path / "out" / "pairs.csv"
-    ev.pair_table_job([d for d, _ in files], [g for _, g in files], out_csv, 1.5)
+    gap_jobs.pair_table_job([d for d, _ in files], [g for _, g in files], out_csv, 1.5)
     table = pd.read_csv(out_csv)
     assert len(table) == len(CASES)
     assert table["both_named"].sum() == 2
@@ -324,11 +326,11 @@ def test_pair_table_and_target_rows_from_files(tmp_path):
     )
     diag = tmp_path / "single.diagnosis.json"
     diag.write_text(json.dumps(_diagnosis()))
-    out = {k: tmp_path / "out" / f"{k}.csv" for k in ev.TABLES}
-    ev.evaluate_job([single], [diag], out, 1.5, pairs_csv=[out_csv])
+    out = {k: tmp_path / "out" / f"{k}.csv" for k in plan_mod.GAP_TABLES}
+    gap_jobs.evaluate_job([single], [diag], out, 1.5, pairs_csv=[out_csv])
     target = pd.read_csv(out["target"])
     assert len(target) == 3 + 3
     assert target["check"].str.startswith("pairs:").sum() == 3
     assert list(target["result"][3:]) == ["FAIL", "FAIL", "FAIL"]
-    ev.evaluate_job([single], [diag], out, 1.5)
+    gap_jobs.evaluate_job([single], [diag], out, 1.5)
     assert len(pd.read_csv(out["target"])) == 3

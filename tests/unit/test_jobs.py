@@ -146,6 +146,33 @@ def test_every_package_rule_names_a_script_that_calls_what_the_package_has():
                                            **{k.arg: None for k in call.keywords})  # fmt: skip
 
 
+def test_each_script_calls_the_jobs_module_of_its_rules_file():
+    """One jobs module per rules file: a rule's script imports its job from
+    ``avoa_pipeline.jobs.<the rules file's stem>``, and every module of the package is named
+    after a rules file. The planning that common.smk calls (``avoa_pipeline.plan``) runs in the
+    Snakemake process and so loads no job module (their package pins the BLAS threads)."""
+    import pkgutil
+
+    import avoa_pipeline.jobs as jobs_pkg
+
+    rules = sorted((REPO / "workflow/rules").glob("*.smk"))
+    modules = {m.name for m in pkgutil.iter_modules(jobs_pkg.__path__)}
+    assert modules
+    assert modules <= {p.stem for p in rules}
+    scripts = 0
+    for smk in rules:
+        for m in re.finditer(r'script:\s*\n\s*"([^"]+)"', smk.read_text()):
+            tree = ast.parse((REPO / "workflow/rules" / m.group(1)).resolve().read_text())
+            froms = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+            assert f"avoa_pipeline.jobs.{smk.stem}" in froms, f"{smk.name}: {m.group(1)}"
+            scripts += 1
+    assert scripts >= len(modules)
+    code = ("import sys; from avoa_pipeline import plan; plan.gap(None); print(sorted(m for m "
+            "in sys.modules if m.startswith('avoa_pipeline.jobs')))")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
 def test_a_rule_passes_only_what_its_job_reads(cfg):
     """config.part: the named parts in the config's nesting, copies (a job cannot change the
     config), tuple paths for keys with dots, one line naming a missing field."""
@@ -177,27 +204,29 @@ def test_the_dataset_and_fit_scripts_run_without_snakemake_on_their_rules_parts(
     equal those from the whole config and one algorithm per call, record for record (timings
     aside; the same job_key, so a run's records stay current): the jobs read nothing else."""
     from avoa_pipeline import config as config_mod
-    from avoa_pipeline import workflow as wf
+    from avoa_pipeline import plan
+    from avoa_pipeline.jobs import data as data_jobs
+    from avoa_pipeline.jobs import identify
 
     cfg = {**cfg, "budget": {"pop_size": 8, "iterations": 5, "max_nfe": None}}
     data = tmp_path / "s4c4.csv"
-    settings = config_mod.part(cfg, *wf.DATASET_PARTS)
+    settings = config_mod.part(cfg, *plan.DATASET_PARTS)
     _run_script("dataset.py", params=SimpleNamespace(settings=settings),
                 wildcards=SimpleNamespace(scenario="4", case="4"),
                 output=SimpleNamespace(csv=str(data)), log=[str(tmp_path / "d.log")])  # fmt: skip
     assert "wrote" in (tmp_path / "d.log").read_text()
     whole = tmp_path / "whole.csv"
-    wf.dataset(cfg, 4, 4, str(whole))
+    data_jobs.dataset(cfg, 4, 4, str(whole))
     assert data.read_bytes() == whole.read_bytes()
     algorithms = ["avoa", "nelder_mead"]
     outs = [str(tmp_path / a / f"seed{s}.json") for a in algorithms for s in (1, 2)]
-    _run_script("fit.py", params=SimpleNamespace(settings=config_mod.part(cfg, *wf.FIT_PARTS),
+    _run_script("fit.py", params=SimpleNamespace(settings=config_mod.part(cfg, *plan.FIT_PARTS),
                                                  algorithms=algorithms, seeds=[1, 2]),
                 input=SimpleNamespace(data=str(data)),
                 wildcards=SimpleNamespace(scenario="4", case="4"), output=outs)  # fmt: skip
     ref = [str(tmp_path / "ref" / a / f"seed{s}.json") for a in algorithms for s in (1, 2)]
     for k, alg in enumerate(algorithms):
-        wf.fit_batch(cfg, str(data), 4, 4, alg, [1, 2], ref[2 * k : 2 * k + 2])
+        identify.fit_batch(cfg, str(data), 4, 4, alg, [1, 2], ref[2 * k : 2 * k + 2])
     for a, b in zip(outs, ref, strict=True):
         ra, rb = (json.loads(Path(p).read_text()) for p in (a, b))
         for key in ("best_params", "best_ise", "nfe", "iterations", "job_key"):

@@ -1,6 +1,6 @@
 """Experiment 1 on the model library: the C/20 table (the library's slow-test rule, written and
 read back), the C/20 circuits as library configurations, the diagnosis's records in the table,
-and the cross-cycle diagnostic (real/drive_cycles.py, real/jobs.py, real/cross_cycle.py)."""
+and the cross-cycle diagnostic (real/drive_cycles.py, jobs/real.py, real/cross_cycle.py)."""
 
 import json
 from pathlib import Path
@@ -11,9 +11,10 @@ import pytest
 
 from avoa_pipeline import records
 from avoa_pipeline.errors import DataError
+from avoa_pipeline.jobs import real as jobs
 from avoa_pipeline.model import ecm
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.real import cross_cycle, jobs
+from avoa_pipeline.real import cross_cycle
 from avoa_pipeline.real import drive_cycles as dc
 
 TRUTH = {"capacity_ah": 2.8, "r0_ohm": 0.03, "r1_ohm": 0.012, "tau1_s": 25.0,

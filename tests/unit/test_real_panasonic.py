@@ -15,13 +15,13 @@ import pytest
 import scipy.io
 from scipy.interpolate import PPoly
 
-from avoa_pipeline import records
+from avoa_pipeline import plan, records
 from avoa_pipeline.errors import ConfigError, DataError
 from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, first_sample_soc0, ise, simulate
 from avoa_pipeline.model.kernel import paper_beta
 from avoa_pipeline.problem import on_record
 from avoa_pipeline.real import drive_cycles as dc
-from avoa_pipeline.real import jobs, panasonic
+from avoa_pipeline.real import panasonic
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -128,7 +128,7 @@ def test_new_temperature_records_import_and_pass_the_checks(real, cfg, tmp_path,
     names = [n for n in panasonic.records(local) if n.startswith(f"{temp}/")]
     assert sorted(names) == sorted([f"{temp}/hppc", *(f"{temp}/{c}" for c in want["soak_s"])])
     for name in names:
-        out = tmp_path / f"{jobs.canonical_name(name)}.csv"
+        out = tmp_path / f"{plan.canonical_name(name)}.csv"
         side = panasonic.import_named(local, name, out)
         checked = records.read(out, capacity_ah=side["nominal_capacity_ah"])
         frame = checked.frame

@@ -2,8 +2,7 @@ import sys
 from pathlib import Path
 
 import avoa_pipeline.config as avoa_config
-import avoa_pipeline.workflow as wf
-from avoa_pipeline import jobguard, snakemake_compat
+from avoa_pipeline import jobguard, plan, snakemake_compat
 from avoa_pipeline.model.battery import CASES
 
 # Jobs learn which Snakemake started them, so a job that starts after a kill -9 of it stops at once
@@ -114,27 +113,39 @@ def scenario_runs(w):
 
 # --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
 from avoa_pipeline.real import drive_cycles as real_dc
-from avoa_pipeline.real import jobs as real_jobs
 from avoa_pipeline.real import panasonic as real_panasonic
 
 REAL = config.get("real") or {}
 REAL_ROOT = Path(REAL["root"]) if REAL else None
 REAL_PRESENT = bool(REAL) and REAL_ROOT.is_dir()  # relative to the working directory
-REAL_TARGETS = []  # each section of real.smk adds its outputs; `real` and `all` build them
+REAL_CANON = "results/real/canonical"
+SAMSUNG_CFG = REAL.get("samsung") or {}
+NASA_CFG = REAL.get("nasa") or {}
+SAMSUNG_TEMPS = list(SAMSUNG_CFG.get("hppc", {}))
+
+
+def real_targets():
+    """Every real-data output of the config (the `real` target): the Panasonic records, experiment
+    1's table, figure and cross-cycle diagnostic, and experiments 2-3 (plan.cell_targets)."""
+    out = [pan_canon(n) for n in pan_imports()]
+    out += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
+    if PAN_EXP_TEMPS:
+        out += ["results/real/drive_cycle_rmse.csv", "results/real/figures/panasonic_drive_cycles.png"]
+    return out + plan.cell_targets(config)
 
 
 def real_outputs():
     """The real-data outputs for `all`: none without the data."""
-    return REAL_TARGETS if REAL_PRESENT else []
+    return real_targets() if REAL_PRESENT else []
 
 
 PANASONIC = real_panasonic.records(config)
-PAN_CANON = "results/real/canonical"
 PAN_TEMPS = sorted({n.split("/")[0] for n in PANASONIC})
 PAN_TESTS = sorted({n.split("/")[1] for n in PANASONIC})
 PAN_EXP = (REAL.get("panasonic") or {}).get("experiment") or {}
 PAN_OUT = "results/real/panasonic"
 PAN_EXP_TEMPS = real_dc.temperatures(config) if PANASONIC and PAN_EXP else []
+PAN_EXP_TEMP_RE = plan.regex(PAN_EXP_TEMPS)  # the ptemp wildcard of experiment 1's rules
 PAN_GAP = bool(PAN_EXP.get("gap", True))
 
 
@@ -143,7 +154,7 @@ def pan_sources(w):
 
 
 def pan_canon(name):
-    return f"{PAN_CANON}/{real_jobs.canonical_name(name)}.csv"
+    return f"{REAL_CANON}/{plan.canonical_name(name)}.csv"
 
 
 def pan_train(w):
@@ -153,6 +164,11 @@ def pan_train(w):
 def pan_tests(temp):
     """Unseen drive cycles at ``temp``: cycle name → canonical CSV."""
     return {c: pan_canon(f"{temp}/{c}") for c in real_dc.unseen_cycles(config, temp)}
+
+
+def pan_test_csvs(w):
+    """The unseen drive cycles' CSVs at the rule's temperature (an input)."""
+    return list(pan_tests(w.ptemp).values())
 
 
 PAN_OCV_RECORD = pan_canon("25degC/ocv_c20") if PANASONIC else []  # the one slow test (25 degC)
@@ -188,6 +204,9 @@ def pan_diagnoses():
 
 
 # --- the gap check (gap.smk) ----------------------------------------------------------------------
+GAP = config.get("gap")
+GAP_PLAN = plan.gap(GAP, real_present=REAL_PRESENT)  # every record and output of the gap rules
+GAP_OUTPUTS = GAP_PLAN["outputs"]
 
 
 def gap_grid(w, *keys):

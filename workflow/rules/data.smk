@@ -5,8 +5,8 @@ rule dataset:
         meta="results/data/s{scenario}/c{case}.json",
     log:
         "logs/data/s{scenario}/c{case}.log",
-    params:  # what the dataset is made from (workflow.DATASET_PARTS); its job reads no more
-        settings=config_part(*wf.DATASET_PARTS),
+    params:  # what the dataset is made from (plan.DATASET_PARTS); its job reads no more
+        settings=config_part(*plan.DATASET_PARTS),
     threads: 1
     priority: 10  # before any fit: the fits of a pair wait for its dataset
     script:

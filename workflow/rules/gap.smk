@@ -1,12 +1,8 @@
 # Issue 5, "Checked on withheld effects": datasets with one hidden effect, with two at once
 # (`gap.pairs`), PyBaMM records and the paper's scenarios; one diagnosis job per record, tables
 # and figures. Optional: without a
-# `gap:` section in the config no rule here runs.
-import avoa_pipeline.gap.evaluate as gap_eval
-
-GAP = config.get("gap")
-GAP_PLAN = gap_eval.plan(GAP, real_present=REAL_PRESENT)
-GAP_OUTPUTS = GAP_PLAN["outputs"]
+# `gap:` section in the config no rule here runs. The plan (GAP_PLAN: records and outputs) is made in
+# common.smk.
 
 
 if GAP:
@@ -17,8 +13,8 @@ if GAP:
             expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
                    name=GAP_PLAN["full_names"], ext=("csv", "json")),
         wildcard_constraints:
-            profile=gap_eval.regex(GAP["profiles"]),
-            replicate=gap_eval.regex(GAP_PLAN["full_replicates"]),
+            profile=plan.regex(GAP["profiles"]),
+            replicate=plan.regex(GAP_PLAN["full_replicates"]),
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
@@ -35,8 +31,8 @@ if GAP:
             expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
                    name=GAP_PLAN["control_names"], ext=("csv", "json")),
         wildcard_constraints:
-            profile=gap_eval.regex(GAP["profiles"]),
-            replicate=gap_eval.regex(GAP_PLAN["control_only"]),
+            profile=plan.regex(GAP["profiles"]),
+            replicate=plan.regex(GAP_PLAN["control_only"]),
         log:
             "logs/gap/data/{profile}/r{replicate}.log",
         params:
@@ -55,8 +51,8 @@ if GAP:
                 expand("results/gap/data/{{profile}}/r{{replicate}}/{name}.{ext}",
                        name=GAP_PLAN["pair_names"], ext=("csv", "json")),
             wildcard_constraints:
-                profile=gap_eval.regex(GAP["profiles"]),
-                replicate=gap_eval.regex(GAP_PLAN["full_replicates"]),
+                profile=plan.regex(GAP["profiles"]),
+                replicate=plan.regex(GAP_PLAN["full_replicates"]),
             log:
                 "logs/gap/data/{profile}/r{replicate}.pairs.log",
             params:
@@ -93,8 +89,8 @@ if GAP:
             case="[1-4]",
         log:
             "logs/gap/data/paper/s{scenario}c{case}.log",
-        params:  # what the dataset is made from (workflow.DATASET_PARTS)
-            settings=config_part(*wf.DATASET_PARTS),
+        params:  # what the dataset is made from (plan.DATASET_PARTS)
+            settings=config_part(*plan.DATASET_PARTS),
         threads: 1
         script:
             "../scripts/gap_paper_data.py"
@@ -105,7 +101,7 @@ if GAP:
             csv="results/gap/data/pybamm/{name}.csv",
             meta="results/gap/data/pybamm/{name}.json",
         wildcard_constraints:
-            name=gap_eval.regex(GAP["pybamm"]),
+            name=plan.regex(GAP["pybamm"]),
         log:
             "logs/gap/data/pybamm/{name}.log",
         params:
@@ -135,11 +131,11 @@ if GAP:
     rule gap_diagnose_real:
         """One diagnosis of a canonical real record (CSV only; its sidecar is not read)."""
         input:
-            f"{PAN_CANON}/{{name}}.csv",
+            f"{REAL_CANON}/{{name}}.csv",
         output:
             "results/gap/diagnoses/real/{name}.json",
         wildcard_constraints:
-            name=gap_eval.regex(GAP_PLAN["real"]),
+            name=plan.regex(GAP_PLAN["real"]),
         log:
             "logs/gap/diagnoses/real/{name}.log",
         group:
@@ -153,7 +149,7 @@ if GAP:
     rule gap_real_table:
         """Verdicts on real records: what the paper's model misses on measured cells."""
         input:
-            data=[f"{PAN_CANON}/{n}.csv" for n in GAP_PLAN["real"]],
+            data=[f"{REAL_CANON}/{n}.csv" for n in GAP_PLAN["real"]],
             diag=[f"results/gap/diagnoses/real/{n}.json" for n in GAP_PLAN["real"]],
         output:
             report("results/gap/real.csv", category="Gap diagnosis", subcategory="Real records"),
@@ -171,7 +167,7 @@ if GAP:
             pairs=["results/gap/pairs.csv"] if GAP_PLAN["pair_records"] else [],
         output:
             **{t: report(f"results/gap/{t}.csv", category="Gap diagnosis",
-                         subcategory="Withheld effects") for t in gap_eval.TABLES},
+                         subcategory="Withheld effects") for t in plan.GAP_TABLES},
         params:
             threshold=GAP["threshold"],
         log:
@@ -213,14 +209,14 @@ if GAP:
         """Figures: confusion matrix, accuracy, shrink, detection limit."""
         input:
             nb="notebooks/gap_validation.ipynb",
-            tables=[f"results/gap/{t}.csv" for t in gap_eval.TABLES],
+            tables=[f"results/gap/{t}.csv" for t in plan.GAP_TABLES],
             paper="results/gap/paper_scenarios.csv",
             pybamm="results/gap/pybamm.csv",
             real=["results/gap/real.csv"] if GAP_PLAN["real"] else [],
             pairs=["results/gap/pairs.csv"] if GAP_PLAN["pair_records"] else [],
         output:
             *(report(f"results/gap/figures/{f}.png", category="Gap diagnosis",
-                     subcategory="Withheld effects") for f in gap_eval.FIGURES),
+                     subcategory="Withheld effects") for f in plan.GAP_FIGURES),
             nb="results/notebooks/gap_validation.ipynb",
         log:
             "logs/notebooks/gap_validation.log",

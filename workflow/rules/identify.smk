@@ -5,7 +5,7 @@
 # 1 s: interpreter, imports, kernel cache), so one job per fit, or per algorithm, would pay it
 # more often than a fit of the paper's budget costs (issue 20: 112 jobs → 16 on the paper grid).
 # The records are `update()` outputs: Snakemake leaves them in place, and the job keeps every
-# record whose job_key is current (workflow.fit_algorithms), so seeds or algorithms added to a
+# record whose job_key is current (jobs.identify.fit_algorithms), so seeds or algorithms added to a
 # block compute only the new fits, while a changed budget, dataset or code recomputes them all.
 FIT_SEEDS_PER_JOB = int(config.get("fit_seeds_per_job", 30))
 
@@ -27,13 +27,13 @@ for _block, _seeds in FIT_BLOCKS.items():
             f"fit_{_block}"
         input:
             data="results/data/s{scenario}/c{case}.csv",
-        output:  # algorithm-major, as workflow.fit_algorithms takes them
+        output:  # algorithm-major, as jobs.identify.fit_algorithms takes them
             [update(f"results/fits/s{{scenario}}/c{{case}}/{a}/seed{s}.json")
              for a in ALGOS for s in _seeds],
         log:
             f"logs/fits/s{{scenario}}/c{{case}}/block{_block}.log",
-        params:  # what a fit reads beyond its data (workflow.FIT_PARTS): a change reruns the block
-            settings=config_part(*wf.FIT_PARTS),
+        params:  # what a fit reads beyond its data (plan.FIT_PARTS): a change reruns the block
+            settings=config_part(*plan.FIT_PARTS),
             algorithms=ALGOS,
             seeds=_seeds,
         threads: 1

@@ -1,29 +1,25 @@
 # Real data (issue "Real data"; docs/real-data.md). Active when the config has `real:` and its data
 # root exists (relative to the working directory); `snakemake -j2 real` builds every real-data
 # output, and `all` includes them then. Sources are read in place and never copied.
-# Helpers and constants (REAL, REAL_TARGETS, PANASONIC, pan_*) live in common.smk.
+# Helpers, constants and the targets (REAL, real_targets, PANASONIC, pan_*) live in common.smk.
 
 
 # ------------------------------------------------------------------------------------------------
 # Panasonic NCR18650PF (Kollmeyer): import, experiment 1 (drive cycles)
 # ------------------------------------------------------------------------------------------------
-REAL_TARGETS += [pan_canon(n) for n in pan_imports()]
-REAL_TARGETS += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
-
-
 rule panasonic_import:
     """One Panasonic test (an HPPC pulse file with its SOC-step file, a drive cycle, the C/20
     test) → canonical CSV + JSON sidecar."""
     input:
         pan_sources,
     output:
-        csv=f"{PAN_CANON}/panasonic_{{ptemp}}_{{ptest}}.csv",
-        meta=f"{PAN_CANON}/panasonic_{{ptemp}}_{{ptest}}.json",
+        csv=f"{REAL_CANON}/panasonic_{{ptemp}}_{{ptest}}.csv",
+        meta=f"{REAL_CANON}/panasonic_{{ptemp}}_{{ptest}}.json",
     log:
         "logs/real/canonical/panasonic_{ptemp}_{ptest}.log",
     wildcard_constraints:
-        ptemp="|".join(PAN_TEMPS) or "none",
-        ptest="|".join(PAN_TESTS) or "none",
+        ptemp=plan.regex(PAN_TEMPS),
+        ptest=plan.regex(PAN_TESTS),
     params:  # real.panasonic without its experiment: a change there reruns no import
         cfg=config_part("real.root", "real.sources",
                         *(f"real.panasonic.{k}" for k in REAL["panasonic"] if k != "experiment"))
@@ -31,13 +27,6 @@ rule panasonic_import:
     threads: 1
     script:
         "../scripts/panasonic_import.py"
-
-
-if PAN_EXP_TEMPS:
-    REAL_TARGETS += [
-        "results/real/drive_cycle_rmse.csv",
-        "results/real/figures/panasonic_drive_cycles.png",
-    ]
 
 
 rule panasonic_ocv:
@@ -59,15 +48,15 @@ rule panasonic_fit_paper:
     the training drive cycle and run on the unseen ones."""
     input:
         train=pan_train,
-        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        tests=pan_test_csvs,
     output:
         f"{PAN_OUT}/fits/{{ptemp}}/{{pmodel}}/{{algorithm}}.json",
     log:
         "logs/real/panasonic/fits/{ptemp}/{pmodel}/{algorithm}.log",
     wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        ptemp=PAN_EXP_TEMP_RE,
         pmodel="|".join(real_dc.PAPER_MODELS),
-        algorithm="|".join(PAN_EXP.get("algorithms", [])) or "none",
+        algorithm=plan.regex(PAN_EXP.get("algorithms", [])),
     params:
         exp=lambda w: real_dc.fit_settings(config, w.ptemp),
         base_seed=config["base_seed"],
@@ -86,7 +75,7 @@ rule panasonic_fit_c20:
     cycle, run on the others."""
     input:
         train=pan_train,
-        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        tests=pan_test_csvs,
         ocv=f"{PAN_OUT}/ocv_c20.csv",
         meta=f"{PAN_OUT}/ocv_c20.json",
     output:
@@ -94,7 +83,7 @@ rule panasonic_fit_c20:
     log:
         "logs/real/panasonic/fits/{ptemp}/c20.log",
     wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        ptemp=PAN_EXP_TEMP_RE,
     params:
         train=lambda w: PAN_EXP["train"][w.ptemp],
         tests=lambda w: pan_tests(w.ptemp),
@@ -113,7 +102,7 @@ rule panasonic_diagnose:
         train=pan_train,
         hppc=pan_hppc,
         ocv=PAN_OCV_RECORD,
-        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        tests=pan_test_csvs,
     output:
         json=f"{PAN_OUT}/diagnosis/{{ptemp}}/diagnosis.json",
         model=f"{PAN_OUT}/diagnosis/{{ptemp}}/model.json",
@@ -122,7 +111,7 @@ rule panasonic_diagnose:
     benchmark:
         "logs/real/panasonic/diagnosis/{ptemp}.benchmark.tsv"
     wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        ptemp=PAN_EXP_TEMP_RE,
     params:
         tests=lambda w: pan_tests(w.ptemp),
     threads: 1
@@ -135,14 +124,14 @@ rule panasonic_fit_gap:
     user without a slow test gets); the unseen cycles as validation records only."""
     input:
         train=pan_train,
-        tests=lambda w: list(pan_tests(w.ptemp).values()),
+        tests=pan_test_csvs,
     output:
         json=f"{PAN_OUT}/gap/{{ptemp}}/diagnosis.json",
         model=f"{PAN_OUT}/gap/{{ptemp}}/model.json",
     log:
         "logs/real/panasonic/gap/{ptemp}.log",
     wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        ptemp=PAN_EXP_TEMP_RE,
     params:
         tests=lambda w: pan_tests(w.ptemp),
     threads: 1
@@ -156,7 +145,7 @@ rule panasonic_cross_cycle:
     errors bound what transfer can reach."""
     input:
         model=f"{PAN_OUT}/diagnosis/{{ptemp}}/model.json",
-        cycles=lambda w: [pan_train(w)] + list(pan_tests(w.ptemp).values()),
+        cycles=lambda w: [pan_train(w)] + pan_test_csvs(w),
         ocv=f"{PAN_OUT}/ocv_c20.csv",
         meta=f"{PAN_OUT}/ocv_c20.json",
     output:
@@ -164,7 +153,7 @@ rule panasonic_cross_cycle:
     log:
         "logs/real/panasonic/cross_cycle/{ptemp}.log",
     wildcard_constraints:
-        ptemp="|".join(PAN_EXP_TEMPS) or "none",
+        ptemp=PAN_EXP_TEMP_RE,
     params:
         cycles=lambda w: {PAN_EXP["train"][w.ptemp]: pan_train(w), **pan_tests(w.ptemp)},
         ambient_c=lambda w: REAL["panasonic"]["temperatures"][w.ptemp]["ambient_c"],
@@ -218,19 +207,11 @@ rule panasonic_drive_cycles_notebook:
 
 
 # ------------------------------------------------------------------------------------------------
-# Samsung 30Q and NASA B0005: their rules go below this line (they add to REAL_TARGETS).
+# Samsung 30Q and NASA B0005 (jobs in avoa_pipeline.jobs.real, one script per rule). A config
+# without real.samsung or real.nasa leaves that dataset's rules out. docs/real-data.md, sections
+# "Samsung INR18650-30Q", "NASA B0005".
 # ------------------------------------------------------------------------------------------------
-# Script rules calling avoa_pipeline.real.cells_cli (one script per rule). A config without
-# real.samsung or real.nasa
-# leaves that dataset's rules out. docs/real-data.md, sections "Samsung INR18650-30Q", "NASA B0005".
-import avoa_pipeline.real.cells_cli as real_cells
-
-SAMSUNG_CFG = REAL.get("samsung") or {}
-NASA_CFG = REAL.get("nasa") or {}
-SAMSUNG_TEMPS = list(SAMSUNG_CFG.get("hppc", {}))
-REAL_CANON = "results/real/canonical"
 REAL_REPORT = "results/real/report"
-REAL_TARGETS += real_cells.targets(config)
 
 
 if SAMSUNG_CFG:
@@ -239,7 +220,7 @@ if SAMSUNG_CFG:
         """One Samsung 30Q HPPC file in the canonical form (time built from the 1 s rows, current
         sign flipped and checked against the voltage, sha256 checked)."""
         input:
-            lambda w: real_cells.source_path(config, SAMSUNG_CFG["hppc"][w.stemp]["file"]),
+            lambda w: plan.source_path(config, SAMSUNG_CFG["hppc"][w.stemp]["file"]),
         output:
             csv=f"{REAL_CANON}/samsung_hppc_{{stemp}}.csv",
             meta=f"{REAL_CANON}/samsung_hppc_{{stemp}}.json",
@@ -259,8 +240,8 @@ if SAMSUNG_CFG:
         input:
             expand(f"{REAL_CANON}/samsung_hppc_{{stemp}}.csv", stemp=SAMSUNG_TEMPS),
         output:
-            rc=real_cells.OUTPUTS["samsung"][0],
-            arrhenius=real_cells.OUTPUTS["samsung"][1],
+            rc=plan.CELL_OUTPUTS["samsung"][0],
+            arrhenius=plan.CELL_OUTPUTS["samsung"][1],
         log:
             "logs/real/samsung_arrhenius.log",
         params:
@@ -277,7 +258,7 @@ if NASA_CFG:
         """The 168 NASA B0005 discharges in one canonical record on one time axis (samples where
         measured), each source's sha256 and current sign checked."""
         input:
-            real_cells.nasa_source_paths(config),
+            [plan.source_path(config, k) for k in plan.nasa_source_sha256(config)],
         output:
             csv=f"{REAL_CANON}/nasa_b0005.csv",
             meta=f"{REAL_CANON}/nasa_b0005.json",
@@ -285,7 +266,7 @@ if NASA_CFG:
             "logs/real/canonical/nasa_b0005.log",
         params:  # the NASA settings, the root and the sha256 of the index and every discharge
             cfg=config_part("real.root", "real.nasa",
-                            *(("real", "sources", k) for k in real_cells.nasa_source_sha256(config))),
+                            *(("real", "sources", k) for k in plan.nasa_source_sha256(config))),
         threads: 1
         script:
             "../scripts/real_nasa_import.py"
@@ -295,8 +276,8 @@ if NASA_CFG:
         input:
             f"{REAL_CANON}/nasa_b0005.csv",
         output:
-            states=real_cells.OUTPUTS["nasa"][0],
-            fits=real_cells.OUTPUTS["nasa"][1],
+            states=plan.CELL_OUTPUTS["nasa"][0],
+            fits=plan.CELL_OUTPUTS["nasa"][1],
         log:
             "logs/real/nasa_fade.log",
         params:
@@ -312,10 +293,10 @@ if SAMSUNG_CFG and NASA_CFG:
         """Figures and summary tables of experiments 2 and 3 (notebook; all in the report)."""
         input:
             nb="notebooks/real_cells.ipynb",
-            rc=real_cells.OUTPUTS["samsung"][0],
-            arrhenius=real_cells.OUTPUTS["samsung"][1],
-            fade=real_cells.OUTPUTS["nasa"][0],
-            fade_fit=real_cells.OUTPUTS["nasa"][1],
+            rc=plan.CELL_OUTPUTS["samsung"][0],
+            arrhenius=plan.CELL_OUTPUTS["samsung"][1],
+            fade=plan.CELL_OUTPUTS["nasa"][0],
+            fade_fit=plan.CELL_OUTPUTS["nasa"][1],
         output:
             report(ext(f"{REAL_REPORT}/samsung_rc_temperature", FIG_EXT), category="Real data",
                    subcategory="Samsung 30Q: R0, Rtr, tau against temperature"),
@@ -326,7 +307,7 @@ if SAMSUNG_CFG and NASA_CFG:
                    subcategory="NASA B0005: fade law"),
             report(ext(f"{REAL_REPORT}/nasa_fade_summary", TABLE_EXT), category="Real data",
                    subcategory="NASA B0005: fade law"),
-            nb=real_cells.OUTPUTS["report"][0],
+            nb=plan.CELL_OUTPUTS["report"][0],
         log:
             "logs/notebooks/real_cells.log",
         shell:
@@ -335,10 +316,7 @@ if SAMSUNG_CFG and NASA_CFG:
                       fade_fit_csv="{input.fade_fit}", out_dir=REAL_REPORT)
 
 
-# ------------------------------------------------------------------------------------------------
-# Target: every real-data output. Kept last so every section above has added its outputs.
-# ------------------------------------------------------------------------------------------------
 rule real:
     """Every real-data output (`snakemake -j2 real`)."""
     input:
-        lambda w: REAL_TARGETS,
+        real_targets(),

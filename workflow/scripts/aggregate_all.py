@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.workflow import concat_aggregates
+from avoa_pipeline.jobs.aggregate import concat_aggregates
 
 inp, out = snakemake.input, snakemake.output
 concat_aggregates(list(inp.runs), list(inp.histories), out.runs, out.histories, log)

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.workflow import aggregate_runs
+from avoa_pipeline.jobs.aggregate import aggregate_runs
 
 out = snakemake.output
 aggregate_runs(list(snakemake.input), out.runs, out.histories, log)

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.workflow import dataset
+from avoa_pipeline.jobs.data import dataset
 
 w = snakemake.wildcards
 dataset(snakemake.params.settings, w.scenario, w.case, snakemake.output.csv, log)

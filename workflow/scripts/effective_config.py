@@ -4,6 +4,6 @@ from avoa_pipeline import jobs
 
 jobs.start(snakemake)
 
-from avoa_pipeline.workflow import effective_config
+from avoa_pipeline.jobs.data import effective_config
 
 effective_config(snakemake.params.cfg, snakemake.output[0])

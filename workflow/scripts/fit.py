@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.workflow import fit_algorithms
+from avoa_pipeline.jobs.identify import fit_algorithms
 
 w, p = snakemake.wildcards, snakemake.params
 fit_algorithms(p.settings, snakemake.input.data, w.scenario, w.case, p.algorithms, p.seeds,

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import generate
+from avoa_pipeline.jobs.gap import generate
 
 w, p = snakemake.wildcards, snakemake.params
 generate(p.base_seed, p.grid, w.profile, w.replicate, p.out_dir, log)

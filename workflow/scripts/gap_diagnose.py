@@ -5,6 +5,6 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import diagnose_file
+from avoa_pipeline.jobs.gap import diagnose_file
 
 diagnose_file(snakemake.input[0], snakemake.output[0], log)

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import evaluate_job
+from avoa_pipeline.jobs.gap import evaluate_job
 
 inp = snakemake.input
 evaluate_job(list(inp.data), list(inp.diag), dict(snakemake.output), snakemake.params.threshold,

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import pair_table_job
+from avoa_pipeline.jobs.gap import pair_table_job
 
 inp = snakemake.input
 pair_table_job(list(inp.data), list(inp.diag), snakemake.output[0], snakemake.params.threshold,

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import paper_job
+from avoa_pipeline.jobs.gap import paper_job
 
 w = snakemake.wildcards
 paper_job(snakemake.params.settings, w.scenario, w.case, snakemake.output.csv, log)

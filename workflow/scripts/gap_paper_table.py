@@ -7,7 +7,8 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import paper_record, table_job
+from avoa_pipeline.gap.evaluate import paper_record
+from avoa_pipeline.jobs.gap import table_job
 
 inp = snakemake.input
 table_job(

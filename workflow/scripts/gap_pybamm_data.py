@@ -4,6 +4,6 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import pybamm
+from avoa_pipeline.jobs.gap import pybamm
 
 pybamm(snakemake.params.base_seed, snakemake.wildcards.name, snakemake.output.csv, log)

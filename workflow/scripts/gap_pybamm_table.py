@@ -4,7 +4,8 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.gap.evaluate import pybamm_record, table_job
+from avoa_pipeline.gap.evaluate import pybamm_record
+from avoa_pipeline.jobs.gap import table_job
 
 inp = snakemake.input
 table_job(pybamm_record, list(inp.data), list(inp.diag), snakemake.output[0], log)

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import cross_cycle_one
+from avoa_pipeline.jobs.real import cross_cycle_one
 
 inp, p = snakemake.input, snakemake.params
 cross_cycle_one(p.ambient_c, snakemake.wildcards.ptemp, inp.model, dict(p.cycles), inp.ocv,

@@ -8,7 +8,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import diagnose_one
+from avoa_pipeline.jobs.real import diagnose_one
 
 inp = snakemake.input
 diagnose_one([inp.train, inp.hppc], dict(snakemake.params.tests),

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import drive_cycle_table
+from avoa_pipeline.jobs.real import drive_cycle_table
 
 p, out = snakemake.params, snakemake.output
 drive_cycle_table(p.cfg, list(snakemake.input.fits), dict(p.diagnoses), dict(p.tests), out.csv,

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import c20_fit_one
+from avoa_pipeline.jobs.real import c20_fit_one
 
 inp = snakemake.input
 c20_fit_one(snakemake.wildcards.ptemp, inp.train, dict(snakemake.params.tests), inp.ocv,

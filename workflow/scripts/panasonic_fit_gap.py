@@ -7,7 +7,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import diagnose_one
+from avoa_pipeline.jobs.real import diagnose_one
 
 diagnose_one([snakemake.input.train], dict(snakemake.params.tests),
              str(Path(snakemake.output.json).parent), None, log)  # fmt: skip

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import paper_fit_one
+from avoa_pipeline.jobs.real import paper_fit_one
 
 w, p = snakemake.wildcards, snakemake.params
 paper_fit_one(p.exp, p.base_seed, w.ptemp, w.pmodel, w.algorithm, snakemake.input.train,

@@ -4,7 +4,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import panasonic_import
+from avoa_pipeline.jobs.real import panasonic_import
 
 w = snakemake.wildcards
 panasonic_import(snakemake.params.cfg, f"{w.ptemp}/{w.ptest}", snakemake.output.csv, log)

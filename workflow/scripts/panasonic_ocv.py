@@ -4,6 +4,6 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.jobs import panasonic_ocv
+from avoa_pipeline.jobs.real import panasonic_ocv
 
 panasonic_ocv(snakemake.input[0], snakemake.output.csv, log)

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.cells_cli import fade
+from avoa_pipeline.jobs.real import fade
 
 out = snakemake.output
 fade(snakemake.params.cfg, snakemake.input[0], out.states, out.fits, log)

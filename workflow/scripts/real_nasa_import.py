@@ -4,6 +4,6 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.cells_cli import nasa_import
+from avoa_pipeline.jobs.real import nasa_import
 
 nasa_import(snakemake.params.cfg, snakemake.output.csv, log)

@@ -5,7 +5,7 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.cells_cli import arrhenius
+from avoa_pipeline.jobs.real import arrhenius
 
 p, out = snakemake.params, snakemake.output
 hppc = dict(zip(p.temperatures, snakemake.input, strict=True))

@@ -4,6 +4,6 @@ from avoa_pipeline import jobs
 
 log = jobs.start(snakemake)
 
-from avoa_pipeline.real.cells_cli import samsung_import
+from avoa_pipeline.jobs.real import samsung_import
 
 samsung_import(snakemake.params.cfg, snakemake.wildcards.stemp, snakemake.output.csv, log)

@@ -23,13 +23,12 @@ from __future__ import annotations
 
 import itertools
 import json
-import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..io import atomic_path, write_json, write_log
+from ..io import atomic_path
 from . import EFFECTS, VERDICTS, diagnoses
 
 THRESHOLD = 1.5
@@ -37,84 +36,6 @@ TARGET = 0.9
 PAIR_BOTH_TARGET = 1.0  # the issue: "the ladder names both in every one of them"
 RATIO_EDGES = (0.0, 0.5, 1.0, 1.5, 3.0, 10.0, np.inf)
 SHRINK_QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
-
-
-# --- Snakemake jobs (workflow/rules/gap.smk, through avoa_pipeline.jobs) ----------------------
-# Each runs in a job process of its own (a ``script:`` rule); nothing here starts processes.
-
-
-def diagnose_file(csv_path, out_json, log=None) -> None:
-    """Diagnose one CSV as a user would (CSV content only) and write the diagnosis JSON."""
-    from ..inputs import read_record
-    from .diagnose import diagnose
-
-    record = read_record(csv_path)
-    start = time.perf_counter()
-    result = diagnose(record)
-    wall = time.perf_counter() - start
-    write_json({**result, "wall_s": wall, "source": str(csv_path)}, out_json)
-    verdict = result["verdict"]
-    write_log(
-        log, f"{csv_path}: verdict {verdict['effect']} (shrink {verdict['shrink']}), {wall:.1f} s"
-    )
-
-
-def generate(base_seed, gcfg, profile, replicate, out_dir, log=None) -> None:
-    """Every withheld-effect dataset (and control) of one base cell."""
-    from . import withheld
-
-    start = time.perf_counter()
-    paths = withheld.write_batch(int(base_seed), dict(gcfg), profile, int(replicate), out_dir)
-    write_log(log, f"{len(paths)} datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
-
-
-def generate_pairs(base_seed, gcfg, profile, replicate, out_dir, log=None) -> None:
-    """Every two-effect dataset of one base cell."""
-    from . import withheld
-
-    start = time.perf_counter()
-    paths = withheld.write_pair_batch(int(base_seed), dict(gcfg), profile, int(replicate),
-                                      out_dir)  # fmt: skip
-    write_log(log, f"{len(paths)} pair datasets in {out_dir}, {time.perf_counter() - start:.1f} s")
-
-
-def pybamm(base_seed, name, out_csv, log=None) -> None:
-    """One PyBaMM record (made once, then a cached file)."""
-    from ..synthetic import write
-    from . import pybamm_data
-
-    start = time.perf_counter()
-    ds = pybamm_data.make(int(base_seed), name)
-    write(ds, out_csv)
-    write_log(log, f"{out_csv}: {ds.meta['generator']}, {time.perf_counter() - start:.1f} s")
-
-
-def paper_job(cfg, scenario, case, out_csv, log=None) -> None:
-    """``cfg``: the parts a paper dataset is made from (``workflow.DATASET_PARTS``)."""
-    info = paper_dataset(cfg, int(scenario), int(case), out_csv)
-    write_log(log, f"{out_csv}: {info}")
-
-
-def evaluate_job(data_jsons, diag_jsons, out: dict, threshold, log=None, pairs_csv=()) -> None:
-    """The withheld-effect tables; ``pairs_csv`` (none or one ``pairs.csv``) adds the pair
-    targets to ``target.csv``."""
-    pair_df = pd.concat([pd.read_csv(p) for p in pairs_csv]) if pairs_csv else None
-    evaluate(list(zip(data_jsons, diag_jsons, strict=True)), out, float(threshold), pair_df)
-    write_log(log, pd.read_csv(out["target"]).to_string(index=False))
-
-
-def pair_table_job(data_jsons, diag_jsons, out_csv, threshold, log=None) -> None:
-    """``pairs.csv``: one judged row per pair dataset; the log holds the pair targets."""
-    rows = [pair_record(d, g) for d, g in zip(data_jsons, diag_jsons, strict=True)]
-    df = with_pair_judgement(pd.DataFrame(rows, columns=list(PAIR_COLUMNS)), float(threshold))
-    write_csv(df, out_csv)
-    write_log(log, pair_target(df, float(threshold)).to_string(index=False))
-
-
-def table_job(make_row, data_jsons, diag_jsons, out_csv, log=None) -> None:
-    rows = [make_row(d, g) for d, g in zip(data_jsons, diag_jsons, strict=True)]
-    write_csv(pd.DataFrame(rows), out_csv)
-    write_log(log, f"{out_csv}: {len(rows)} rows")
 
 
 # --- records -----------------------------------------------------------------------------------
@@ -732,85 +653,3 @@ def fig_detection_limit(dl: pd.DataFrame, stem, threshold: float = THRESHOLD) ->
     axes[0].set_ylabel("right verdicts")
     axes[-1].legend(fontsize=7, loc="lower right")
     save(fig, stem, pdf=False)
-
-
-def demo_records(base_seed: int = 1, out_dir=None) -> pd.DataFrame:
-    """A few withheld-effect datasets diagnosed in memory (the real diagnosis, a tiny grid), so
-    the notebook runs on its own. Not a measurement: the workflow's grid is."""
-    import tempfile
-
-    if out_dir is None:
-        with tempfile.TemporaryDirectory(prefix="gap-demo-") as tmp:
-            return demo_records(base_seed, tmp)
-    from ..synthetic import write
-    from . import withheld
-
-    picks = [("none", 0.0), ("thermal", 40000.0), ("ocv_shape", 0.05), ("hysteresis", 0.04)]
-    files = []
-    folder = Path(out_dir)
-    for effect, mag in picks:
-        ds = withheld.make(base_seed, effect, mag, 1.0, "drive", 1)
-        ds.meta["name"] = effect
-        csv = folder / f"{effect}.csv"
-        write(ds, csv)
-        diagnose_file(csv, folder / f"{effect}.diagnosis.json")
-        files.append((folder / f"{effect}.json", folder / f"{effect}.diagnosis.json"))
-    return records(files)
-
-
-# --- the workflow's plan (workflow/rules/gap.smk) ----------------------------------------------
-
-TABLES = ("records", "confusion", "accuracy", "detection_limit", "shrink", "target")
-FIGURES = ("confusion", "accuracy", "shrink", "detection_limit")
-
-
-def regex(values) -> str:
-    """A wildcard constraint for exactly ``values`` (never matching when there are none)."""
-    return "|".join(map(str, values)) if values else "(?!x)x"
-
-
-def plan(gcfg: dict | None, real_present: bool = False) -> dict:
-    """Every record and output of the gap rules for the config's ``gap:`` section."""
-    from . import withheld
-
-    if not gcfg:
-        return {"outputs": []}
-    full = sorted(gcfg["replicates"])
-    control_only = sorted(set(gcfg["control_replicates"]) - set(full))
-    full_names = withheld.names(gcfg, full[0]) if full else []
-    control_names = withheld.names({**gcfg, "replicates": []}, -1)
-    records_ = [
-        f"{profile}/r{rep}/{name}"
-        for profile in gcfg["profiles"]
-        for rep in withheld.all_replicates(gcfg)
-        for name in (full_names if rep in full else control_names)
-    ]
-    pair_names = withheld.pair_names(gcfg, full[0]) if full else []
-    pair_records = [
-        f"{profile}/r{rep}/{name}"
-        for profile in gcfg["profiles"]
-        for rep in full
-        for name in pair_names
-    ]
-    real = list(gcfg.get("real", [])) if real_present else []
-    outputs = [
-        *(f"results/gap/{t}.csv" for t in TABLES),
-        "results/gap/paper_scenarios.csv",
-        "results/gap/pybamm.csv",
-        *(f"results/gap/figures/{f}.png" for f in FIGURES),
-        *(["results/gap/real.csv"] if real else []),
-        *(["results/gap/pairs.csv"] if pair_records else []),
-    ]
-    return {
-        "full_replicates": full,
-        "control_only": control_only,
-        "full_names": full_names,
-        "control_names": control_names,
-        "records": records_,
-        "pair_names": pair_names,
-        "pair_records": pair_records,
-        "paper": [f"paper/s{s}c{c}" for s in gcfg["paper_scenarios"] for c in gcfg["paper_cases"]],
-        "pybamm": [f"pybamm/{n}" for n in gcfg["pybamm"]],
-        "real": real,
-        "outputs": outputs,
-    }

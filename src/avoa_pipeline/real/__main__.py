@@ -29,19 +29,20 @@ from ..cli import Parser
 # isort: split
 from .. import config as config_mod
 from ..errors import UserError
-from . import cells_cli
 
 
 def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
+    from .. import plan
+    from ..jobs import real as jobs
     from . import drive_cycles as dc
-    from . import jobs, panasonic
+    from . import panasonic
 
     exp = dc.experiment(cfg)
     temps = temps or dc.temperatures(cfg)
     canon = out_dir / "canonical"
 
     def record(name):
-        path = canon / f"{jobs.canonical_name(name)}.csv"
+        path = canon / f"{plan.canonical_name(name)}.csv"
         if not path.is_file():
             panasonic.import_named(cfg, name, path)
         return path
@@ -80,6 +81,13 @@ def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
     return out
 
 
+def _pair(text: str) -> tuple[str, str]:
+    key, sep, value = text.partition("=")
+    if not sep or not key or not value:
+        raise argparse.ArgumentTypeError(f"expected TEMPERATURE=CSV (e.g. 20degC=a.csv): {text!r}")
+    return key, value
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog="python -m avoa_pipeline.real", description=__doc__,
                           formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
@@ -101,13 +109,26 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         help="only this one (repeatable; a negative one as --temperature=-10degC)",
     )
-    cells_cli.add_commands(sub)
+    s = sub.add_parser("samsung-import", help="one Samsung HPPC file into the canonical form")
+    s.add_argument("--temperature", required=True, help="key of real.samsung.hppc, e.g. 20degC")
+    s.add_argument("--out", required=True, help="canonical CSV (sidecar .json beside it)")
+    n = sub.add_parser("nasa-import", help="the 168 B0005 discharges into one canonical record")
+    n.add_argument("--out", required=True)
+    a = sub.add_parser("arrhenius", help="experiment 2: R0, Rtr, tau per pulse and Arrhenius fits")
+    a.add_argument("--hppc", type=_pair, nargs="+", required=True, metavar="TEMP=CSV")
+    a.add_argument("--out-rc", required=True)
+    a.add_argument("--out-arrhenius", required=True)
+    f = sub.add_parser("fade", help="experiment 3: capacity/resistance per state and fade laws")
+    f.add_argument("--record", required=True, help="canonical B0005 record (nasa-import)")
+    f.add_argument("--out-states", required=True)
+    f.add_argument("--out-fits", required=True)
     return ap
 
 
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
+        from ..jobs import real as jobs
         from . import panasonic
 
         cfg = config_mod.load(args.config)
@@ -119,8 +140,14 @@ def main(argv=None) -> int:
             print(f"wrote {args.out}: {side['n_samples']} samples")
         elif args.command == "drive-cycles":
             print(f"wrote {_drive_cycles(cfg, args.out_dir, args.temperature)}")
+        elif args.command == "samsung-import":
+            jobs.samsung_import(cfg, args.temperature, args.out)
+        elif args.command == "nasa-import":
+            jobs.nasa_import(cfg, args.out)
+        elif args.command == "arrhenius":
+            jobs.arrhenius(cfg, dict(args.hppc), args.out_rc, args.out_arrhenius)
         else:
-            cells_cli.run_command(cfg, args)
+            jobs.fade(cfg, args.record, args.out_states, args.out_fits)
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

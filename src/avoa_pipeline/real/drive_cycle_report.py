@@ -86,8 +86,10 @@ def figure(pred: pd.DataFrame, rmse: pd.DataFrame, ambient: dict[str, float], st
 def demo(cfg: dict, out_dir=None) -> dict:
     """A reduced experiment 1 (25 °C, LA92 → US06, Nelder–Mead seed 1 at 10 × 30, the C/20
     circuits) written to ``out_dir``; the notebook's inputs when the workflow's are not given."""
+    from .. import plan
+    from ..jobs import real as jobs
     from . import drive_cycles as dc
-    from . import jobs, panasonic
+    from . import panasonic
 
     out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))
     cfg = copy.deepcopy(cfg)
@@ -105,7 +107,7 @@ def demo(cfg: dict, out_dir=None) -> dict:
     pan["temperatures"] = {"25degC": t25}
     paths = {}
     for name in ("25degC/la92", "25degC/us06", "25degC/ocv_c20"):
-        paths[name] = out / f"{jobs.canonical_name(name)}.csv"
+        paths[name] = out / f"{plan.canonical_name(name)}.csv"
         panasonic.import_named(cfg, name, paths[name])
     ocv = out / "ocv_c20.csv"
     jobs.panasonic_ocv(paths["25degC/ocv_c20"], ocv)

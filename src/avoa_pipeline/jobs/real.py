@@ -1,34 +1,27 @@
-"""What the Panasonic rules of ``workflow/rules/real.smk`` call: one function per rule.
-
-Each writes its outputs atomically and a one-line log. The rules reach them through
-``avoa_pipeline.jobs`` (one process per job), and ``python -m avoa_pipeline.real`` calls them
-directly.
+"""The jobs of ``workflow/rules/real.smk``: the Panasonic import and experiment 1 (drive
+cycles), the Samsung 30Q and NASA B0005 imports and experiments 2-3. Each writes its outputs
+atomically and a one-line log; ``python -m avoa_pipeline.real`` calls them too.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 from ..io import write_log
-
-
-def canonical_name(name: str) -> str:
-    """``25degC/us06`` → the file stem ``panasonic_25degC_us06`` under results/real/canonical."""
-    return "panasonic_" + name.replace("/", "_")
+from ..plan import real_section
 
 
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
-    from . import panasonic
+    from ..real import panasonic
 
     side = panasonic.import_named(cfg, name, out_csv)
-    write_log(
-        log,
-        f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah out "
-        f"(tester: {side['discharged_ah_tester_counter']:.4f} Ah) from {side['source_file']}",
-    )
+    write_log(log, f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah "
+                   f"out (tester: {side['discharged_ah_tester_counter']:.4f} Ah) from "
+                   f"{side['source_file']}")  # fmt: skip
 
 
-# --- experiment 1 ------------------------------------------------------------------------------
+# --- experiment 1 (Panasonic), then the Samsung and NASA imports and experiments 2-3 ---------
 
 
 def _frames(paths: dict) -> dict:
@@ -88,7 +81,7 @@ def paper_fit_one(exp, base_seed, temp, model, algorithm, train_csv, tests, out_
     import numba
 
     from ..io import write_json
-    from . import drive_cycles
+    from ..real import drive_cycles
 
     numba.set_num_threads(1)
     train = _frames({"train": train_csv})["train"]
@@ -107,7 +100,7 @@ def c20_fit_one(temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
     """The C/20 circuits (library configurations on the C/20 table) fitted to the training cycle
     and run on the unseen ones."""
     from ..io import write_json
-    from . import drive_cycles
+    from ..real import drive_cycles
 
     train = _frames({"train": train_csv})["train"]
     rec = drive_cycles.c20_fits(temp, train, _frames(tests), read_ocv(ocv_csv))
@@ -144,7 +137,7 @@ def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
     its validation records named by their unseen cycle (``tests``: cycle → CSV)."""
     import json
 
-    from . import drive_cycles
+    from ..real import drive_cycles
 
     path = Path(out_dir) / "diagnosis.json"
     report = json.loads(path.read_text())
@@ -168,7 +161,7 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
 
     from ..io import atomic_path
     from ..model.fitted import FittedModel
-    from . import drive_cycles as dc
+    from ..real import drive_cycles as dc
 
     cfg = dict(cfg)
     records = [json.loads(Path(p).read_text()) for p in fit_jsons]
@@ -226,8 +219,8 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
     from ..io import atomic_path
     from ..model.ecm import Config
     from ..model.fitted import FittedModel
-    from . import cross_cycle
-    from .drive_cycles import C20_MODELS
+    from ..real import cross_cycle
+    from ..real.drive_cycles import C20_MODELS
 
     models = {
         "c20_2rc_lowsoc": Config(C20_MODELS["c20_2rc_lowsoc"], read_ocv(ocv_csv)),
@@ -240,3 +233,61 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
     diag = df[df["in_sample"]].groupby("model")["rmse_mv"].median()
     write_log(log, f"wrote {out_csv}: {len(df)} rows; median in-sample RMSE " + "; ".join(
         f"{m} {v:.1f} mV" for m, v in diag.items()))  # fmt: skip
+
+
+def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
+    from ..real import samsung
+
+    real_section(cfg, "samsung")
+    frame, side = samsung.import_hppc(cfg, temperature, out_csv)
+    write_log(log, f"wrote {out_csv}: {len(frame)} samples from {side['source_file']}")
+
+
+def nasa_import(cfg, out_csv, log=None) -> None:
+    from ..real import nasa
+
+    real_section(cfg, "nasa")
+    frame, side = nasa.import_b0005(cfg, out_csv)
+    write_log(log, f"wrote {out_csv}: {len(frame)} samples, {len(side['discharges'])} discharges")
+
+
+def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> None:
+    from ..real import arrhenius as arr
+
+    rc, table = arr.run(hppc, real_section(cfg, "samsung"), out_rc, out_arrhenius)
+    pooled = table[(table["scope"] == "pooled_pulses")].set_index("quantity")
+    write_log(
+        log,
+        f"wrote {out_rc} ({len(rc)} pulses) and {out_arrhenius}; pooled Ea [kJ/mol]: "
+        + ", ".join(f"{q} {r['ea_kj_mol']:.2f}" for q, r in pooled.iterrows()),
+    )
+
+
+def fade(cfg, record, out_states, out_fits, log=None) -> None:
+    from ..real import fade as fade_mod
+
+    table, fits = fade_mod.run(record, real_section(cfg, "nasa"), out_states, out_fits)
+    write_log(
+        log,
+        f"wrote {out_states} ({len(table)} states) and {out_fits}; RMSE: "
+        + ", ".join(f"{r.quantity}/{r.law} {r.rmse:.4g}" for r in fits.itertuples()),
+    )
+
+
+def experiments(cfg, workdir) -> dict:
+    """Experiments 2 and 3 from the configured sources, files in ``workdir`` (for
+    notebooks/real_cells.ipynb on its own); returns the four output tables by name."""
+    from ..real import arrhenius as arr
+    from ..real import fade as fade_mod
+
+    work = Path(workdir)
+    hppc = {}
+    for temperature in real_section(cfg, "samsung")["hppc"]:
+        hppc[temperature] = work / f"samsung_hppc_{temperature}.csv"
+        samsung_import(cfg, temperature, hppc[temperature])
+    rc, table = arr.run(hppc, real_section(cfg, "samsung"), work / "rc.csv", work / "arrhenius.csv")
+    nasa_import(cfg, work / "nasa_b0005.csv")
+    states, fits = fade_mod.run(
+        work / "nasa_b0005.csv", real_section(cfg, "nasa"), work / "fade.csv", work / "fade_fit.csv"
+    )
+    return {"rc": rc, "arrhenius": table, "fade": states, "fade_fit": fits}

@@ -1,45 +1,17 @@
-"""The functions the paper grid's Snakemake rules call (through ``avoa_pipeline.jobs``), with
-plain arguments. Each job is a process of its own; a fit job runs a block of seeds
-(:func:`fit_batch`), since a process start (about 1 s) would cost more than most single fits.
-Every function writes its outputs atomically and a one-line log.
-"""
+"""The fit jobs of ``workflow/rules/identify.smk``: a block of seeds of one scenario × case, every
+algorithm, in one process (:func:`fit_algorithms`), since a process start (about 1 s) would cost
+more than most single fits. Each writes its records atomically and a one-line log."""
 
 from __future__ import annotations
 
-import copy
 import json
 from pathlib import Path
 
 import numba
-import pandas as pd
-import yaml
 from threadpoolctl import threadpool_limits
 
-from . import aggregate, config, fit, problem, synthetic
-from .io import atomic_path, sha256, write_json, write_log
-
-
-def effective_config(cfg, out_yaml: str) -> None:
-    """The configuration this run used, for notebooks and for the record (checked again here:
-    it is the one job that receives the whole config)."""
-    cfg = copy.deepcopy(dict(cfg))
-    config.validate(cfg, source="snakemake config")
-    with atomic_path(out_yaml) as tmp:
-        tmp.write_text(yaml.safe_dump(cfg, sort_keys=False))
-
-
-def dataset(cfg, scenario, case, out_csv: str, log: str | None = None) -> None:
-    """One scenario × case's synthetic record. ``cfg`` needs only the parts the ``dataset`` rule
-    passes (``DATASET_PARTS``); the whole config was checked once, when the workflow started."""
-    ds = synthetic.generate(cfg, int(scenario), int(case))
-    synthetic.write(ds, out_csv)
-    write_log(log, f"wrote {out_csv}: {ds.time_s.size} samples, truth {ds.meta['true_params']}")
-
-
-DATASET_PARTS = ("base_seed", "data", "true_params", "profile", "constants", "temperatures_c")
-"""The parts of the config a synthetic dataset is made from (:func:`.config.part`)."""
-FIT_PARTS = ("budget", "bounds_used", "constants", "base_seed", "true_params")
-"""The parts of the config a fit of the paper grid reads beyond its dataset."""
+from .. import fit, problem
+from ..io import sha256, write_json, write_log
 
 
 def fit_key(cfg, data_sha256: str, scenario, case, algorithm: str, seed) -> str:
@@ -70,9 +42,8 @@ def _code_hash() -> str:
     """sha256 over the sources a fit's numbers come from (computed once per process)."""
     if not _CODE_HASH:
         import hashlib
-        from pathlib import Path
 
-        root = Path(__file__).resolve().parent
+        root = Path(__file__).resolve().parents[1]  # the package
         files = sorted([*(root / "optimizers").glob("*.py"), *(root / "model").glob("*.py"),
                         root / "problem.py", root / "fit.py", root / "seeds.py",
                         root / "synthetic.py"])  # fmt: skip
@@ -142,20 +113,3 @@ def fit_algorithms(cfg, data_csv: str, scenario, case, algorithms, seeds, out_js
     lines.append(f"{computed} computed, {kept} kept (current job_key)")
     write_log(log, "\n".join(lines))
     return {"computed": computed, "kept": kept}
-
-
-def aggregate_runs(records, runs_out: str, hist_out: str, log: str | None = None) -> None:
-    runs, hist = aggregate.from_files(records)
-    aggregate.write(runs, hist, runs_out, hist_out)
-    write_log(log, f"{len(runs)} runs, {len(hist)} history rows")
-
-
-def concat_aggregates(runs_in, hist_in, runs_out: str, hist_out: str, log: str | None = None):
-    """The per-pair aggregates of a run in one runs table and one histories table."""
-    lines = []
-    for paths, out in ((runs_in, runs_out), (hist_in, hist_out)):
-        df = pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
-        with atomic_path(out) as tmp:
-            df.to_parquet(tmp, index=False)
-        lines.append(f"{out}: {len(df)} rows from {len(paths)} files")
-    write_log(log, "\n".join(lines))
