@@ -63,11 +63,17 @@ class Problem:
         P = self.full(X)
         if self.soc0_rule == "given":
             return ise(P, self.current_a, self.voltage_v, self.ts, self.spec)
+        return np.array([ise(P[r : r + 1], self.current_a, self.voltage_v, self.ts,
+                             spec)[0] for r, spec in enumerate(self.specs(P))])  # fmt: skip
+
+    def specs(self, P: np.ndarray) -> list[ModelSpec]:
+        """Per row of full vectors ``P``, the simulation's spec with the start the rule gives
+        (``soc0_rule``: the spec's own, or each row's from the record's first sample)."""
+        if self.soc0_rule == "given":
+            return [self.spec] * P.shape[0]
         s0 = first_sample_soc0(P * self.spec.fade_factors, self.voltage_v[0], self.current_a[0],
                                self.spec.qdis_ah)  # fmt: skip
-        return np.array([ise(P[r : r + 1], self.current_a, self.voltage_v, self.ts,
-                             replace(self.spec, soc0=float(s0[r])))[0]
-                         for r in range(P.shape[0])])  # fmt: skip
+        return [replace(self.spec, soc0=float(s)) for s in s0]
 
     @cached_property
     def _one_args(self) -> tuple:
@@ -93,7 +99,8 @@ class Problem:
         return kernel.ise_one(np.ascontiguousarray(x, dtype=float), *self._one_args)
 
     def simulate(self, x_free) -> dict:
-        return simulate(self.full(x_free)[0], self.current_a, self.ts, self.spec)
+        P = self.full(x_free)
+        return simulate(P[0], self.current_a, self.ts, self.specs(P)[0])
 
     def true_free(self) -> np.ndarray | None:
         return None if self.truth is None else self.truth[self.free_index]

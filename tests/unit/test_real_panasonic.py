@@ -305,6 +305,8 @@ def test_paper_objective_is_the_kernel_ise_from_the_estimated_start():
     want = ise(X[1:], frame["current_a"], frame["voltage_v"], 1.0,
                ModelSpec(True, np.ones(6), None, s0b, 1.45))[0]  # fmt: skip
     assert got[1] == pytest.approx(want, rel=1e-12)
+    # the problem's own simulation starts where its objective does (the rule, not spec.soc0)
+    np.testing.assert_allclose(prob.simulate(truth)["voltage_v"], frame["voltage_v"], atol=1e-12)
     np.testing.assert_allclose(dc.paper_simulate(dict(zip(PARAM_NAMES, truth, strict=True)),
                                                  frame, True, 1.45), frame["voltage_v"],
                                atol=1e-12)  # fmt: skip
