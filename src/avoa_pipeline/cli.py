@@ -302,7 +302,6 @@ def cmd_recovery(args) -> None:
 def cmd_convert(args) -> None:
     from pathlib import Path
 
-    from .io import check_output
     from .real import cycler
 
     out = Path(args.out)
@@ -326,8 +325,7 @@ def cmd_convert(args) -> None:
     else:
         jobs = [(out, {"sheet": args.sheet, "concat": args.sheets == "concat"})]
     for path, _ in jobs:
-        check_output(path, inputs=[args.raw])
-        check_output(path.with_suffix(".json"), inputs=[args.raw], what="--out's sidecar")
+        _csv_and_sidecar(path, [args.raw])
     # every sheet converted before any is written: a bad sheet leaves no file
     done = [(path, *cycler.convert(args.raw, args.cycler, **options, **which))
             for path, which in jobs]  # fmt: skip

@@ -456,9 +456,9 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
         r["applicable"] = True
 
     # 2. where (the base residual, against the noise floor)
-    rec, soc, noise_v, regions, windows = _where(ctx, base)
+    rec, resid, soc, noise_v, regions, windows = _where(ctx, base)
     gap = gap_region(regions, rec.n)
-    sig = signatures(rec, ctx.v - base.v, soc, cands, base, ctx.layout.batches)
+    sig = signatures(rec, resid, soc, cands, base, ctx.layout.batches)
 
     # 4. how far
     iv = intervals.of_fit(ctx.recs, final.st, final.X)
@@ -522,8 +522,8 @@ def _context(train: list[Checked], table, capacity_ah, soc0) -> selection.Contex
 
 
 def _where(ctx: selection.Context, base: selection.ModelRun):
-    """The records joined, the base's SOC, the noise floor, and where the base misses beyond it
-    (``localize``)."""
+    """The records joined, the base's residual and SOC, the noise floor, and where the base
+    misses beyond it (``localize``)."""
     rec = Record.join(ctx.recs)
     resid = ctx.v - base.v
     soc = np.concatenate([ecm.simulate_rows(r, base.X[j], base.st.knots, ctx.table,
@@ -531,7 +531,7 @@ def _where(ctx: selection.Context, base: selection.ModelRun):
                           for j, r in enumerate(ctx.recs)])  # fmt: skip
     noise_v = noise_floor(rec, resid)
     regions, windows = localize(rec, resid, soc, noise_v)
-    return rec, soc, noise_v, regions, windows
+    return rec, resid, soc, noise_v, regions, windows
 
 
 def _selected_model(ctx, final: selection.ModelRun, iv: intervals.Intervals) -> FittedModel:
