@@ -418,11 +418,12 @@ def _model_and_record(args, data):
         return model, None
     rec = inputs.read_record(data, cycler=args.cycler, current_sign=args.current_sign)
     from . import records
+    from .model import elements
     from .model.ecm import IDX
 
     # the model's capacity tells the units the record alone cannot (minutes, mA)
     records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]))
-    needs_t = {"thermal", "bv_arrhenius"} & set(model.config.effects)
+    needs_t = {e for e in model.config.effects if elements.get(e).needs_temperature}
     if needs_t and "temperature_c" not in rec.frame.columns:
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "
                         f"{', '.join(sorted(needs_t))})")  # fmt: skip

@@ -33,8 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
-from . import records
-from .model import ecm, fitting, intervals
+from .model import ecm, elements, fitting, intervals
 from .model.ecm import Config, Knots, Record
 from .model.fitted import FittedModel, fit_model, model_of, prediction_errors
 
@@ -60,26 +59,6 @@ MIN_SHRINK = 0.05
 is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 % passed the tests).
 A true effect whose base residual is r (in noise RMS units) can remove up to r²/(1 + r²): 5 % bites
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
-
-
-WOULD_DECIDE = {
-    "second_rc": "a long rest after a load (relaxation over an hour or more)",
-    "third_rc": "a long rest after a load (relaxation over an hour or more)",
-    "diffusion": "a long rest after a load (relaxation over an hour or more)",
-    "hysteresis": "rests at one SOC reached once by charge and once by discharge",
-    "soc_resistance": "pulses at low and at high SOC",
-    "r0_soc": "pulses at low and at high SOC",
-    "r1_soc": "pulses at low and at high SOC",
-    "butler_volmer": "pulses of several currents at one SOC",
-    "thermal": "records at other temperatures",
-    "bv_arrhenius": "records at other temperatures",
-    "r0_charge": "charge pulses beside discharge pulses",
-    "current_offset": "a full charge and discharge between two rests",
-    "coulombic_efficiency": "a full charge and discharge between two rests",
-    "ocv_shape": "a slow OCV test (--ocv)",
-    "voltage_offset": "a slow OCV test (--ocv)",
-}
-"""Per element, the record that would identify it (docs/admission-rule.md)."""
 
 
 @dataclass
@@ -291,19 +270,18 @@ class Context:
 
 def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> tuple[bool, str]:
     """Whether an element can be a candidate on these records (and why not)."""
-    imax = max(r.imax() for r in recs)
-    if effect in ("thermal", "bv_arrhenius") and not any(r.temperature_varies for r in recs):
+    el = elements.get(effect)
+    if el.needs_temperature and not any(r.temperature_varies for r in recs):
         if all(r.temp_c is None for r in recs):
             return False, "no temperature_c column"
         return False, f"temperature_c spans less than {ecm.THERMAL_MIN_RANGE_C:g} °C"
-    if effect == "coulombic_efficiency" and not any(
-        (records.direction(r.i, imax) < 0).any() for r in recs
-    ):
-        return False, "no charge current"
-    if effect in ecm.REQUIRES and ecm.REQUIRES[effect] not in effects_now:
-        return False, f"needs {ecm.REQUIRES[effect]} first"
-    if effect == "voltage_offset" and table is not None:
-        return False, "a table OCV's offset is part of the base"
+    why = el.applies(recs, max(r.imax() for r in recs)) if el.applies else ""
+    if why:
+        return False, why
+    if el.requires and el.requires not in effects_now:
+        return False, f"needs {el.requires} first"
+    if "table" in el.conflicts and table is not None:
+        return False, el.conflicts["table"]
     return True, ""
 
 

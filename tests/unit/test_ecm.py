@@ -128,7 +128,7 @@ def test_the_new_elements_act_where_they_should():
     # R0(SOC): multipliers exp(basis · u) at the knots, as the physical row says
     P = ecm.to_physical(ecm.vector({**TRUTH, **ACTIVE["r0_soc"]}))[0]
     factors = np.exp(P[ecm.L0 : ecm.L0 + ecm.N_KNOTS])
-    np.testing.assert_allclose(np.log(factors), ecm.SOC_BASIS @ [0.5, -0.3, 0, 0, 0])
+    np.testing.assert_allclose(np.log(factors), ecm.VECTORS[1][2] @ [0.5, -0.3, 0, 0, 0])
     assert np.mean(np.log(factors)) == pytest.approx(0.0, abs=1e-12)  # no constant part
     # the Arrhenius factor of 1/i0 is 1 at T_ref: without a temperature column nothing moves
     flat = frame.drop(columns="temperature_c")

@@ -43,8 +43,9 @@ from scipy import stats
 
 from .. import __version__, records, selection
 from ..errors import DataError, UserError
-from ..model import ecm, fitting, intervals
+from ..model import ecm, elements, fitting, intervals
 from ..model.ecm import Record
+from ..model.elements.element import View
 from ..model.fitted import (
     FittedModel,
     reference_temperature,
@@ -275,125 +276,24 @@ def gap_region(regions: list[dict], n: int) -> dict:
 
 
 def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of) -> dict:
-    """Per effect: what the base residual looks like where that effect would act."""
-    imax = rec.imax()
-    d = records.direction(rec.i, imax)
-    rest, charge, dis = d == 0, d < 0, d > 0
-    since = time_since_step(rec)
-    mv = 1e3
-    out = {}
+    """Per element with a signature of its own (``Element.signature``): what the base residual
+    looks like where that element would act, and how much of it the element's fit explains."""
 
-    def mean(m):
-        return mv * float(np.mean(resid[m])) if m.any() else None
+    def t_mean(r):
+        return selection.loss_test(r, np.zeros_like(r), regions_of)[0]
 
-    out["second_rc"] = {
-        "acts": "relaxation after current steps (10-600 s), beyond one time constant",
-        "step_aligned_residual_mv": _step_aligned(rec, resid, since, imax),
-    }
-    # hysteresis: rest voltage depends on the last current's direction
-    last_dir = _last_direction(rec)
-    out["hysteresis"] = {
-        "acts": "rest voltage after charge above that after discharge; load offset ±M",
-        "rest_after_charge_mv": mean(rest & (last_dir < 0)),
-        "rest_after_discharge_mv": mean(rest & (last_dir > 0)),
-        "charge_mv": mean(charge),
-        "discharge_mv": mean(dis),
-    }
-    out["butler_volmer"] = {
-        "acts": "load: sign(I)·residual changes with |I| (a linear R0 cannot follow asinh)",
-        "signed_residual_by_current_mv": _current_bands(rec, resid, imax),
-    }
-    # thermal
-    if rec.temperature_varies:
-        load = ~rest
-        x = rec.i[load] * (rec.temp_c[load] - rec.temp_c.mean())
-        c = float(np.corrcoef(x, resid[load])[0, 1]) if np.std(x) > 0 else None
-        out["thermal"] = {
-            "acts": "load: residual follows I·(T − mean T)",
-            "corr_residual_vs_i_dT": c,
-        }
-    else:
-        out["thermal"] = {"acts": "load: residual follows I·(T − mean T)", "applicable": False}
-    # ocv_shape: late-rest residual by SOC band
-    late = rest & (since >= 600.0)
-    edges = np.linspace(0, 1, 6)
-    by_soc = {}
-    for j in range(5):
-        m = late & (soc >= edges[j]) & (soc < edges[j + 1] + (j == 4))
-        by_soc[f"{edges[j]:.1f}-{edges[j + 1]:.1f}"] = mean(m) if m.any() else None
-    out["ocv_shape"] = {"acts": "relaxed rest voltage against SOC", "late_rest_by_soc_mv": by_soc}
-    # current_offset, coulombic_efficiency: drifts with time / charged charge
-    th = (rec.t - rec.t[0]) / 3600.0
-    charged = np.concatenate([[0.0], np.cumsum(np.minimum(rec.i[:-1], 0) * rec.dt[:-1])]) / -3600
-    out["current_offset"] = {
-        "acts": "SOC drift with time (rest voltage trend) and a constant ohmic shift",
-        "rest_trend_mv_per_h": _slope(th[rest], resid[rest]),
-    }
-    out["coulombic_efficiency"] = {
-        "acts": "SOC falls behind after charging: rest residual against charge put in",
-        "rest_trend_mv_per_ah_charged": _slope(charged[rest], resid[rest]),
-    }
-    t_mean, _, _ = selection.loss_test(resid, np.zeros_like(resid), regions_of)
-    out["voltage_offset"] = {
-        "acts": "everywhere the same shift",
-        "mean_residual_mv": mv * float(np.mean(resid)),
-        "mean_residual_t": t_mean,
-    }
+    d = records.direction(rec.i, rec.imax())
+    view = View(rec, resid, soc, time_since_step(rec), d, rec.imax(), t_mean)
+    out = {e.name: {"acts": e.signature.acts, **e.signature.read(view)}
+           for e in elements.REGISTRY.values() if not isinstance(e.signature, str)}  # fmt: skip
     for e, run in runs.items():
         if e in out and run is not None:
             delta = run.v - base.v  # what the effect adds to the base model's voltage
-            r = resid
-            den = float(np.sum(r**2))
-            out[e]["explained_share"] = 1.0 - float(np.sum((r - delta) ** 2)) / den if den else 0.0
-            out[e]["correction_rms_mv"] = mv * float(np.sqrt(np.mean(delta**2)))
+            den = float(np.sum(resid**2))
+            share = 1.0 - float(np.sum((resid - delta) ** 2)) / den if den else 0.0
+            out[e]["explained_share"] = share
+            out[e]["correction_rms_mv"] = 1e3 * float(np.sqrt(np.mean(delta**2)))
     return out
-
-
-def _step_aligned(rec, resid, since, imax) -> dict:
-    """second_rc's signature: the mean residual after current steps, signed by the step's
-    direction, in windows of the time since the step."""
-    di = np.diff(rec.i)
-    steps = np.flatnonzero(np.abs(di) > STEP_FRACTION * imax) + 1
-    sign = np.zeros(rec.n)
-    last = np.zeros(rec.n, dtype=int)
-    last[steps] = steps
-    last = np.maximum.accumulate(last)
-    sign[steps] = np.sign(di[steps - 1])
-    sgn = sign[last]
-    aligned = {}
-    for lo, hi in ((0, 10), (10, 60), (60, 600), (600, np.inf)):
-        m = (since >= lo) & (since < hi) & (sgn != 0)
-        aligned[f"{lo}-{hi if np.isfinite(hi) else 'end'} s"] = (
-            1e3 * float(np.mean(-sgn[m] * resid[m])) if m.any() else None
-        )
-    return aligned
-
-
-def _current_bands(rec, resid, imax) -> dict:
-    """butler_volmer's signature: sign(I)·residual in bands of |I| (an overpotential that is not
-    linear in the current)."""
-    bands = {}
-    a = np.abs(rec.i)
-    for lo, hi in ((REST_FRACTION, 1 / 3), (1 / 3, 2 / 3), (2 / 3, np.inf)):
-        m = (a >= lo * imax) & (a < hi * imax)
-        bands[f"{lo:.2f}-{hi:.2f} Imax"] = (
-            1e3 * float(np.mean(np.sign(rec.i[m]) * resid[m])) if m.any() else None
-        )
-    return bands
-
-
-def _slope(x, y):
-    if x.size < 3 or np.ptp(x) == 0:
-        return None
-    return 1e3 * float(np.polyfit(x, y, 1)[0])
-
-
-def _last_direction(rec):
-    """+1 after discharge, −1 after charge, 0 before any current (per sample)."""
-    d = records.direction(rec.i, rec.imax())
-    idx = np.where(d != 0, np.arange(rec.n), 0)
-    idx = np.maximum.accumulate(idx)
-    return d[idx]
 
 
 def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) -> dict:
@@ -616,7 +516,7 @@ def _undecided(final: selection.ModelRun, iv: intervals.Intervals, n_records: in
     """The selected elements the records do not identify (docs/admission-rule.md), each with the
     record that would decide it."""
     return [
-        {"effect": e, "why": why, "would_decide": selection.WOULD_DECIDE.get(e, "another record")
+        {"effect": e, "why": why, "would_decide": elements.get(e).would_decide
          + ("; or a second profile of the cell" if n_records == 1 else "")}
         for e in final.effects if (why := selection.identified(iv, e)) is not None
     ]  # fmt: skip

@@ -11,10 +11,10 @@ formulas through PyBaMM's long-stable public API (``Interpolant``, ``exp``), whi
 JSON (``ParameterValues.to_json``) stores them in its internal expression-tree format
 (docs/pybamm.md).
 
-Every element of the model library (``ecm.EFFECTS``) has one entry in :data:`ELEMENTS`: how it
-maps onto Thevenin's parameters, or why it cannot. An element that maps contributes a
-:class:`Piece` (constants, helper functions, terms of the OCV, RC branches, factors and terms of
-the resistances); the module text is assembled from the pieces, and :func:`parameter_values`
+Every element of the model library declares how it maps onto Thevenin's parameters, or why it
+cannot (``Element.pybamm``, ``model/elements/``). An element that maps contributes a ``Piece``
+(constants, helper functions, terms of the OCV, RC branches, factors and terms of the
+resistances); the module text is assembled here from the pieces, and :func:`parameter_values`
 executes that same text, so the file and the in-process parameters cannot differ.
 
 Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
@@ -27,7 +27,6 @@ import dataclasses
 import os
 import textwrap
 import types
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +35,9 @@ import pandas as pd
 
 from .. import __version__
 from ..errors import UserError
-from ..model import ecm, fitting
+from ..model import ecm, elements, fitting
+from ..model.elements.element import Physical, Piece, flat_ends
+from ..model.elements.second_rc import rc_piece
 from ..model.fitted import FittedModel
 
 INSTALL = "pip install 'avoa-pipeline[pybamm]'"
@@ -72,209 +73,6 @@ def require_pybamm():
 # the mapping table
 
 
-@dataclass(frozen=True)
-class Piece:
-    """What one element adds to the generated module.
-
-    ``constants``: (NAME, value, comment); ``helpers``: function sources; ``ocv_terms``:
-    expressions of ``sc`` (the SOC the OCV sees) added to the OCV; ``branches``: RC branches as
-    (our branch number, R constant, τ constant); ``factors`` and ``terms``: (resistor,
-    expression of ``T_cell`` (°C), ``current`` (A, discharge positive), ``soc``) multiplying or
-    added to a resistance; the resistor is "R0", "RC" (every RC branch) or "R1".."R3".
-    """
-
-    constants: tuple[tuple[str, object, str], ...] = ()
-    helpers: tuple[str, ...] = ()
-    ocv_terms: tuple[str, ...] = ()
-    branches: tuple[tuple[int, str, str], ...] = ()
-    factors: tuple[tuple[str, str], ...] = ()
-    terms: tuple[tuple[str, str], ...] = ()
-
-
-@dataclass(frozen=True)
-class Element:
-    """How one element of the model library maps onto PyBaMM's Thevenin model (``piece``: what
-    it adds, from the fitted model and its physical row), or why it cannot (``piece`` None)."""
-
-    how: str
-    piece: Callable[[FittedModel, np.ndarray], Piece] | None = None
-
-    @property
-    def exported(self) -> bool:
-        return self.piece is not None
-
-
-def _rc(j: int, r: int, tau: int):
-    def piece(m: FittedModel, P: np.ndarray) -> Piece:
-        return Piece(
-            constants=((f"R{j}_OHM", P[r], f"RC branch {j}: resistance"),
-                       (f"TAU{j}_S", P[tau], f"RC branch {j}: time constant R{j}·C{j}")),
-            branches=((j, f"R{j}_OHM", f"TAU{j}_S"),),
-        )  # fmt: skip
-
-    return piece
-
-
-_SOC_FACTOR = '''
-def soc_factor(soc):
-    """soc_resistance: 1 + k·exp(−SOC/σ) (SOC clipped to [−0.5, 2], as avoa-pipeline does)."""
-    s = pybamm.minimum(pybamm.maximum(soc, -0.5), 2.0)
-    return 1.0 + SOC_RESISTANCE_K * pybamm.exp(-s / SOC_RESISTANCE_SIGMA)
-'''
-
-
-def _soc_resistance(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece(
-        constants=(("SOC_RESISTANCE_K", P[ecm.KLOW], "rise of the resistances at SOC 0"),
-                   ("SOC_RESISTANCE_SIGMA", P[ecm.SIG], "SOC width of the rise")),
-        helpers=(_SOC_FACTOR,),
-        factors=(("R0", "soc_factor(soc)"), ("RC", "soc_factor(soc)")),
-    )  # fmt: skip
-
-
-_ARRHENIUS = '''
-def arrhenius(theta_k, T_cell):
-    """thermal: exp(θ·(1/T − 1/T_REF_K)), T the cell temperature in K (PyBaMM passes °C)."""
-    return pybamm.exp(theta_k * (1.0 / (T_cell + 273.15) - 1.0 / T_REF_K))
-'''
-
-
-def _thermal(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece(
-        constants=(("THERMAL_THETA_R0_K", P[ecm.TH0], "Arrhenius θ = Ea/R of R0"),
-                   ("THERMAL_THETA_RC_K", P[ecm.TH1], "Arrhenius θ = Ea/R of the RC branches")),
-        helpers=(_ARRHENIUS,),
-        factors=(("R0", "arrhenius(THERMAL_THETA_R0_K, T_cell)"),
-                 ("RC", "arrhenius(THERMAL_THETA_RC_K, T_cell)")),
-    )  # fmt: skip
-
-
-_BUTLER_VOLMER = '''
-def butler_volmer(T_cell, current):
-    """butler_volmer as a resistance in series with R0: the drop (2RT/F)·asinh(I/(2·i0)) divided
-    by I; asinh(x)/x is 1 at x = 0, so it tends to RT/(F·i0) at rest. With bv_arrhenius, 1/i0
-    follows exp(θ·(1/T − 1/T_REF_K)) (θ = 0 without it)."""
-    inv_i0 = BV_INV_I0_PER_A * pybamm.exp(BV_THETA_I0_K * (1.0 / (T_cell + 273.15) - 1.0 / T_REF_K))
-    x = 0.5 * inv_i0 * current
-    nonzero = (x > 0) + (x < 0)
-    asinh_over_x = nonzero * pybamm.arcsinh(x) / (x + 1.0 - nonzero) + (1.0 - nonzero)
-    two_rt_f = 2.0 * GAS_R * (T_cell + 273.15) / FARADAY
-    return two_rt_f * 0.5 * inv_i0 * asinh_over_x
-'''
-
-
-def _butler_volmer(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece(
-        constants=(("BV_INV_I0_PER_A", P[ecm.BVG], "1/i0, the inverse exchange current"),
-                   ("BV_THETA_I0_K", P[ecm.THBV], "bv_arrhenius: θ of 1/i0 (0: none)"),
-                   ("GAS_R", ecm.GAS_R, "J/(mol K)"), ("FARADAY", ecm.FARADAY, "C/mol")),
-        helpers=(_BUTLER_VOLMER,),
-        terms=(("R0", "butler_volmer(T_cell, current)"),),
-    )  # fmt: skip
-
-
-def _bv_arrhenius(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece()  # its θ is a constant of butler_volmer's piece, which it needs
-
-
-def _soc_table(name: str, col: int, resistor: str, what: str):
-    def piece(m: FittedModel, P: np.ndarray) -> Piece:
-        knots = m.knots.grid()
-        logs = P[col : col + ecm.N_KNOTS]
-        return Piece(
-            constants=((f"{name}_SOC", _flat_ends(knots), f"{what}: knots (and a point beyond "
-                        "each end: avoa-pipeline holds the end values)"),
-                       (f"{name}_LOG", [logs[0], *logs, logs[-1]],
-                        f"{what}: log of the factor at the knots")),
-            factors=((resistor, f'pybamm.exp(pybamm.Interpolant({name}_SOC, {name}_LOG, soc, '
-                                f'"{name.lower()}"))'),),
-        )  # fmt: skip
-
-    return piece
-
-
-def _r0_charge(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece(
-        constants=(("R0_CHARGE_FACTOR", float(np.exp(P[ecm.RHO])), "R0 while charging / R0"),),
-        factors=(("R0", "(1.0 + (R0_CHARGE_FACTOR - 1.0) * (current < 0))"),),
-    )  # fmt: skip
-
-
-def _ocv_shape(m: FittedModel, P: np.ndarray) -> Piece:
-    knots = m.knots.grid()
-    d = P[ecm.D0 : ecm.D0 + ecm.N_KNOTS]
-    return Piece(
-        constants=(("OCV_SHAPE_SOC", _flat_ends(knots), "ocv_shape: knots (and a point beyond "
-                    "each end: avoa-pipeline holds the end values)"),
-                   ("OCV_SHAPE_V", [d[0], *d, d[-1]], "ocv_shape: the correction at the knots")),
-        ocv_terms=('pybamm.Interpolant(OCV_SHAPE_SOC, OCV_SHAPE_V, sc, "ocv_shape")',),
-    )  # fmt: skip
-
-
-def _voltage_offset(m: FittedModel, P: np.ndarray) -> Piece:
-    return Piece(constants=(("VOLTAGE_OFFSET_V", P[ecm.VOFF], "added to the OCV"),),
-                 ocv_terms=("VOLTAGE_OFFSET_V",))  # fmt: skip
-
-
-ELEMENTS: dict[str, Element] = {
-    "second_rc": Element("an RC branch: R2 [Ohm], C2 [F] = τ2/R2", _rc(2, ecm.R2, ecm.TAU2)),
-    "third_rc": Element("an RC branch: R3 [Ohm], C3 [F] = τ3/R3", _rc(3, ecm.R3, ecm.TAU3)),
-    "soc_resistance": Element(
-        "R0 and every R_j times 1 + k·exp(−SOC/σ) as functions of PyBaMM's SoC; C_j = τ_j/R_j, "
-        "so the time constants stay fixed as in avoa-pipeline",
-        _soc_resistance,
-    ),
-    "thermal": Element(
-        "R0 times exp(θ0·(1/T − 1/T_ref)) and every R_j times exp(θ1·(1/T − 1/T_ref)) as "
-        "functions of PyBaMM's cell temperature; C_j = τ_j/R_j. The export makes the cell "
-        "temperature follow the ambient temperature, which drive() sets from a measured one",
-        _thermal,
-    ),
-    "butler_volmer": Element(
-        "a current- and temperature-dependent resistance in series with R0: "
-        "(2RT/F)·asinh(I/(2 i0))/I, T the cell temperature (the drop is exactly the element's)",
-        _butler_volmer,
-    ),
-    "ocv_shape": Element(
-        "added to the OCV as a linear interpolant through its knots (flat beyond them)",
-        _ocv_shape,
-    ),
-    "voltage_offset": Element("added to the OCV", _voltage_offset),
-    "r0_soc": Element(
-        "R0 times exp(l(SoC)), l a linear interpolant through the knots (flat beyond them)",
-        _soc_table("R0_SOC", ecm.L0, "R0", "r0_soc"),
-    ),
-    "r1_soc": Element(
-        "R1 times exp(l(SoC)) as r0_soc; C1 = τ1/R1(SoC), so τ1 stays fixed as in avoa-pipeline",
-        _soc_table("R1_SOC", ecm.L1, "R1", "r1_soc"),
-    ),
-    "r0_charge": Element(
-        "R0 times exp(ρ) where the current is a charge (I < 0 in PyBaMM's discharge-positive "
-        "sign), as a function of PyBaMM's current",
-        _r0_charge,
-    ),
-    "bv_arrhenius": Element(
-        "butler_volmer's 1/i0 times exp(θ·(1/T − 1/T_ref)), T the cell temperature",
-        _bv_arrhenius,
-    ),
-    "diffusion": Element(
-        "PyBaMM's diffusion element (Fan 2022) is Fickian diffusion in a slab with one "
-        "parameter τ_D, which fixes both the time scales (τ_D/(n²π²)) and the size of the "
-        "surface-SOC lag (τ_D·I/(3·3600·Q) in steady state); avoa-pipeline's is a first-order lag "
-        "with its own size κ and time constant τ_d: no τ_D gives the same voltage"
-    ),
-    "hysteresis": Element("PyBaMM's Thevenin model has no hysteresis state"),
-    "current_offset": Element(
-        "an offset of the training records' current sensor, not of the cell: PyBaMM's Thevenin "
-        "model runs on the current it is given (its SOC and every drop see that current)"
-    ),
-    "coulombic_efficiency": Element(
-        "PyBaMM's Thevenin model counts charge with one capacity in both directions "
-        "(dSoC/dt = −I/(3600·Q), Q a scalar)"
-    ),
-}
-"""Element → how it maps or why it cannot: the one place that decides what the export does."""
-
 BASE_HOW = (
     "the OCV as a function of SoC (a measured table: a linear interpolant through its points, "
     "flat beyond them, plus the fitted offset; the paper's rational curve, eq. 5: its closed "
@@ -285,7 +83,7 @@ BASE_HOW = (
 
 def unsupported(model: FittedModel) -> list[str]:
     """The model's elements that PyBaMM's Thevenin model cannot hold."""
-    return [e for e in model.config.effects if not ELEMENTS[e].exported]
+    return [e for e in model.config.effects if not elements.get(e).pybamm.exported]
 
 
 def check_exportable(model: FittedModel, source: str, drop_unsupported: bool) -> list[str]:
@@ -295,7 +93,7 @@ def check_exportable(model: FittedModel, source: str, drop_unsupported: bool) ->
                         "test rig, not of the cell; PyBaMM's Thevenin model has none")  # fmt: skip
     bad = unsupported(model)
     if bad and not drop_unsupported:
-        why = "; ".join(f"{e}: {ELEMENTS[e].how}" for e in bad)
+        why = "; ".join(f"{e}: {elements.get(e).pybamm.how}" for e in bad)
         raise UserError(f"{source}: element{'s' if len(bad) > 1 else ''} {', '.join(bad)} "
                         f"cannot be exported to PyBaMM's Thevenin model ({why}); "
                         "--drop-unsupported exports the rest")  # fmt: skip
@@ -319,11 +117,6 @@ def without(model: FittedModel, elements) -> FittedModel:
 # the module text
 
 
-def _flat_ends(x) -> list[float]:
-    x = [float(v) for v in x]
-    return [x[0] - 1.0, *x, x[-1] + 1.0]
-
-
 def _plain(text: str) -> str:
     """``text`` safe inside the generated docstring and comments (file names are the user's)."""
     return str(text).replace("\\", "/").replace('"', "'").replace("\n", " ").replace("\r", " ")
@@ -341,20 +134,20 @@ def _literal(value) -> str:
     return repr(float(value))
 
 
-def _base(m: FittedModel, P: np.ndarray) -> Piece:
+def _base(m: FittedModel, p: Physical) -> Piece:
     table = m.config.table
     if table is None:
         return Piece(
-            constants=(("VNOM_V", P[ecm.VNOM], "rational OCV (eq. 5): Vnom"),
-                       ("ONE_MINUS_BETA", P[ecm.OMB], "rational OCV (eq. 5): 1 − β")),
+            constants=(("VNOM_V", p["vnom"], "rational OCV (eq. 5): Vnom"),
+                       ("ONE_MINUS_BETA", p["lc"], "rational OCV (eq. 5): 1 − β")),
             ocv_terms=("VNOM_V * sc / (ONE_MINUS_BETA + (1.0 - ONE_MINUS_BETA) * sc)",),
         )  # fmt: skip
     vals = table.values
     return Piece(
-        constants=(("OCV_SOC", _flat_ends(table.grid()), "the measured OCV: SOC (and a point "
+        constants=(("OCV_SOC", flat_ends(table.grid()), "the measured OCV: SOC (and a point "
                     "beyond each end: avoa-pipeline holds the end values)"),
                    ("OCV_V", [vals[0], *vals, vals[-1]], "the measured OCV: V"),
-                   ("OCV_OFFSET_V", P[ecm.VOFF], "the fitted offset of the table")),
+                   ("OCV_OFFSET_V", p["voff"], "the fitted offset of the table")),
         ocv_terms=('pybamm.Interpolant(OCV_SOC, OCV_V, sc, "OCV table")', "OCV_OFFSET_V"),
     )  # fmt: skip
 
@@ -521,12 +314,12 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
                   dropped: dict | None = None, file_name: str = "cell.py") -> str:  # fmt: skip
     """The text of the PyBaMM parameter module of ``model`` (already without the elements it
     cannot hold: :func:`without`); ``dropped``: element → why and what dropping it cost."""
-    cannot = [e for e in model.config.effects if not ELEMENTS[e].exported]
+    cannot = [e for e in model.config.effects if not elements.get(e).pybamm.exported]
     if cannot:
         raise ValueError(f"module_source: {', '.join(cannot)} cannot be exported; drop first")
-    P = ecm.to_physical(model.x)[0]
-    pieces = {"base": _base(model, P), "rc1": _rc(1, ecm.R1, ecm.TAU1)(model, P)}
-    pieces |= {e: ELEMENTS[e].piece(model, P) for e in model.config.effects}
+    p = ecm.physical(model.x, model.knots)
+    pieces = {"base": _base(model, p), "rc1": rc_piece(1)(p)}
+    pieces |= {e: elements.get(e).pybamm.piece(p) for e in model.config.effects}
     consts = {name: (value, note) for p in pieces.values() for name, value, note in p.constants}
     # a branch with R = 0 holds no voltage (it starts at 0): left out, the rest renumbered
     branches = sorted(b for p in pieces.values() for b in p.branches if consts[b[1]][0] != 0.0)
@@ -536,7 +329,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     def of(kind, *resistors):
         return [e for r, e in kind if r in resistors]
 
-    elements = {"base": BASE_HOW, **{e: ELEMENTS[e].how for e in model.config.effects}}
+    hows = {"base": BASE_HOW, **{e: elements.get(e).pybamm.how for e in model.config.effects}}
     text = _HEADER.format(
         version=__version__,
         source_doc=_plain(Path(source).name),
@@ -544,14 +337,14 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         file_doc=_plain(Path(file_name).name),
         source=_literal({"model": str(source), "configuration": model.config.name,
                          "avoa_pipeline": __version__}),
-        elements=_literal(elements),
+        elements=_literal(hows),
         dropped=_literal(dropped or {}),
         options=_literal({"number of rc elements": len(branches)}),
-        capacity=_literal(P[ecm.Q]),
+        capacity=_literal(p["lq"]),
         soc0=_literal(initial_soc),
         soc0_note=_plain(soc0_note),
         tref=_literal(model.tref_k),
-        r0=_literal(P[ecm.R0]),
+        r0=_literal(p["r0"]),
     )  # fmt: skip
     for name, (value, note) in consts.items():
         line = f"{name} = {_literal(value)}  # {note}\n"
@@ -680,7 +473,7 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
         d = cost["difference_mv"].abs()
         summary = {"record": str(record), "rms_mv": float(np.sqrt(np.mean(d**2))),
                    "max_abs_mv": float(d.max())}  # fmt: skip
-        dropped = {e: {"why": ELEMENTS[e].how, **summary} for e in drop}
+        dropped = {e: {"why": elements.get(e).pybamm.how, **summary} for e in drop}
     text = module_source(exported, s0, note, source, dropped, file_name)
     return Export(text, exported, drop, cost, summary, s0, note)
 
@@ -710,5 +503,5 @@ def parameter_values(model: FittedModel, soc0: float | None = None,
     model.check_cell(None, soc0, source)  # as export without a record: the 1C probe
     s0, note = initial_soc_of(model, None, soc0)
     text = module_source(without(model, drop), s0, note, source,
-                         {e: {"why": ELEMENTS[e].how} for e in drop})  # fmt: skip
+                         {e: {"why": elements.get(e).pybamm.how} for e in drop})  # fmt: skip
     return build(load_source(text))

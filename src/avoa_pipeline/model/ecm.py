@@ -47,123 +47,58 @@ paper's population kernel (``kernel.py``) stays as a specialised fast path for t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba as nb
 import numpy as np
 import pandas as pd
 
 from ..records import at_rest, current_scale
-from . import kernel
+from . import elements, kernel
+from .elements.element import FARADAY, GAS_R, N_KNOTS, Param, Physical
 
-FARADAY = 96485.33212
-GAS_R = 8.314462618
 T_DEFAULT_K = 298.15
-N_KNOTS = 6  # ocv_shape: knots over the visited SOC range (5 segments)
 TABLE_POINTS = 1001  # measured OCV tables are resampled onto this uniform SOC grid (0.1 % steps)
 
-EFFECTS = (
-    "second_rc",
-    "third_rc",
-    "soc_resistance",
-    "diffusion",
-    "hysteresis",
-    "butler_volmer",
-    "thermal",
-    "ocv_shape",
-    "current_offset",
-    "voltage_offset",
-    "coulombic_efficiency",
-    "r0_soc",
-    "r1_soc",
-    "r0_charge",
-    "bv_arrhenius",
-)
-"""Elements a model may add to its base, by their one name (config, CLI, JSON, file names)."""
+EFFECTS = elements.NAMES
+"""Elements a model may add to its base (the registry, ``model/elements/``, in its order)."""
+REQUIRES = {e.name: e.requires for e in elements.REGISTRY.values() if e.requires}
 
-REQUIRES = {"third_rc": "second_rc", "bv_arrhenius": "butler_volmer"}
-"""An element that only makes sense on top of another (a third RC branch after a second, an
-Arrhenius exchange current after Butler–Volmer)."""
+_R_WHY = "0-2 Ω: above the resistance of any cell this library models (mΩ to about 1 Ω)"
+BASE_PARAMS: dict[str, Param] = {
+    "vnom": Param("vnom_v", "lin", 0.0, (1.5, 5.0), "a lithium-ion cell's voltage",
+                  element="rational"),
+    "lc": Param("beta", "log10_1m", 0.0, (-2.0, 0.9999), "β: the OCV rises with SOC",
+                element="rational"),
+    "lq": Param("capacity_ah", "log10", 0.0, (1e-3, 1e4),
+                "1 mAh to 100 A / records.MIN_C_RATE (the largest cells)", element="base"),
+    "soc0": Param("soc0", "lin", 0.0, (0.0, 1.0), "a state of charge", per_record=True,
+                  element="base"),
+    "r0": Param("r0_ohm", "lin", 0.0, (0.0, 2.0), _R_WHY, element="base"),
+    "r1": Param("r1_ohm", "lin", 0.0, (0.0, 2.0), _R_WHY, element="base"),
+    "ltau1": Param("tau1_s", "log10", 1.0, (0.05, 2e4),
+                   "50 ms (a logger's fastest useful step) to 5.6 h", scale="tau", element="base"),
+}  # fmt: skip
+"""The base model's parameters (the rational OCV's two, then the circuit's)."""
 
 
-@dataclass(frozen=True)
-class Param:
-    report: str  # name in reports and model.json (physical value)
-    transform: str  # "lin", "log10" (x = log10 value) or "log10_1m" (x = log10(1 − value))
-    neutral: float  # internal value at which the element is absent
-    element: str  # "base", "rational" (the rational OCV), "table" or an effect of EFFECTS
-    per_record: bool = False  # an initial state: one value per record, not per cell
+def _params() -> dict[str, Param]:
+    """The base's parameters, then each element's scalars, then the vector elements' coordinates
+    (their physical values are N_KNOTS each, :data:`VECTORS`), each marked with its element."""
+    els = elements.REGISTRY.values()
+    scalars = {n: replace(p, element=e.name) for e in els if e.vector is None
+               for n, p in e.params.items()}  # fmt: skip
+    vectors = {n: replace(p, element=e.name) for e in els if e.vector is not None
+               for n, p in e.params.items()}  # fmt: skip
+    return {**BASE_PARAMS, **scalars, **vectors}
 
 
-SHAPE_NAMES = tuple(f"u{j}" for j in range(N_KNOTS - 2))
-R0S_NAMES = tuple(f"r0u{j}" for j in range(N_KNOTS - 1))
-R1S_NAMES = tuple(f"r1u{j}" for j in range(N_KNOTS - 1))
-
-PARAMS: dict[str, Param] = {
-    "vnom": Param("vnom_v", "lin", 0.0, "rational"),
-    "lc": Param("beta", "log10_1m", 0.0, "rational"),
-    "lq": Param("capacity_ah", "log10", 0.0, "base"),
-    "soc0": Param("soc0", "lin", 0.0, "base", per_record=True),
-    "r0": Param("r0_ohm", "lin", 0.0, "base"),
-    "r1": Param("r1_ohm", "lin", 0.0, "base"),
-    "ltau1": Param("tau1_s", "log10", 1.0, "base"),
-    "r2": Param("r2_ohm", "lin", 0.0, "second_rc"),
-    "ltau2": Param("tau2_s", "log10", 2.0, "second_rc"),
-    "r3": Param("r3_ohm", "lin", 0.0, "third_rc"),
-    "ltau3": Param("tau3_s", "log10", 3.0, "third_rc"),
-    "klow": Param("soc_resistance_k", "lin", 0.0, "soc_resistance"),
-    "lsig": Param("soc_resistance_sigma", "log10", -1.3, "soc_resistance"),
-    "kd": Param("diffusion_soc_per_a", "lin", 0.0, "diffusion"),
-    "ltaud": Param("diffusion_tau_s", "log10", 3.0, "diffusion"),
-    "hm": Param("hysteresis_m_v", "lin", 0.0, "hysteresis"),
-    "lgamma": Param("hysteresis_gamma", "log10", 2.0, "hysteresis"),
-    "h0": Param("hysteresis_h0", "lin", 0.0, "hysteresis", per_record=True),
-    "bvg": Param("bv_inv_i0_per_a", "lin", 0.0, "butler_volmer"),
-    "th0": Param("thermal_theta_r0_k", "lin", 0.0, "thermal"),
-    "th1": Param("thermal_theta_rc_k", "lin", 0.0, "thermal"),
-    "ioff": Param("current_offset_a", "lin", 0.0, "current_offset"),
-    "voff": Param("voltage_offset_v", "lin", 0.0, "voltage_offset"),
-    "eta": Param("coulombic_efficiency", "lin", 1.0, "coulombic_efficiency"),
-    "rho": Param("r0_charge_log_ratio", "lin", 0.0, "r0_charge"),
-    "thbv": Param("bv_theta_i0_k", "lin", 0.0, "bv_arrhenius"),
-    # the vector elements last: their coordinates map onto N_KNOTS values each (VECTORS)
-    **{n: Param(f"ocv_shape_{n}_v", "lin", 0.0, "ocv_shape") for n in SHAPE_NAMES},
-    **{n: Param(f"r0_soc_{n[2:]}", "lin", 0.0, "r0_soc") for n in R0S_NAMES},
-    **{n: Param(f"r1_soc_{n[2:]}", "lin", 0.0, "r1_soc") for n in R1S_NAMES},
-}
+PARAMS: dict[str, Param] = _params()
+"""The one table of parameters: report name, transform, neutral value, limits and their reason,
+element, and whether the value belongs to a record (initial state) rather than to the cell."""
 NAMES = tuple(PARAMS)
 
-LIMITS: dict[str, tuple[float, float]] = {
-    "vnom": (1.5, 5.0),
-    "lc": (-2.0, 0.9999),  # β: OCV rising with SOC
-    "lq": (1e-3, 1e4),  # 1 mAh to 100 A / records.MIN_C_RATE (the largest cells)
-    "soc0": (0.0, 1.0),
-    "r0": (0.0, 2.0),
-    "r1": (0.0, 2.0),
-    "ltau1": (0.05, 2e4),  # 50 ms (a logger's fastest useful step) to 5.6 h
-    "r2": (0.0, 2.0),
-    "ltau2": (0.05, 2e4),
-    "r3": (0.0, 2.0),
-    "ltau3": (0.05, 2e4),
-    "klow": (0.0, 50.0),  # the rise near empty: up to 50× at SOC 0
-    "lsig": (0.005, 0.5),  # over an SOC width of 0.5-50 %
-    "kd": (0.0, 300.0),  # surface-SOC lag: 30 % of SOC at 1 mA at most
-    "ltaud": (0.05, 2e4),
-    "hm": (0.0, 0.3),
-    "lgamma": (0.1, 1e4),
-    "h0": (-1.0, 1.0),
-    "bvg": (0.0, 1e5),  # 1/i0: an exchange current of 10 µA at least
-    "th0": (0.0, 12000.0),  # Ea/R; 12,000 K ≈ 100 kJ/mol
-    "th1": (0.0, 12000.0),
-    "ioff": (-10.0, 10.0),  # a current sensor's offset: far below any test current
-    "voff": (-0.3, 0.3),
-    "eta": (0.7, 1.0),
-    "rho": (-1.5, 1.5),  # R0 while charging 0.22-4.5 times R0 while discharging
-    "thbv": (0.0, 12000.0),  # as the thermal factors
-    **{n: (-0.5, 0.5) for n in SHAPE_NAMES},
-    # log-multipliers of R0, R1 at the knots: a factor of e^±3 (0.05-20) at most
-    **{n: (-3.0, 3.0) for n in (*R0S_NAMES, *R1S_NAMES)},
-}
+LIMITS: dict[str, tuple[float, float]] = {n: p.limits for n, p in PARAMS.items()}
 """The library's physical range of every parameter (report units), whatever the records: a
 fit's bounds (``fitting.bounds_for``) lie inside it, and a loaded ``model.json`` is judged
 against it, not against bounds read from the same file."""
@@ -173,14 +108,23 @@ NEUTRAL = np.array([PARAMS[n].neutral for n in NAMES])
 BY_REPORT = {p.report: n for n, p in PARAMS.items()}
 
 # physical layout: the scalar names, then N_KNOTS values at the knots for each vector element:
-# the OCV correction (V), the log-multipliers of R0 and of R1
-N_SCALAR = NX - len(SHAPE_NAMES) - len(R0S_NAMES) - len(R1S_NAMES)
+# the OCV correction (V), the log-multipliers of R0 and of R1. The compiled loop reads these
+# columns as constants; numba caches them with the loop and does not see a change made in
+# another file, so they are written out here and checked against the registry's layout below.
+_VECTOR_ELEMENTS = tuple(e.name for e in elements.REGISTRY.values() if e.vector is not None)
+N_SCALAR = NX - sum(len(elements.get(e).params) for e in _VECTOR_ELEMENTS)
 (VNOM, OMB, Q, SOC0, R0, R1, TAU1, R2, TAU2, R3, TAU3, KLOW, SIG, KD, TAUD, HM, GAM, H0, BVG,
  TH0, TH1, IOFF, VOFF, ETA, RHO, THBV) = range(N_SCALAR)  # fmt: skip
+_COLUMNS = ("vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1", "r2", "ltau2", "r3", "ltau3", "klow",
+            "lsig", "kd", "ltaud", "hm", "lgamma", "h0", "bvg", "th0", "th1", "ioff", "voff",
+            "eta", "rho", "thbv")  # fmt: skip
 D0 = N_SCALAR
 L0 = D0 + N_KNOTS
 L1 = L0 + N_KNOTS
 NP = L1 + N_KNOTS
+if NAMES[:N_SCALAR] != _COLUMNS or _VECTOR_ELEMENTS != ("ocv_shape", "r0_soc", "r1_soc"):
+    raise RuntimeError("the element registry's layout differs from the compiled simulator's "
+                       "columns: update ecm's column constants and ecm._loop")  # fmt: skip
 PHYS = (*NAMES[:N_SCALAR], *(f"d{j}" for j in range(N_KNOTS)),
         *(f"l0_{j}" for j in range(N_KNOTS)), *(f"l1_{j}" for j in range(N_KNOTS)))  # fmt: skip
 
@@ -194,9 +138,7 @@ def element_params(element: str, ocv_kind: str = "rational") -> tuple[str, ...]:
     if element == "base":
         base = ("lq", "soc0", "r0", "r1", "ltau1")
         return ("vnom", "lc", *base) if ocv_kind == "rational" else (*base, "voff")
-    if element not in EFFECTS:
-        raise ValueError(f"unknown element {element!r}; choose from {', '.join(EFFECTS)}")
-    return tuple(n for n, p in PARAMS.items() if p.element == element)
+    return tuple(elements.get(element).params)
 
 
 def _basis(lowest: int) -> np.ndarray:
@@ -208,23 +150,30 @@ def _basis(lowest: int) -> np.ndarray:
     return b / np.abs(b).max(axis=0)
 
 
-SHAPE_BASIS = _basis(2)
-"""ocv_shape: knot corrections orthogonal to a constant and a linear trend. A constant or a tilt
-of the OCV is already in the base model's reach (Vnom, β, capacity, SOC0, the table's offset);
-leaving them out keeps the fit well posed and keeps ocv_shape from mimicking a voltage offset
-(u in volts)."""
-SOC_BASIS = _basis(1)
-"""r0_soc, r1_soc: log-multipliers at the knots orthogonal to a constant (a constant factor is
-R0's or R1's own); a linear trend over SOC is the element's to give."""
-
-VECTORS = (
-    ("ocv_shape", SHAPE_NAMES, SHAPE_BASIS, D0),
-    ("r0_soc", R0S_NAMES, SOC_BASIS, L0),
-    ("r1_soc", R1S_NAMES, SOC_BASIS, L1),
+VECTORS = tuple(
+    (e, tuple(elements.get(e).params), _basis(elements.get(e).vector.lowest), D0 + j * N_KNOTS)
+    for j, e in enumerate(_VECTOR_ELEMENTS)
 )
 """The elements whose coordinates map onto values at the N_KNOTS SOC knots: (element, internal
-names, basis, first physical column)."""
+names, basis, first physical column). ocv_shape's basis has no constant or linear part (those
+are in the base's reach: Vnom, β, capacity, SOC0, the table's offset; leaving them out keeps the
+fit well posed and keeps ocv_shape from mimicking a voltage offset); r0_soc's and r1_soc's has
+no constant (a constant factor is R0's or R1's own)."""
 _VEC_IDX = [np.array([NAMES.index(n) for n in names]) for _, names, _, _ in VECTORS]
+
+
+def _columns(element) -> np.ndarray:
+    """An element's physical columns."""
+    for e, _, _, col in VECTORS:
+        if e == element.name:
+            return np.arange(col, col + N_KNOTS)
+    return np.array([IDX[n] for n in element.params])
+
+
+_EXTRAS = np.concatenate([_columns(e) for e in elements.REGISTRY.values()
+                          if e.compiled == "extras"])  # fmt: skip
+"""The physical columns of the elements the "extras" version of the simulator carries
+(:func:`_kernel`): the version runs where any is not zero (their neutral value)."""
 
 
 def to_physical(X: np.ndarray) -> np.ndarray:
@@ -236,6 +185,14 @@ def to_physical(X: np.ndarray) -> np.ndarray:
     for (_, _, basis, col), idx in zip(VECTORS, _VEC_IDX, strict=True):
         P[:, col : col + N_KNOTS] = X[:, idx] @ basis.T
     return P
+
+
+def physical(x: np.ndarray, knots: Knots) -> Physical:
+    """The physical values of internal vector ``x`` by name (an element's report and export)."""
+    P = to_physical(x)[0]
+    scalars = dict(zip(NAMES[:N_SCALAR], P[:N_SCALAR], strict=True))
+    at_knots = {e: P[col : col + N_KNOTS] for e, _, _, col in VECTORS}
+    return Physical(scalars, at_knots, knots.grid())
 
 
 def report(x: np.ndarray, names) -> dict[str, float]:
@@ -332,14 +289,14 @@ class Config:
 
     def __post_init__(self):
         for e in self.effects:
-            if e not in EFFECTS:
-                raise ValueError(f"unknown element {e!r}; choose from {', '.join(EFFECTS)}")
-            if e in REQUIRES and REQUIRES[e] not in self.effects:
-                raise ValueError(f"element {e!r} needs {REQUIRES[e]!r}")
-        if self.table is not None and "voltage_offset" in self.effects:
-            raise ValueError("a table OCV carries its offset in the base; no voltage_offset")
-        if self.load_ohm is not None and "butler_volmer" in self.effects:
-            raise ValueError("the load is solved for a linear ohmic drop; no butler_volmer")
+            el = elements.get(e)
+            if el.requires and el.requires not in self.effects:
+                raise ValueError(f"element {e!r} needs {el.requires!r}")
+            for feature, why in el.conflicts.items():
+                if (feature == "table" and self.table is not None) or (
+                    feature == "load" and self.load_ohm is not None
+                ):
+                    raise ValueError(f"element {e!r} cannot join a {feature}: {why}")
 
     @property
     def ocv_kind(self) -> str:
@@ -767,7 +724,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     tab = _NO_TABLE if table is None else table.values
     t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
     g = 0.0 if load_ohm is None else 1.0 / load_ohm
-    extras = bool(np.any(P[:, L0:NP] != 0.0) or np.any(P[:, [RHO, THBV]] != 0.0))
+    extras = bool(np.any(P[:, _EXTRAS] != 0.0))
     _SIMULATE[extras](P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
                       rec.uniform, rec.dinv_t, rec.two_rt_f, g, sel, out, tr)  # fmt: skip
     return (out, tr) if traces else out

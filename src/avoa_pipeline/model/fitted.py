@@ -33,7 +33,7 @@ import pandas as pd
 from .. import __version__
 from ..errors import DataError
 from ..records import VOLTAGE_RANGE_V, current_scale
-from . import ecm
+from . import ecm, elements
 from . import ocv as ocv_mod
 from .ecm import IDX, Config, Knots, Record
 
@@ -73,19 +73,10 @@ class FittedModel:
     def parameters(self) -> dict[str, float]:
         """Report-named physical values of the cell's parameters (initial states left out)."""
         out = ecm.report(self.x, self.names)
-        P = ecm.to_physical(self.x)[0]
-        grid = self.knots.grid()
-        if "ocv_shape" in self.config.effects:
-            d = P[ecm.D0 : ecm.D0 + ecm.N_KNOTS]
-            for j, s in enumerate(grid):
-                out[f"ocv_knot{j}_soc"] = float(s)
-                out[f"ocv_d{j}_v"] = float(d[j])
-        for element, col, key in (("r0_soc", ecm.L0, "r0"), ("r1_soc", ecm.L1, "r1")):
-            if element in self.config.effects:
-                factors = np.exp(P[col : col + ecm.N_KNOTS])
-                for j, s in enumerate(grid):
-                    out[f"{key}_knot{j}_soc"] = float(s)
-                    out[f"{key}_knot{j}_factor"] = float(factors[j])
+        p = ecm.physical(self.x, self.knots)
+        for e in ecm.EFFECTS:  # a vector element's values at its knots, in the registry's order
+            if e in self.config.effects and elements.get(e).vector is not None:
+                out.update(elements.get(e).vector.report(p))
         return out
 
     def record(self, frame: pd.DataFrame) -> Record:

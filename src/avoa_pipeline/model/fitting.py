@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from . import ecm
+from . import ecm, elements
 from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
 
 MAX_FIT_POINTS = 20000
@@ -79,17 +79,14 @@ def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
     tau_hi = np.log10(max(min(2e4, 2.0 * s["duration"]), 10.0 * s["dt"]))
     q_lo = max(0.01, 0.8 * s["swing"])  # no record spans more than 125 % of the capacity
     out = {n: internal_limits(n) for n in ecm.NAMES}
-    out.update({
-        "lq": (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo))),
-        "ltau1": (tau_lo, tau_hi),
-        "ltau2": (tau_lo, tau_hi),
-        "ltau3": (tau_lo, tau_hi),
-        # surface-SOC lag: at most 30 % of SOC at the record's largest current
-        "kd": (0.0, 0.3 / imax),
-        "ltaud": (tau_lo, tau_hi),
-        "bvg": (0.0, 100.0 / imax),
-        "ioff": (-0.1 * imax, 0.1 * imax),
-    })  # fmt: skip
+    for n, p in ecm.PARAMS.items():
+        if p.scale == "tau":
+            out[n] = (tau_lo, tau_hi)
+        elif p.scale == "per_a":
+            out[n] = (p.scaled[0] / imax, p.scaled[1] / imax)
+        elif p.scale == "a":
+            out[n] = (p.scaled[0] * imax, p.scaled[1] * imax)
+    out["lq"] = (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo)))
     return out
 
 
@@ -99,24 +96,13 @@ def priors_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
     the start of a block held out, an efficiency without charge in the training blocks — and
     there they keep it neutral instead of letting the trust region wander to a bound."""
     imax = _stats(recs)["imax"]
-    return {
-        "r2": (0.0, 0.1),
-        "r3": (0.0, 0.1),
-        "klow": (0.0, 5.0),
-        "kd": (0.0, 0.1 / imax),
-        "hm": (0.0, 0.05),
-        "h0": (0.0, 1.0),
-        "bvg": (0.0, 10.0 / imax),
-        "th0": (0.0, 5000.0),
-        "th1": (0.0, 5000.0),
-        "ioff": (0.0, 0.05 * imax),
-        "eta": (1.0, 0.1),
-        "voff": (0.0, 0.1),
-        "rho": (0.0, 0.5),
-        "thbv": (0.0, 5000.0),
-        **{n: (0.0, 0.05) for n in ecm.SHAPE_NAMES},
-        **{n: (0.0, 1.0) for n in (*ecm.R0S_NAMES, *ecm.R1S_NAMES)},  # a factor of e
-    }
+
+    def sd(p):
+        if p.scale == "per_a":
+            return p.prior_sd / imax
+        return p.prior_sd * imax if p.scale == "a" else p.prior_sd
+
+    return {n: (p.neutral, sd(p)) for n, p in ecm.PARAMS.items() if p.prior_sd is not None}
 
 
 @dataclass
@@ -428,57 +414,16 @@ def _ocv_start(recs, X, cap, r0, b):
 
 
 def effect_starts(recs, X_base: np.ndarray, effect: str) -> list[np.ndarray]:
-    """Starts for one added element from fitted rows (their other parameters kept)."""
+    """Starts for one added element from fitted rows (their other parameters kept): the
+    element's own starts (``Element.starts``), clipped to the records' bounds."""
     b = bounds_for(recs)
-    imax = _stats(recs)["imax"]
+    row = dict(zip(ecm.NAMES, X_base[0], strict=True))
     out = []
-
-    def with_(**kw):
+    for start in elements.get(effect).starts(row, _stats(recs)["imax"]):
         X = np.array(X_base, dtype=float)
-        for k, v in kw.items():
+        for k, v in start.items():
             X[:, IDX[k]] = np.clip(v, *b[k])
         out.append(X)
-
-    lt1 = X_base[0, IDX["ltau1"]]
-    r1 = max(X_base[0, IDX["r1"]], 1e-4)
-    if effect == "second_rc":
-        with_(r2=0.3 * r1, ltau2=lt1 - 1.0)
-        with_(r2=0.3 * r1, ltau2=lt1 + 1.0)
-    elif effect == "third_rc":
-        lt2 = X_base[0, IDX["ltau2"]]
-        slow, fast = max(lt1, lt2), min(lt1, lt2)
-        with_(r3=0.3 * r1, ltau3=slow + 1.0)
-        with_(r3=0.3 * r1, ltau3=fast - 1.0)
-    elif effect == "soc_resistance":
-        for k, sig in ((0.5, 0.05), (2.0, 0.1)):
-            with_(klow=k, lsig=np.log10(sig))
-    elif effect == "diffusion":
-        for ltd in (2.0, 3.0):
-            with_(kd=0.02 / imax, ltaud=ltd)
-    elif effect == "hysteresis":
-        for lg in (1.0, 2.0, 3.0):
-            with_(hm=0.01, lgamma=lg, h0=0.0)
-    elif effect == "butler_volmer":
-        with_(bvg=1.0 / imax)
-        with_(bvg=5.0 / imax)
-    elif effect == "thermal":
-        with_(th0=3000.0, th1=3000.0)
-    elif effect == "ocv_shape":
-        with_()
-    elif effect == "current_offset":
-        with_(ioff=0.0)
-    elif effect == "voltage_offset":
-        with_(voff=0.0)
-    elif effect == "coulombic_efficiency":
-        with_(eta=0.98)
-    elif effect in ("r0_soc", "r1_soc"):
-        with_()  # flat: the data bend it (the log-multipliers' derivatives are not zero there)
-    elif effect == "r0_charge":
-        with_(rho=0.0)
-    elif effect == "bv_arrhenius":
-        with_(thbv=3000.0)
-    else:
-        raise ValueError(f"unknown element {effect!r}")
     return out
 
 

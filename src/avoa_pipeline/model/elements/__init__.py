@@ -1,0 +1,60 @@
+"""The model library's elements, one module each, in one registry (:data:`REGISTRY`).
+
+An element is what a model may add to its base (the OCV, R0, one RC branch, the capacity and the
+initial SOC): each module defines ``ELEMENT`` (:class:`.element.Element`, which lists every part
+an element declares). Adding one: its module here, its line in the tuple below (the order is the
+ladder's order of trying them, ``selection.ladder``), its code in the compiled simulator
+(``ecm._loop``: numba compiles the loop as one function, so an element's kernel code cannot live
+in its module) with its physical columns in ``ecm``'s layout, and its row in
+docs/gap-diagnosis.md. ``tests/unit/test_elements.py`` fails while a part is missing.
+"""
+
+from __future__ import annotations
+
+from . import (
+    butler_volmer,
+    bv_arrhenius,
+    coulombic_efficiency,
+    current_offset,
+    diffusion,
+    hysteresis,
+    ocv_shape,
+    r0_charge,
+    r0_soc,
+    r1_soc,
+    second_rc,
+    soc_resistance,
+    thermal,
+    third_rc,
+    voltage_offset,
+)
+from .element import Element
+
+REGISTRY: dict[str, Element] = {
+    m.ELEMENT.name: m.ELEMENT
+    for m in (
+        second_rc,
+        third_rc,
+        soc_resistance,
+        diffusion,
+        hysteresis,
+        butler_volmer,
+        thermal,
+        ocv_shape,
+        current_offset,
+        voltage_offset,
+        coulombic_efficiency,
+        r0_soc,
+        r1_soc,
+        r0_charge,
+        bv_arrhenius,
+    )
+}
+NAMES = tuple(REGISTRY)
+"""Elements a model may add to its base, by their one name (config, CLI, JSON, file names)."""
+
+
+def get(name: str) -> Element:
+    if name not in REGISTRY:
+        raise ValueError(f"unknown element {name!r}; choose from {', '.join(NAMES)}")
+    return REGISTRY[name]

@@ -1,0 +1,23 @@
+"""An Arrhenius exchange current: Butler–Volmer's 1/i0 → (1/i0)·exp(θ(1/T − 1/Tref)); offered on
+top of ``butler_volmer`` and only where the temperature moves."""
+
+from __future__ import annotations
+
+from .element import Element, Export, Param, Piece
+from .thermal import THETA_LIMITS, THETA_WHY
+
+ELEMENT = Element(
+    name="bv_arrhenius",
+    params={"thbv": Param("bv_theta_i0_k", "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0)},
+    starts=lambda row, imax: [dict(thbv=3000.0)],
+    signature="thermal's (the residual against I·ΔT) reads it",
+    # its θ is a constant of butler_volmer's piece, which it needs
+    pybamm=Export(
+        "butler_volmer's 1/i0 times exp(θ·(1/T − 1/T_ref)), T the cell temperature",
+        lambda p: Piece(),
+    ),
+    would_decide="records at other temperatures",
+    compiled="extras",
+    requires="butler_volmer",
+    needs_temperature=True,
+)

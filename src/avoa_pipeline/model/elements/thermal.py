@@ -1,0 +1,58 @@
+"""Arrhenius resistances: R0 → R0·exp(θ0(1/T − 1/Tref)), the RC resistances → ·exp(θ1(1/T −
+1/Tref)), T the measured cell temperature. Only where the temperature moves
+(``ecm.THERMAL_MIN_RANGE_C``): otherwise the factor is a constant R0 and R1 already absorb."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .element import Element, Export, Param, Piece, Signature, View
+
+THETA_LIMITS = (0.0, 12000.0)
+THETA_WHY = "θ = Ea/R up to 12,000 K (≈ 100 kJ/mol, above any cell's activation energy)"
+
+_ARRHENIUS = '''
+def arrhenius(theta_k, T_cell):
+    """thermal: exp(θ·(1/T − 1/T_REF_K)), T the cell temperature in K (PyBaMM passes °C)."""
+    return pybamm.exp(theta_k * (1.0 / (T_cell + 273.15) - 1.0 / T_REF_K))
+'''
+
+
+def _piece(p) -> Piece:
+    return Piece(
+        constants=(("THERMAL_THETA_R0_K", p["th0"], "Arrhenius θ = Ea/R of R0"),
+                   ("THERMAL_THETA_RC_K", p["th1"], "Arrhenius θ = Ea/R of the RC branches")),
+        helpers=(_ARRHENIUS,),
+        factors=(("R0", "arrhenius(THERMAL_THETA_R0_K, T_cell)"),
+                 ("RC", "arrhenius(THERMAL_THETA_RC_K, T_cell)")),
+    )  # fmt: skip
+
+
+def _read(v: View) -> dict:
+    rec = v.rec
+    if not rec.temperature_varies:
+        return {"applicable": False}
+    load = v.direction != 0
+    x = rec.i[load] * (rec.temp_c[load] - rec.temp_c.mean())
+    c = float(np.corrcoef(x, v.resid[load])[0, 1]) if np.std(x) > 0 else None
+    return {"corr_residual_vs_i_dT": c}
+
+
+ELEMENT = Element(
+    name="thermal",
+    params={
+        "th0": Param("thermal_theta_r0_k", "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0),
+        "th1": Param("thermal_theta_rc_k", "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0),
+    },
+    starts=lambda row, imax: [dict(th0=3000.0, th1=3000.0)],
+    signature=Signature("load: residual follows I·(T − mean T)", _read),
+    pybamm=Export(
+        "R0 times exp(θ0·(1/T − 1/T_ref)) and every R_j times exp(θ1·(1/T − 1/T_ref)) as "
+        "functions of PyBaMM's cell temperature; C_j = τ_j/R_j. The export makes the cell "
+        "temperature follow the ambient temperature, which drive() sets from a measured one",
+        _piece,
+    ),
+    would_decide="records at other temperatures",
+    needs_temperature=True,
+    withheld=True,
+)

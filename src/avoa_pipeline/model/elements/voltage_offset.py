@@ -1,0 +1,37 @@
+"""A voltage sensor's offset: V += c (with a measured OCV table the offset is part of the base)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .element import Element, Export, Param, Piece, Signature, View
+
+
+def _piece(p) -> Piece:
+    return Piece(constants=(("VOLTAGE_OFFSET_V", p["voff"], "added to the OCV"),),
+                 ocv_terms=("VOLTAGE_OFFSET_V",))  # fmt: skip
+
+
+def _read(v: View) -> dict:
+    return {"mean_residual_mv": 1e3 * float(np.mean(v.resid)), "mean_residual_t": v.t_mean(v.resid)}
+
+
+ELEMENT = Element(
+    name="voltage_offset",
+    params={
+        "voff": Param(
+            "voltage_offset_v",
+            "lin",
+            0.0,
+            (-0.3, 0.3),
+            "a voltage sensor's (or an OCV table's) offset: far below a cell's voltage",
+            prior_sd=0.1,
+        )
+    },
+    starts=lambda row, imax: [dict(voff=0.0)],
+    signature=Signature("everywhere the same shift", _read),
+    pybamm=Export("added to the OCV", _piece),
+    would_decide="a slow OCV test (--ocv)",
+    conflicts={"table": "a table OCV's offset is part of the base"},
+    withheld=True,
+)
