@@ -57,12 +57,12 @@ def test_kernel_reads_each_column(name):
     """The compiled loop reads every physical column of the element (its code is there)."""
     src = inspect.getsource(ecm._loop)
     const = {v: k for k, v in vars(ecm).items() if k.isupper() and isinstance(v, int)}
-    cols = ecm._columns(elements.get(name))
+    cols = ecm.columns(elements.get(name))
     vec = any(v == name for v, *_ in ecm.VECTORS)
     names = {const[int(cols[0])]} if vec else {const[int(c)] for c in cols}
     for n in names:
         assert re.search(rf"P\[:, {n}\b", src), n
-    assert elements.get(name).compiled == "core" or bool(set(cols) <= set(ecm._EXTRAS))
+    assert elements.get(name).compiled == "core" or bool(set(cols) <= set(ecm.EXTRAS_COLUMNS))
 
 
 def test_docs_table_has_one_row_per_element():

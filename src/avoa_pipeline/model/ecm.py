@@ -1,11 +1,12 @@
 """The one equivalent-circuit model library: a base plus composable elements, one compiled
-simulator for any combination, one parameter registry, one initial-SOC rule.
+simulator for any combination, one parameter table, one initial-SOC rule.
 
 In the spirit of PyBaMM's Thevenin model (a base and elements assembled from validated options):
 a model is an OCV source (the paper's rational eq. 5, or a measured table), R0, one RC branch, a
-capacity and an initial SOC, plus any of the elements of :data:`EFFECTS`. The paper's model
-(``battery.py``/``kernel.py``), the C/20 circuits of the real-data experiment and the diagnosis's
-candidates are configurations of it. ``gap/withheld.py`` stays independent on purpose (the test
+capacity and an initial SOC, plus any of the elements of :data:`EFFECTS` (each declared in its
+own module of ``model/elements/``; this module holds the base and the compiled simulator). The
+paper's model (``battery.py``/``kernel.py``), the C/20 circuits of the real-data experiment and
+the diagnosis's candidates are configurations of it. ``gap/withheld.py`` stays independent on purpose (the test
 oracle).
 
 Per sample k (current i positive = discharge, Δt_k = t[k+1] − t[k], zero-order hold; one sign
@@ -33,10 +34,11 @@ base and elements stack.
 Two vectors per parameter set. *Internal* (the optimiser's coordinates, :data:`NAMES`): log10 for
 capacity, time constants, σ and the hysteresis rate, log10(1 − β) for the OCV curvature, and the
 free coordinates u of the OCV correction. *Physical* (the simulator's, :data:`PHYS`): the values
-themselves, with 1 − β and the correction at the knots. :data:`PARAMS` is the one registry: report
-name, transform, neutral value, element, and whether the value belongs to a record (initial state)
-rather than to the cell. Bounds and priors depend on the records' current scale:
-:func:`bounds_for`, :func:`priors_for`.
+themselves, with 1 − β and the correction at the knots. :data:`PARAMS` is the one table of
+parameters (the base's here, the elements' from their modules): report name, transform, neutral
+value, limits and their reason, element, and whether the value belongs to a record (initial
+state) rather than to the cell. A fit's bounds and priors follow the records' current scale
+(``fitting.bounds_for``, ``fitting.priors_for``).
 
 Why hand-written numerics: the recursion is sequential in time and its current depends on the
 voltage under a load, so it is compiled with numba; one call steps a whole set of parameter rows
@@ -162,7 +164,7 @@ no constant (a constant factor is R0's or R1's own)."""
 _VEC_IDX = [np.array([NAMES.index(n) for n in names]) for _, names, _, _ in VECTORS]
 
 
-def _columns(element) -> np.ndarray:
+def columns(element) -> np.ndarray:
     """An element's physical columns."""
     for e, _, _, col in VECTORS:
         if e == element.name:
@@ -170,7 +172,7 @@ def _columns(element) -> np.ndarray:
     return np.array([IDX[n] for n in element.params])
 
 
-_EXTRAS = np.concatenate([_columns(e) for e in elements.REGISTRY.values()
+EXTRAS_COLUMNS = np.concatenate([columns(e) for e in elements.REGISTRY.values()
                           if e.compiled == "extras"])  # fmt: skip
 """The physical columns of the elements the "extras" version of the simulator carries
 (:func:`_kernel`): the version runs where any is not zero (their neutral value)."""
@@ -724,7 +726,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     tab = _NO_TABLE if table is None else table.values
     t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
     g = 0.0 if load_ohm is None else 1.0 / load_ohm
-    extras = bool(np.any(P[:, _EXTRAS] != 0.0))
+    extras = bool(np.any(P[:, EXTRAS_COLUMNS] != 0.0))
     _SIMULATE[extras](P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
                       rec.uniform, rec.dinv_t, rec.two_rt_f, g, sel, out, tr)  # fmt: skip
     return (out, tr) if traces else out
