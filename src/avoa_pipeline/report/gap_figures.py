@@ -4,9 +4,6 @@
   and the voltage and residual traces before and after the verdict effect.
 - :func:`fig_confusion`, :func:`fig_accuracy`, :func:`fig_shrink`, :func:`fig_detection_limit`:
   the withheld-effect check (:mod:`..gap.evaluate`), from its tables.
-
-Built on :class:`matplotlib.figure.Figure` directly (Agg canvas, no pyplot state), as
-:mod:`.figures` is.
 """
 
 from __future__ import annotations

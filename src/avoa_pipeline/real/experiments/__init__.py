@@ -1,2 +1,1 @@
-"""The real-data experiments: canonical records → numbers and tables with ``model/``; their
-figures are drawn in ``report/real_figures.py`` (docs/real-data.md)."""
+"""Real-data experiments: records → tables with ``model/`` (drawn by ``report.real_figures``)."""

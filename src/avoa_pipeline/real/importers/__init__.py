@@ -1,2 +1,1 @@
-"""Importers of measured cells: raw files → checked canonical records (``records.write``);
-none imports ``model/`` (docs/real-data.md)."""
+"""Importers: measured cells' raw files → checked canonical records; none imports ``model/``."""
