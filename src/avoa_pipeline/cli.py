@@ -302,7 +302,7 @@ def cmd_recovery(args) -> None:
 def cmd_convert(args) -> None:
     from pathlib import Path
 
-    from .real import cycler
+    from .real.importers import cycler
 
     out = Path(args.out)
     if out.suffix.lower() != ".csv":
@@ -350,8 +350,9 @@ def cmd_diagnose(args) -> None:
     from pathlib import Path
 
     from . import inputs
-    from .gap import diagnose, figure
+    from .gap import diagnose
     from .io import atomic_paths, check_output
+    from .report import gap_figures as figure
 
     out = Path(args.out)
     given = [*args.data, *args.validate, *([args.ocv] if args.ocv else [])]

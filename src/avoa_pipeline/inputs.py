@@ -51,7 +51,7 @@ def _refuse_raw_export(path: Path) -> None:
     say which cycler it looks like (``real.cycler.sniff``, the header alone) and the flag."""
     if not path.is_file() or is_canonical(path):
         return
-    from .real import cycler as cyc
+    from .real.importers import cycler as cyc
 
     hint = cyc.looks_like(path)
     if hint:
@@ -67,7 +67,7 @@ def _read(path, cycler: str | None, current_sign: str) -> records.Checked:
         raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
     path = Path(path)
     if cycler is not None and not is_canonical(path):
-        from .real import cycler as cyc
+        from .real.importers import cycler as cyc
 
         frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
         origin = {"read_as": f"{cycler} export", "conversion": info}

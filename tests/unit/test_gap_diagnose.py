@@ -10,8 +10,9 @@ from test_ecm import TRUTH, profile_frame, with_voltage
 
 from avoa_pipeline import inputs, records, selection
 from avoa_pipeline.cli import main
-from avoa_pipeline.gap import diagnose, diagnoses, figure
+from avoa_pipeline.gap import diagnose, diagnoses
 from avoa_pipeline.model import ecm
+from avoa_pipeline.report import gap_figures as figure
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ from avoa_pipeline.errors import ConfigError
 from avoa_pipeline.gap import EFFECTS, VERDICTS, diagnoses
 from avoa_pipeline.gap import evaluate as ev
 from avoa_pipeline.gap import withheld as W
+from avoa_pipeline.report import gap_figures
 
 SEED = 7
 # a magnitude per effect that is clearly visible, in the unit of W.UNITS
@@ -263,9 +264,9 @@ def test_paper_scenarios_fade_is_absorbed_by_the_base_model(tmp_path):
 
 def test_figures_are_written(tmp_path):
     df = _hand_made()
-    ev.fig_confusion(df, tmp_path / "c")
-    ev.fig_accuracy(ev.accuracy(df), tmp_path / "a")
-    ev.fig_shrink(df, tmp_path / "s")
-    ev.fig_detection_limit(ev.detection_limit(df), tmp_path / "d")
+    gap_figures.fig_confusion(df, tmp_path / "c")
+    gap_figures.fig_accuracy(ev.accuracy(df), tmp_path / "a")
+    gap_figures.fig_shrink(df, tmp_path / "s")
+    gap_figures.fig_detection_limit(ev.detection_limit(df), tmp_path / "d")
     for name in "casd":
         assert (tmp_path / f"{name}.png").read_bytes()[:4] == b"\x89PNG"

@@ -14,8 +14,8 @@ from avoa_pipeline.errors import DataError
 from avoa_pipeline.jobs import real as jobs
 from avoa_pipeline.model import ecm
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.real import cross_cycle
-from avoa_pipeline.real import drive_cycles as dc
+from avoa_pipeline.real.experiments import cross_cycle
+from avoa_pipeline.real.experiments import drive_cycles as dc
 
 TRUTH = {"capacity_ah": 2.8, "r0_ohm": 0.03, "r1_ohm": 0.012, "tau1_s": 25.0,
          "voltage_offset_v": 0.005}  # fmt: skip

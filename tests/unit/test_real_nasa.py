@@ -9,7 +9,8 @@ import pytest
 
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
-from avoa_pipeline.real import fade, nasa
+from avoa_pipeline.real.experiments import fade
+from avoa_pipeline.real.importers import nasa
 
 NASA_CFG = {
     "cutoff_v": 2.7,
@@ -178,7 +179,7 @@ def test_fade_law_rejects_bad_input():
 
 
 def test_fade_experiment_on_the_real_record(real_cfg, imported, tmp_path):
-    table, fits = fade.run(
+    table, fits = fade.experiment(
         imported, real_cfg["real"]["nasa"], tmp_path / "f.csv", tmp_path / "g.csv"
     )
     assert len(table) == 168

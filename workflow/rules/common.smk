@@ -112,8 +112,8 @@ def scenario_runs(w):
     return [f"results/aggregate/s{s}/c{c}/runs.parquet" for c in CASE_LIST if ran(s, c)]
 
 # --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
-from avoa_pipeline.real import drive_cycles as real_dc
-from avoa_pipeline.real import panasonic as real_panasonic
+from avoa_pipeline.real.experiments import drive_cycles as real_dc
+from avoa_pipeline.real.importers import panasonic as real_panasonic
 
 REAL = config.get("real") or {}
 REAL_ROOT = Path(REAL["root"]) if REAL else None

@@ -13,7 +13,7 @@ from ..plan import real_section
 
 
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
-    from ..real import panasonic
+    from ..real.importers import panasonic
 
     side = panasonic.import_named(cfg, name, out_csv)
     write_log(log, f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah "
@@ -81,7 +81,7 @@ def paper_fit_one(exp, base_seed, temp, model, algorithm, train_csv, tests, out_
     import numba
 
     from ..io import write_json
-    from ..real import drive_cycles
+    from ..real.experiments import drive_cycles
 
     numba.set_num_threads(1)
     train = _frames({"train": train_csv})["train"]
@@ -100,7 +100,7 @@ def c20_fit_one(temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
     """The C/20 circuits (library configurations on the C/20 table) fitted to the training cycle
     and run on the unseen ones."""
     from ..io import write_json
-    from ..real import drive_cycles
+    from ..real.experiments import drive_cycles
 
     train = _frames({"train": train_csv})["train"]
     rec = drive_cycles.c20_fits(temp, train, _frames(tests), read_ocv(ocv_csv))
@@ -137,7 +137,7 @@ def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
     its validation records named by their unseen cycle (``tests``: cycle → CSV)."""
     import json
 
-    from ..real import drive_cycles
+    from ..real.experiments import drive_cycles
 
     path = Path(out_dir) / "diagnosis.json"
     report = json.loads(path.read_text())
@@ -161,7 +161,7 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
 
     from ..io import atomic_path
     from ..model.fitted import FittedModel
-    from ..real import drive_cycles as dc
+    from ..real.experiments import drive_cycles as dc
 
     cfg = dict(cfg)
     records = [json.loads(Path(p).read_text()) for p in fit_jsons]
@@ -219,8 +219,8 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
     from ..io import atomic_path
     from ..model.ecm import Config
     from ..model.fitted import FittedModel
-    from ..real import cross_cycle
-    from ..real.drive_cycles import C20_MODELS
+    from ..real.experiments import cross_cycle
+    from ..real.experiments.drive_cycles import C20_MODELS
 
     models = {
         "c20_2rc_lowsoc": Config(C20_MODELS["c20_2rc_lowsoc"], read_ocv(ocv_csv)),
@@ -236,7 +236,7 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
 
 
 def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
-    from ..real import samsung
+    from ..real.importers import samsung
 
     real_section(cfg, "samsung")
     frame, side = samsung.import_hppc(cfg, temperature, out_csv)
@@ -244,7 +244,7 @@ def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
 
 
 def nasa_import(cfg, out_csv, log=None) -> None:
-    from ..real import nasa
+    from ..real.importers import nasa
 
     real_section(cfg, "nasa")
     frame, side = nasa.import_b0005(cfg, out_csv)
@@ -252,9 +252,9 @@ def nasa_import(cfg, out_csv, log=None) -> None:
 
 
 def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> None:
-    from ..real import arrhenius as arr
+    from ..real.experiments import arrhenius as arr
 
-    rc, table = arr.run(hppc, real_section(cfg, "samsung"), out_rc, out_arrhenius)
+    rc, table = arr.experiment(hppc, real_section(cfg, "samsung"), out_rc, out_arrhenius)
     pooled = table[(table["scope"] == "pooled_pulses")].set_index("quantity")
     write_log(
         log,
@@ -264,9 +264,9 @@ def arrhenius(cfg, hppc: Mapping[str, str], out_rc, out_arrhenius, log=None) -> 
 
 
 def fade(cfg, record, out_states, out_fits, log=None) -> None:
-    from ..real import fade as fade_mod
+    from ..real.experiments import fade as fade_mod
 
-    table, fits = fade_mod.run(record, real_section(cfg, "nasa"), out_states, out_fits)
+    table, fits = fade_mod.experiment(record, real_section(cfg, "nasa"), out_states, out_fits)
     write_log(
         log,
         f"wrote {out_states} ({len(table)} states) and {out_fits}; RMSE: "
@@ -277,17 +277,18 @@ def fade(cfg, record, out_states, out_fits, log=None) -> None:
 def experiments(cfg, workdir) -> dict:
     """Experiments 2 and 3 from the configured sources, files in ``workdir`` (for
     notebooks/real_cells.ipynb on its own); returns the four output tables by name."""
-    from ..real import arrhenius as arr
-    from ..real import fade as fade_mod
+    from ..real.experiments import arrhenius as arr
+    from ..real.experiments import fade as fade_mod
 
     work = Path(workdir)
     hppc = {}
     for temperature in real_section(cfg, "samsung")["hppc"]:
         hppc[temperature] = work / f"samsung_hppc_{temperature}.csv"
         samsung_import(cfg, temperature, hppc[temperature])
-    rc, table = arr.run(hppc, real_section(cfg, "samsung"), work / "rc.csv", work / "arrhenius.csv")
+    rc, table = arr.experiment(hppc, real_section(cfg, "samsung"), work / "rc.csv",
+                               work / "arrhenius.csv")  # fmt: skip
     nasa_import(cfg, work / "nasa_b0005.csv")
-    states, fits = fade_mod.run(
+    states, fits = fade_mod.experiment(
         work / "nasa_b0005.csv", real_section(cfg, "nasa"), work / "fade.csv", work / "fade_fit.csv"
     )
     return {"rc": rc, "arrhenius": table, "fade": states, "fade_fit": fits}

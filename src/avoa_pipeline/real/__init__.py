@@ -1,2 +1,2 @@
-"""Measured cell data: import into the canonical form and the real-data experiments
-(see docs/real-data.md)."""
+"""Measured cell data: :mod:`.importers` (raw files → canonical records) and :mod:`.experiments`
+(what ``model/`` makes of them); see docs/real-data.md."""

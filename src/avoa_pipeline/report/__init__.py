@@ -5,7 +5,8 @@
   LaTeX, written atomically).
 - :mod:`.claims`: :func:`.claims.claims`, the paper's claims decided under the paper's protocol
   and at equal evaluations.
-- :mod:`.figures` (imported on its own; it needs matplotlib): Figures 1-21.
+- :mod:`.figures` (Figures 1-21), :mod:`.gap_figures`, :mod:`.real_figures`: the package's only
+  drawing (each imported on its own; they need matplotlib).
 
 The submodules are imported here, their functions are not re-exported (``report.claims`` is the
 module, ``report.claims.claims`` the function). Every function takes DataFrames or dicts and

@@ -38,13 +38,13 @@ import time
 import numpy as np
 import pandas as pd
 
-from .. import problem, seeds
-from ..errors import ConfigError, DataError
-from ..io import uniform_step
-from ..model import ecm
-from ..model.battery import PARAM_NAMES, first_sample_soc0, run_on_record
-from ..model.fitted import fit_model, prediction_errors
-from ..optimizers import ALGORITHMS, Budget, minimize
+from ... import problem, seeds
+from ...errors import ConfigError, DataError
+from ...io import uniform_step
+from ...model import ecm
+from ...model.battery import PARAM_NAMES, first_sample_soc0, run_on_record
+from ...model.fitted import fit_model, prediction_errors
+from ...optimizers import ALGORITHMS, Budget, minimize
 
 PAPER_MODELS = {"paper_rc": True, "paper_norc": False}  # name → dynamics (the RC branch)
 C20_MODELS = {"c20_rc": (), "c20_2rc_lowsoc": ("second_rc", "soc_resistance")}
@@ -168,7 +168,7 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
 
 def median_run(runs: list[dict]) -> dict:
     """The run with the median training RMSE (``report.stats.median_position``)."""
-    from ..report.stats import median_position
+    from ...report.stats import median_position
 
     return runs[median_position([r["train_rmse_mv"] for r in runs])]
 

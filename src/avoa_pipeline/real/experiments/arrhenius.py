@@ -38,12 +38,12 @@ import numpy as np
 import pandas as pd
 from scipy import constants, stats
 
-from .. import records
-from ..errors import DataError
-from ..io import atomic_path
-from ..model import ecm
-from ..model.ecm import Config, OcvTable
-from ..model.fitted import fit_model
+from ... import records
+from ...errors import DataError
+from ...io import atomic_path
+from ...model import ecm
+from ...model.ecm import Config, OcvTable
+from ...model.fitted import fit_model
 
 GAS_CONSTANT = constants.R  # J/(mol K)
 ZERO_C = constants.zero_Celsius
@@ -370,78 +370,14 @@ def _write_csv(df: pd.DataFrame, path) -> None:
         df.to_csv(tmp, index=False)
 
 
-def run(canonical_csvs: Mapping[str, str | Path], cfg_samsung: Mapping, out_rc, out_arrhenius):
+def experiment(canonical_csvs: Mapping[str, str | Path], cfg_samsung: Mapping, out_rc,
+               out_arrhenius):  # fmt: skip
     """Experiment 2 end to end: both CSV outputs, written atomically; returns both tables."""
     rc = rc_vs_temperature(canonical_csvs, cfg_samsung)
     arr = arrhenius_table(rc)
     _write_csv(rc, out_rc)
     _write_csv(arr, out_arrhenius)
     return rc, arr
-
-
-# --------------------------------------------------------------------------------------------
-# figure
-
-_QUANTITY_LABELS = {
-    "r0_step_ohm": ("$R_o$ (1 s step)", "mΩ", 1e3),
-    "r0_fit_ohm": ("$R_o$ (fit)", "mΩ", 1e3),
-    "rtr_ohm": ("$R_{tr}$", "mΩ", 1e3),
-    "tau_s": (r"$\tau_{tr}$", "s", 1.0),
-}
-
-
-def figure(rc: pd.DataFrame, arr: pd.DataFrame, stem) -> None:
-    """R0, Rtr, τ against SOC per temperature (top) and their Arrhenius plots (bottom)."""
-    from matplotlib.figure import Figure
-
-    from ..report.figures import save
-
-    shown = ("r0_step_ohm", "rtr_ohm", "tau_s")
-    fig = Figure(figsize=(11, 6.6), layout="constrained")
-    axes = fig.subplots(2, 3)
-    temps = sorted(rc["ambient_c"].unique())
-    colors = dict(zip(temps, ("#1f77b4", "#2ca02c", "#d62728", "#9467bd", "#8c564b"), strict=False))
-    for col, q in enumerate(shown):
-        name, unit, scale = _QUANTITY_LABELS[q]
-        ax = axes[0, col]
-        for t in temps:
-            sub = rc[rc["ambient_c"] == t].sort_values("soc_pct")
-            ax.plot(sub["soc_pct"], sub[q] * scale, "o-", ms=3, color=colors[t], label=f"{t:g} °C")
-        ax.set_xlabel("SOC [%] (nominal 3.0 Ah)")
-        ax.set_ylabel(f"{name} [{unit}]")
-        ax.invert_xaxis()
-        ax.grid(alpha=0.3)
-        if col == 0:
-            ax.legend(fontsize=8)
-        ax = axes[1, col]
-        pool = rc[rc["pooled"]]
-        ln = np.log(pool[q].to_numpy())
-        adj = ln - pool.assign(ln=ln).groupby("pulse")["ln"].transform("mean").to_numpy()
-        x = 1000.0 / (pool["cell_temp_c"].to_numpy() + ZERO_C)
-        ax.scatter(x, adj, s=8, c=[colors[t] for t in pool["ambient_c"]], alpha=0.6)
-        text = []
-        for scope in ("pooled_pulses", "pooled_runs"):
-            row = arr[(arr["quantity"] == q) & (arr["scope"] == scope)]
-            if row.empty:
-                continue
-            r = row.iloc[0]
-            text.append(
-                f"{scope.replace('_', ' ')}: Ea = {r['ea_kj_mol']:.1f} kJ/mol, "
-                f"95 % CI [{r['ea_ci_low_kj_mol']:.1f}, {r['ea_ci_high_kj_mol']:.1f}]"
-            )
-            if scope == "pooled_pulses":
-                slope = r["ea_kj_mol"] * 1e3 / GAS_CONSTANT / 1000.0
-                xx = np.linspace(x.min(), x.max(), 10)
-                ax.plot(xx, slope * (xx - x.mean()) + adj.mean(), "k-", lw=1)
-        ax.set_title("\n".join(text), fontsize=7)
-        ax.set_xlabel("1000 / T [1/K] (cell temperature)")
-        ax.set_ylabel(f"ln {name} − its SOC mean")
-        ax.grid(alpha=0.3)
-    fig.suptitle(
-        "Samsung INR18650-30Q (cell DNN01) HPPC 1C pulses: 1-RC parameters against temperature",
-        fontsize=10,
-    )
-    save(fig, stem)
 
 
 def summary(arr: pd.DataFrame) -> pd.DataFrame:

@@ -52,10 +52,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from .. import records
-from ..errors import DataError
-from ..io import atomic_path
-from .nasa import discharge_slices
+from ... import records
+from ...errors import DataError
+from ...io import atomic_path
+from ..importers.nasa import discharge_slices
 
 LOAD_ON_FRACTION = 0.0
 """Where in the interval between the last rest sample and the first loaded sample the load is
@@ -263,7 +263,7 @@ def _write_csv(df: pd.DataFrame, path) -> None:
         df.to_csv(tmp, index=False)
 
 
-def run(canonical_csv, cfg_nasa: Mapping, out_states, out_fits):
+def experiment(canonical_csv, cfg_nasa: Mapping, out_states, out_fits):
     """Experiment 3 end to end: both CSV outputs, written atomically; returns both tables."""
     record = records.read(canonical_csv)
     st = states(record.frame, record.meta, cfg_nasa, str(canonical_csv))
@@ -271,65 +271,6 @@ def run(canonical_csv, cfg_nasa: Mapping, out_states, out_fits):
     _write_csv(table, out_states)
     _write_csv(fits, out_fits)
     return table, fits
-
-
-# --------------------------------------------------------------------------------------------
-# figure
-
-_LAW_STYLE = {
-    "sqrt": ("#d62728", "-", "√n (eqs. 8-9)"),
-    "linear": ("#1f77b4", "--", "linear in n"),
-    "power": ("#2ca02c", ":", "n^z, z free"),
-}
-
-
-def figure(table: pd.DataFrame, fits: pd.DataFrame, stem) -> None:
-    """Measured capacity and resistance against the fade laws (top), sqrt-law residuals (bottom)."""
-    from matplotlib.figure import Figure
-
-    from ..report.figures import save
-
-    fig = Figure(figsize=(11, 6.6), layout="constrained")
-    axes = fig.subplots(2, 2, sharex=True, height_ratios=(2, 1))
-    k = table["discharge"].to_numpy()
-    rest = table["after_long_rest"].to_numpy(dtype=bool)
-    for col, (q, label, scale) in enumerate(
-        (
-            ("capacity_ah", "capacity to 2.7 V [Ah]", 1.0),
-            ("resistance_ohm", "20-s DC resistance [mΩ]", 1e3),
-        )
-    ):
-        ax = axes[0, col]
-        y = table[q].to_numpy() * scale
-        ax.plot(k, y, "o", ms=3, color="0.35", label="measured")
-        ax.plot(k[rest], y[rest], "o", ms=7, mfc="none", color="#ff7f0e", label="after a long rest")
-        for law in LAWS:
-            color, ls, text = _LAW_STYLE[law]
-            f = fits[(fits["quantity"] == q) & (fits["law"] == law)].iloc[0]
-            ax.plot(
-                k,
-                table[f"{q}_{law}"] * scale,
-                ls,
-                color=color,
-                lw=1.5,
-                label=f"{text}: RMSE {f['rmse'] * scale:.3g}, ΔAIC {f['delta_aic']:.1f}"
-                + (f", z = {f['z']:.2f}" if law == "power" else ""),
-            )
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-        ax = axes[1, col]
-        ax.axhline(0, color="0.5", lw=0.8)
-        resid = (table[q] - table[f"{q}_sqrt"]).to_numpy() * scale
-        ax.plot(k, resid, "-", color="#d62728", lw=0.8)
-        ax.plot(k[rest], resid[rest], "o", ms=6, mfc="none", color="#ff7f0e")
-        ax.set_ylabel("measured − √n law")
-        ax.set_xlabel("discharge k (n = k − 1)")
-        ax.grid(alpha=0.3)
-    fig.suptitle(
-        "NASA PCoE B0005, 2 A discharges at 168 ageing states: the paper's fade law", fontsize=10
-    )
-    save(fig, stem)
 
 
 def summary(fits: pd.DataFrame) -> pd.DataFrame:

@@ -1,9 +1,8 @@
-"""Experiment 1's figure and table, from the workflow's outputs alone (or a small demo run).
+"""Experiment 1's table, from the workflow's outputs alone (or a small demo run); its figure is
+``report.real_figures.drive_cycle_figure``.
 
 - :func:`summary_table`: RMSE per unseen cycle, one row per model and temperature, with the median
   over the unseen cycles (the goal's figure of merit) and the median maximum error.
-- :func:`figure`: measured against predicted voltage on each temperature's figure cycle, with
-  the error below; the paper model shown is its best optimizer by median RMSE.
 - :func:`demo`: the same three inputs from a reduced experiment (25 °C, US06 unseen, Nelder–Mead
   with one seed and a small budget), so the notebook runs on its own.
 """
@@ -14,11 +13,7 @@ import copy
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
-
-from ..report.figures import save
 
 
 def summary_table(rmse: pd.DataFrame) -> pd.DataFrame:
@@ -35,61 +30,13 @@ def summary_table(rmse: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index(drop=True)
 
 
-def shown_models(rmse: pd.DataFrame, temperature_c: float) -> list[str]:
-    """The models drawn at one temperature: the best paper model with and without the RC
-    branch and every other model (those with predicted voltages: the C/20 circuits and each
-    diagnosis's selected model)."""
-    at = rmse[rmse["temperature_c"] == temperature_c]
-    med = at.groupby("model")["rmse_mv"].median()
-    out = []
-    for prefix in ("paper_rc_", "paper_norc_"):
-        cands = med[med.index.str.startswith(prefix)]
-        if len(cands):
-            out.append(str(cands.idxmin()))
-    out += [m for m in med.index if not m.startswith("paper_")]
-    return out
-
-
-def figure(pred: pd.DataFrame, rmse: pd.DataFrame, ambient: dict[str, float], stem) -> None:
-    """Measured and predicted voltage of each temperature's figure cycle → stem.png, stem.pdf."""
-    temps = list(dict.fromkeys(pred["temperature"]))
-    fig = Figure(figsize=(10, 3.4 * max(1, len(temps))), layout="constrained")
-    axes = fig.subplots(2 * max(1, len(temps)), 1, height_ratios=[2, 1] * max(1, len(temps)))
-    for k, temp in enumerate(temps):
-        ax_v, ax_e = axes[2 * k], axes[2 * k + 1]
-        part = pred[pred["temperature"] == temp]
-        cycle = part["cycle"].iloc[0]
-        first = part[part["model"] == part["model"].iloc[0]]
-        t_h = first["time_s"].to_numpy() / 3600.0
-        measured = first["measured_v"].to_numpy()
-        ax_v.plot(t_h, measured, color="k", lw=0.6, label="measured")
-        tc = ambient.get(temp, np.nan)
-        here = rmse[(rmse["temperature_c"] == tc) & (rmse["cycle"] == cycle)].set_index("model")
-        for model in shown_models(rmse, tc):
-            m = part[part["model"] == model]
-            if m.empty:
-                continue
-            v = m["model_v"].to_numpy()
-            r = here["rmse_mv"].get(model, np.nan)
-            line = ax_v.plot(t_h, v, lw=0.6, label=f"{model} (RMSE {r:.0f} mV)")[0]
-            ax_e.plot(t_h, 1e3 * (v - measured), lw=0.5, color=line.get_color())
-        ax_v.set_ylabel("voltage [V]")
-        ax_v.set_title(f"{temp}: {cycle} (not seen by any fit)", fontsize=10)
-        ax_v.legend(fontsize=7, loc="lower left", ncol=2)
-        ax_e.axhline(0.0, color="k", lw=0.4)
-        ax_e.set_ylim(-150, 150)
-        ax_e.set_ylabel("model − measured [mV]")
-        ax_e.set_xlabel("time [h]")
-    save(fig, stem)
-
-
 def demo(cfg: dict, out_dir=None) -> dict:
     """A reduced experiment 1 (25 °C, LA92 → US06, Nelder–Mead seed 1 at 10 × 30, the C/20
     circuits) written to ``out_dir``; the notebook's inputs when the workflow's are not given."""
-    from .. import plan
-    from ..jobs import real as jobs
+    from ... import plan
+    from ...jobs import real as jobs
+    from ..importers import panasonic
     from . import drive_cycles as dc
-    from . import panasonic
 
     out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))
     cfg = copy.deepcopy(cfg)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..model.ecm import Config
+from ...model.ecm import Config
 from .drive_cycles import fit_and_predict
 
 

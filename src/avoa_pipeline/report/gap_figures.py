@@ -1,8 +1,9 @@
-"""The one-page diagnosis figure: where the residual lives, the candidates' gains, and the voltage
-and residual traces before and after the verdict effect.
+"""The gap diagnosis's figures.
 
-Built on :class:`matplotlib.figure.Figure` directly (Agg canvas, no pyplot state), as
-``report/figures.py`` does.
+- :func:`render`: the one-page diagnosis figure: where the residual lives, the candidates' gains,
+  and the voltage and residual traces before and after the verdict effect.
+- :func:`fig_confusion`, :func:`fig_accuracy`, :func:`fig_shrink`, :func:`fig_detection_limit`:
+  the withheld-effect check (:mod:`..gap.evaluate`), from its tables.
 """
 
 from __future__ import annotations
@@ -10,8 +11,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from ..gap import EFFECTS, VERDICTS
+from ..gap.evaluate import RATIO_EDGES, TARGET, THRESHOLD, confusion, ratio_bin_labels
+from .figures import save
 
 MAX_PLOT_POINTS = 20000  # traces are thinned by a stride beyond this (drawing only)
 
@@ -78,6 +84,8 @@ def render(report: dict, arrays: dict, path: str | Path) -> None:
     ax = fig.add_subplot(gs[3, :])
     ax.axis("off")
     ax.text(0, 1, _summary(report), va="top", ha="left", fontsize=8.5, family="monospace")
+    # not figures.save: ``path`` is the caller's temporary file, one of the diagnosis's
+    # all-or-none outputs (cli diagnose), and the page keeps its own 110 dpi
     fig.savefig(path, format="png")
 
 
@@ -147,3 +155,121 @@ def _summary(report):
     lines.append("Base: " + ", ".join(f"{k}={val:.4g}" for k, val in p.items()
                                       if isinstance(val, int | float)))  # fmt: skip
     return "\n".join(lines)
+
+
+def fig_confusion(records_df: pd.DataFrame, stem) -> None:
+    """Confusion matrices, all datasets and detectable ones (with the controls), row shares
+    as colour and counts as text."""
+    df = records_df
+    parts = [
+        ("all datasets", None),
+        ("detectable effects and controls", df["detectable"] | (df["effect"] == "none")),
+    ]
+    fig = Figure(figsize=(13, 5.6), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for ax, (title, only) in zip(axes, parts, strict=True):
+        table = confusion(df, only)
+        share = table.div(table.sum(axis=1).replace(0, np.nan), axis=0).fillna(0.0)
+        ax.imshow(share.to_numpy(), cmap="Blues", vmin=0, vmax=1)
+        for (i, j), n in np.ndenumerate(table.to_numpy()):
+            if n:
+                ax.text(
+                    j,
+                    i,
+                    str(n),
+                    ha="center",
+                    va="center",
+                    color="white" if share.iat[i, j] > 0.6 else "black",
+                    fontsize=8,
+                )
+        ax.set_xticks(range(len(table.columns)), table.columns, rotation=60, ha="right",
+                      fontsize=8)  # fmt: skip
+        ax.set_yticks(range(len(table.index)), table.index, fontsize=8)
+        ax.set_xlabel("verdict")
+        ax.set_ylabel("withheld effect")
+        ax.set_title(f"{title} (n = {int(table.to_numpy().sum())})", fontsize=10)
+    save(fig, stem, pdf=False)
+
+
+def fig_accuracy(acc: pd.DataFrame, stem, goal: float = TARGET) -> None:
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    ax = fig.subplots()
+    x = np.arange(len(acc))
+    ax.bar(x - 0.2, acc["accuracy"].fillna(0), 0.4, label="all datasets", color="0.7")
+    ax.bar(
+        x + 0.2,
+        acc["accuracy_detectable"].fillna(0),
+        0.4,
+        label="detectable (controls: all)",
+        color="tab:blue",
+    )
+    for xi, (n, nd) in enumerate(zip(acc["n"], acc["n_detectable"], strict=True)):
+        ax.text(xi, 1.02, f"{n}/{nd}", ha="center", fontsize=7)
+    ax.axhline(goal, color="tab:red", ls="--", lw=1, label=f"target {goal:.0%}")
+    ax.set_xticks(x, acc["effect"], rotation=30, ha="right", fontsize=8)
+    ax.set_ylim(0, 1.1)
+    ax.set_ylabel("right verdicts")
+    ax.set_title(
+        "Accuracy per withheld effect (numbers: datasets / detectable datasets)", fontsize=10
+    )
+    ax.legend(fontsize=8, loc="lower left")
+    save(fig, stem, pdf=False)
+
+
+def fig_shrink(records_df: pd.DataFrame, stem) -> None:
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    ax = fig.subplots()
+    said = records_df[records_df["verdict"] != "none"]
+    for xi, effect in enumerate(VERDICTS):
+        for right, colour, dx in ((True, "tab:blue", -0.12), (False, "tab:red", 0.12)):
+            s = said.loc[(said["effect"] == effect) & (said["right"] == right), "shrink"]
+            jitter = np.linspace(-0.06, 0.06, len(s)) if len(s) > 1 else np.zeros(len(s))
+            ax.scatter(
+                xi + dx + jitter,
+                s,
+                s=12,
+                color=colour,
+                alpha=0.7,
+                label=("verdict right" if right else "verdict wrong") if xi == 0 else None,
+            )
+    ax.set_xticks(range(len(VERDICTS)), VERDICTS, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("shrink (held-out ISE removed)")
+    ax.set_title("Shrink of the verdict effect, per withheld effect", fontsize=10)
+    ax.legend(fontsize=8)
+    save(fig, stem, pdf=False)
+
+
+def fig_detection_limit(dl: pd.DataFrame, stem, threshold: float = THRESHOLD) -> None:
+    """Right verdicts against effect residual / noise RMSE, per effect, for each noise level."""
+    noises = list(dict.fromkeys(dl["noise_mv"]))
+    fig = Figure(figsize=(4.6 * len(noises), 4.2), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(noises), sharey=True))
+    labels = ratio_bin_labels()
+    for ax, noise in zip(axes, noises, strict=True):
+        part = dl[dl["noise_mv"] == noise]
+        for effect in [*EFFECTS, "all effects"]:
+            rows = part[(part["effect"] == effect) & (part["n"] > 0)]
+            if rows.empty:
+                continue
+            x = [labels.index(b) for b in rows["ratio_bin"]]
+            bold = effect == "all effects"
+            ax.plot(
+                x,
+                rows["accuracy"],
+                marker="o",
+                ms=3 if not bold else 5,
+                lw=2.5 if bold else 1,
+                color="black" if bold else None,
+                label=effect,
+            )
+        # the threshold sits on a bin edge: between the bins below and above it
+        edge = sum(e <= threshold for e in RATIO_EDGES[1:]) - 0.5
+        ax.axvline(edge, color="tab:red", ls="--", lw=1)
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_xlabel("effect residual / noise RMSE")
+        title = "all noise levels" if noise == "all" else f"noise {noise} mV"
+        ax.set_title(title, fontsize=10)
+        ax.set_ylim(-0.05, 1.05)
+    axes[0].set_ylabel("right verdicts")
+    axes[-1].legend(fontsize=7, loc="lower right")
+    save(fig, stem, pdf=False)

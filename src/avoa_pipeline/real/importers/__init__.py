@@ -1,0 +1,1 @@
+"""Importers: measured cells' raw files → checked canonical records; none imports ``model/``."""
