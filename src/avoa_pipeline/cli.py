@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     which.add_argument(
         "--sheets",
-        choices=("each", "concat"),  # real.cycler.convert's two ways to read every data sheet
+        choices=("each", "concat"),  # cycler.convert's two ways to read every data sheet
         default=None,
         help="every data sheet of a workbook: each to its own CSV (OUT's stem + '-' + the "
         "sheet's name), or concat into one record in sheet order, time continued",

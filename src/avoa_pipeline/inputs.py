@@ -1,12 +1,12 @@
 """The input layer: every file a command reads becomes a checked record (or an OCV) here, once.
 
 A path is a canonical CSV (``time_s, current_a, voltage_v[, temperature_c]``), or, with a cycler
-named, that cycler's raw export (``real.cycler``, read through PyProBE). Either way its frame goes
-through the records layer's one validator, scale check and sign check (``records.py``) and comes
-out as a :class:`~avoa_pipeline.records.Checked` record in the pipeline's sign. The commands
-(``convert``, ``diagnose`` with ``--ocv`` and ``--validate``, ``simulate``) read through here,
-check their output paths (``io.check_output``) and only then compute; the diagnosis takes checked
-records and checks none again.
+named, that cycler's raw export (``real.importers.cycler``, read through PyProBE). Either way its
+frame goes through the records layer's one validator, scale check and sign check (``records.py``)
+and comes out as a :class:`~avoa_pipeline.records.Checked` record in the pipeline's sign. The
+commands (``convert``, ``diagnose`` with ``--ocv`` and ``--validate``, ``simulate``) read through
+here, check their output paths (``io.check_output``) and only then compute; the diagnosis takes
+checked records and checks none again.
 
 What this layer adds to one record's checks is what only the set of inputs shows:
 
@@ -16,8 +16,8 @@ What this layer adds to one record's checks is what only the set of inputs shows
   be changed, so it never advises a flag under which another file would fail;
 - the same file given twice (by path or by content) is refused.
 
-Layers (docs/inputs.md draws them): ``errors``, ``names``, ``io`` < ``records`` < ``real.cycler``
-and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports anything above.
+Layers (docs/inputs.md draws them): ``errors``, ``names``, ``io`` < ``records`` <
+``real.importers.cycler`` and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports anything above.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def is_canonical(path: str | Path) -> bool:
 
 def _refuse_raw_export(path: Path) -> None:
     """A cycler's raw export read as a canonical CSV would fail on a missing column or a codec:
-    say which cycler it looks like (``real.cycler.sniff``, the header alone) and the flag."""
+    say which cycler it looks like (``cycler.sniff``, the header alone) and the flag."""
     if not path.is_file() or is_canonical(path):
         return
     from .real.importers import cycler as cyc

@@ -6,8 +6,8 @@ a model is an OCV source (the paper's rational eq. 5, or a measured table), R0, 
 capacity and an initial SOC, plus any of the elements of :data:`EFFECTS` (each declared in its
 own module of ``model/elements/``; this module holds the base and the compiled simulator). The
 paper's model (``battery.py``/``kernel.py``), the C/20 circuits of the real-data experiment and
-the diagnosis's candidates are configurations of it. ``gap/withheld.py`` stays independent on purpose (the test
-oracle).
+the diagnosis's candidates are configurations of it. ``gap/withheld.py`` stays independent on
+purpose (the test oracle).
 
 Per sample k (current i positive = discharge, Δt_k = t[k+1] − t[k], zero-order hold; one sign
 convention everywhere):
