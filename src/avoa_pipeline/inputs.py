@@ -17,7 +17,8 @@ What this layer adds to one record's checks is what only the set of inputs shows
 - the same file given twice (by path or by content) is refused.
 
 Layers (docs/inputs.md draws them): ``errors``, ``names``, ``io`` < ``records`` <
-``real.importers.cycler`` and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports anything above.
+``real.importers.cycler`` and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports
+anything above.
 """
 
 from __future__ import annotations

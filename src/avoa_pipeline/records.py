@@ -617,7 +617,8 @@ def check(
 
 def converted(frame: pd.DataFrame, source: str, info: dict, origin: dict) -> Checked:
     """A raw export's record as ``real.importers.cycler.convert`` made and checked it: its sign
-    read from the current channel (``info``, the conversion's sidecar), its warnings the conversion's."""
+    read from the current channel (``info``, the conversion's sidecar), its warnings the
+    conversion's."""
     ev = SignEvidence.from_dict(info["sign"]["voltage_check"])
     return Checked(frame, source, ev, tuple(info["warnings"]), origin)
 
