@@ -61,14 +61,6 @@ HYSTERESIS_DECAY = 50.0
 NOISE_MV = 1.0
 
 
-def available() -> bool:
-    try:
-        _pybamm()
-    except ImportError:
-        return False
-    return True
-
-
 def _pybamm():
     os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
     import pybamm

@@ -16,7 +16,7 @@ PyBOP's ``MetaProblem`` weigh records alike too).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -434,7 +434,3 @@ def neutralise(X: np.ndarray, effects) -> np.ndarray:
         for n in ecm.element_params(e):
             Y[:, IDX[n]] = NEUTRAL[IDX[n]]
     return Y
-
-
-def with_knots(st: Structure, knots: Knots) -> Structure:
-    return replace(st, knots=knots)

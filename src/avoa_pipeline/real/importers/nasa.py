@@ -26,7 +26,6 @@ voltage at the load steps (``records.require_sign``); the index row k against
 from __future__ import annotations
 
 import hashlib
-import json
 import re
 from pathlib import Path
 
@@ -225,7 +224,3 @@ def discharge_slices(frame: pd.DataFrame, sidecar: dict, source: str = "<record>
                 f"{a}..{a + m - 1} outside the record ({len(frame)} rows)"
             )
         yield e, frame.iloc[a : a + m].reset_index(drop=True)
-
-
-def sidecar_summary(sidecar: dict) -> str:
-    return json.dumps({k: v for k, v in sidecar.items() if k != "discharges"}, indent=1)
