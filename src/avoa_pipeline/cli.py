@@ -361,9 +361,9 @@ def cmd_diagnose(args) -> None:
         check_output(out / name, inputs=given)
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
-    report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
-                                         ocv_table=read.ocv, validate=read.validate,
-                                         warnings=read.warnings)  # fmt: skip
+    report, arrays, model = diagnose.diagnose_records(read.train, args.capacity_ah, args.soc0,
+                                                      ocv_table=read.ocv, validate=read.validate,
+                                                      warnings=read.warnings)  # fmt: skip
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it

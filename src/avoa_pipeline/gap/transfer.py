@@ -357,8 +357,8 @@ def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients
               if str(paths[record_name(cell, p, a)]) not in train]  # fmt: skip
     slow = str(paths[record_name(cell, SLOW, TRAIN_AMBIENT_C)])
     read = inputs.read_inputs(train, unseen, slow)
-    report, _, model = diagnose.run(read.train, ocv_table=read.ocv, validate=read.validate,
-                                    warnings=read.warnings)  # fmt: skip
+    report, _, model = diagnose.diagnose_records(
+        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
     (out / "diagnosis.json").write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
     (out / "model.json").write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")

@@ -122,8 +122,8 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     from ..io import write_json
 
     read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
-    report, _, model = diagnose.run(read.train, ocv_table=read.ocv, validate=read.validate,
-                                    warnings=read.warnings)  # fmt: skip
+    report, _, model = diagnose.diagnose_records(
+        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
