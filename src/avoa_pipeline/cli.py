@@ -290,7 +290,7 @@ def cmd_recovery(args) -> None:
     if args.seeds < 1:
         raise UserError(f"--seeds must be positive, got {args.seeds}")
     budget = fit.budget_from(cfg, iterations=args.iterations)
-    runs = recovery.run(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
+    runs = recovery.recover(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
     table = recovery.summary(runs)
     md = recovery.to_markdown(table)
     with atomic_paths(out, out.with_suffix(".md")) as (csv_tmp, md_tmp):
