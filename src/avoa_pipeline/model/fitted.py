@@ -709,12 +709,14 @@ def _validate(d, schema: dict, source: str) -> None:
 
 @dataclass
 class Fit:
-    """A configuration fitted to records: the model, each record's rows, the training RMSE."""
+    """A least-squares fit to records (the model layer's one result type); ``fit_model``'s also
+    carries the fitted model and the records-alike training RMSE."""
 
-    model: FittedModel
     X: np.ndarray  # per-record internal rows (each record's initial state, by the rule, its own)
-    train_rmse_mv: float
+    cost_fit: float  # 0.5 · sum of squared residuals on the fitted samples (of the last fit)
     nfev: int
+    model: FittedModel | None = None
+    train_rmse_mv: float | None = None
 
 
 def fit_model(frames, config: Config, capacity_ah: float | None = None,
@@ -748,7 +750,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
            for r, rec in enumerate(recs)]  # fmt: skip
     model = model_of(recs, config, X, knots, fix_q, provenance)
     model.intervals = intervals.of_fit(recs, st, X).report()
-    return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)
+    return Fit(X, res.cost_fit, nfev, model, 1e3 * float(np.sqrt(np.mean(mse))))
 
 
 def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bool,

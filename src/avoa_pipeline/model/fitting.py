@@ -23,6 +23,7 @@ from scipy.optimize import least_squares
 
 from . import ecm
 from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
+from .fitted import Fit
 
 MAX_FIT_POINTS = 20000
 """Residuals fitted per least-squares problem at most (all records together); longer data are
@@ -197,13 +198,6 @@ def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
 # fitting
 
 
-@dataclass
-class FitResult:
-    X: np.ndarray  # per-record internal rows (R, NX)
-    cost_fit: float  # 0.5 · sum of squared fitting residuals (on the fitted samples)
-    nfev: int
-
-
 def fit_indices(n: int, mask: np.ndarray | None, max_points: int) -> np.ndarray:
     """Samples fitted: those in ``mask``, thinned by a fixed stride to at most ``max_points``."""
     idx = np.arange(n) if mask is None else np.flatnonzero(mask)
@@ -299,7 +293,7 @@ class Problem:
 
 
 def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
-                  max_nfev: int = 200, tol: float = 1e-8) -> FitResult:  # fmt: skip
+                  max_nfev: int = 200, tol: float = 1e-8) -> Fit:  # fmt: skip
     """Least-squares fit of the free parameters of ``st`` from per-record rows ``X0``."""
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     if X0.shape[0] == 1 and len(recs) > 1:
@@ -311,11 +305,11 @@ def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
     res = least_squares(prob.residuals, z0, jac=prob.jacobian, bounds=(st.lo, st.hi),
                         method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
                         max_nfev=max_nfev)  # fmt: skip
-    return FitResult(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
+    return Fit(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
 
 
 def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60,
-            max_nfev=200) -> FitResult:  # fmt: skip
+            max_nfev=200) -> Fit:  # fmt: skip
     """Multi-start: each start on thinned records, the best refined on the fitted samples."""
     idx_full = indices(recs, masks, MAX_FIT_POINTS)
     if len(starts) == 1:
