@@ -345,8 +345,8 @@ def fit_fixed(frames, table) -> dict:
     return {key: fit_model(frames, Config(effects, table)) for key, effects in FIXED.items()}
 
 
-def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients,
-              profiles) -> list[dict]:  # fmt: skip
+def diagnose_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients,
+                   profiles) -> list[dict]:  # fmt: skip
     """Diagnose one cell's split as a user would and predict its unseen records; one row per
     unseen record with every model's RMSE (mV). Writes ``diagnosis.json`` and ``model.json``
     (and the fixed circuits' ``model_1rc.json``, ``model_2rc.json``) into ``out``."""
