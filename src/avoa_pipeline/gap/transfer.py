@@ -341,7 +341,7 @@ FIXED = {"1rc": (), "2rc": ("second_rc",)}
 
 
 def fit_fixed(frames, table) -> dict:
-    """The fixed circuits of :data:`FIXED` fitted to the training frames (``fitted.Fit`` each)."""
+    """The fixed circuits of :data:`FIXED` fitted to the training frames (``fitting.Fit`` each)."""
     return {key: fit_model(frames, Config(effects, table)) for key, effects in FIXED.items()}
 
 

@@ -23,7 +23,6 @@ from scipy.optimize import least_squares
 
 from . import ecm
 from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
-from .fitted import Fit
 
 MAX_FIT_POINTS = 20000
 """Residuals fitted per least-squares problem at most (all records together); longer data are
@@ -196,6 +195,18 @@ def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------------------------
 # fitting
+
+
+@dataclass
+class Fit:
+    """A least-squares fit to records (the model layer's one result type); ``fitted.fit_model``'s
+    also carries the fitted model and the records-alike training RMSE."""
+
+    X: np.ndarray  # per-record internal rows (each record's initial state, by the rule, its own)
+    cost_fit: float  # 0.5 · sum of squared residuals on the fitted samples (of the last fit)
+    nfev: int
+    model: FittedModel | None = None  # noqa: F821 - fitted.FittedModel: fitted imports this module
+    train_rmse_mv: float | None = None
 
 
 def fit_indices(n: int, mask: np.ndarray | None, max_points: int) -> np.ndarray:
