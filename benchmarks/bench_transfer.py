@@ -78,7 +78,7 @@ def main(argv=None) -> int:
             if args.reuse and cached.exists():
                 rows += pd.read_csv(cached).to_dict("records")
                 continue
-            got = T.run_split(paths, cell, split, out / cell / split, ambients, profiles)
+            got = T.diagnose_split(paths, cell, split, out / cell / split, ambients, profiles)
             pd.DataFrame(got).to_csv(cached, index=False)
             rows += got
             print(f"{cell} {split}: {time.perf_counter() - t1:.0f} s", file=sys.stderr)

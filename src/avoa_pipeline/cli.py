@@ -290,7 +290,7 @@ def cmd_recovery(args) -> None:
     if args.seeds < 1:
         raise UserError(f"--seeds must be positive, got {args.seeds}")
     budget = fit.budget_from(cfg, iterations=args.iterations)
-    runs = recovery.run(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
+    runs = recovery.recover(cfg, args.scenario, args.case, range(1, args.seeds + 1), budget)
     table = recovery.summary(runs)
     md = recovery.to_markdown(table)
     with atomic_paths(out, out.with_suffix(".md")) as (csv_tmp, md_tmp):
@@ -362,9 +362,9 @@ def cmd_diagnose(args) -> None:
         check_output(out / name, inputs=given)
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
-    report, arrays, model = diagnose.run(read.train, args.capacity_ah, args.soc0,
-                                         ocv_table=read.ocv, validate=read.validate,
-                                         warnings=read.warnings)  # fmt: skip
+    report, arrays, model = diagnose.diagnose_records(read.train, args.capacity_ah, args.soc0,
+                                                      ocv_table=read.ocv, validate=read.validate,
+                                                      warnings=read.warnings)  # fmt: skip
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it

@@ -14,7 +14,7 @@ from . import fit, problem
 from .optimizers import ALGORITHMS, Budget
 
 
-def run(
+def recover(
     cfg: dict, scenario: int, case: int, seeds, budget: Budget, algorithms=ALGORITHMS
 ) -> pd.DataFrame:
     prob = problem.build(cfg, scenario, case, noise=False)

@@ -143,8 +143,8 @@ def bic(rss: float, n: int, k: int) -> float:
 
 
 @dataclass
-class ModelRun:
-    """One model structure: fit to all training data, its voltage, and its held-out voltage."""
+class Candidate:
+    """A candidate: a structure fitted to all training data, its voltage and held-out voltage."""
 
     st: fitting.Structure
     X: np.ndarray  # per-record internal rows
@@ -198,32 +198,32 @@ class Context:
         """The records-alike sum of squared errors of a concatenated model voltage."""
         return float(np.sum(self.w * (v - self.v) ** 2))
 
-    def run(self, st, X) -> ModelRun:
+    def evaluate(self, st, X) -> Candidate:
         X = fitting.complete(st, self.recs, X)
         v = self.simulate(st, X)
-        return ModelRun(st, np.array(X), v, self.sse(v))
+        return Candidate(st, np.array(X), v, self.sse(v))
 
-    def fit(self, st, starts) -> ModelRun:
+    def fit(self, st, starts) -> Candidate:
         self.fits += len(starts)
-        return self.run(st, fitting.best_of(self.recs, st, starts).X)
+        return self.evaluate(st, fitting.best_of(self.recs, st, starts).X)
 
-    def cross_validate(self, mr: ModelRun) -> ModelRun:
+    def cross_validate(self, cand: Candidate) -> Candidate:
         """Each held-out part predicted from a fit that did not see it, warm-started from the
         full fit (the optimum of the training objective is what is scored; starting nearby only
         saves iterations): whole records with two or more, interleaved blocks with one."""
         ho = np.empty(self.n)
-        mr.fold_X = []
+        cand.fold_X = []
         for r, f in enumerate(self.layout.folds):
             if self.layout.by_record:
                 keep = [j for j in range(len(self.recs)) if j != r]
                 recs = [self.recs[j] for j in keep]
-                st = self.structure(mr.effects, mr.st.knots, recs)
+                st = self.structure(cand.effects, cand.st.knots, recs)
                 if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
-                    st = replace(st, knots=fitting.knots_for(recs, mr.X[keep]))
-                res = fitting.fit_structure(recs, st, mr.X[keep],
+                    st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
+                res = fitting.fit_structure(recs, st, cand.X[keep],
                                             fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
                                             max_nfev=100)  # fmt: skip
-                X = np.array(mr.X)
+                X = np.array(cand.X)
                 X[:, st.shared_idx] = res.X[0, st.shared_idx]
                 X = fitting.complete(st, self.recs, X)  # the held-out record starts by the rule
                 rec = self.recs[r]
@@ -237,10 +237,10 @@ class Context:
                     m[h] = False
                     masks.append(m)
                 idxs = fitting.indices(self.recs, masks, fitting.MAX_FIT_POINTS)
-                st = mr.st
+                st = cand.st
                 if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
-                    st = replace(st, knots=fitting.knots_for(self.recs, mr.X, masks))
-                X = fitting.fit_structure(self.recs, st, mr.X, idxs, max_nfev=100).X
+                    st = replace(st, knots=fitting.knots_for(self.recs, cand.X, masks))
+                X = fitting.fit_structure(self.recs, st, cand.X, idxs, max_nfev=100).X
                 # the voltage at the held-out samples only (the state still runs through all)
                 ho[f] = np.concatenate([
                     ecm.simulate_rows(rec, X[r], st.knots, st.config.table, st.config.load_ohm,
@@ -248,17 +248,17 @@ class Context:
                     for r, (rec, h) in enumerate(zip(self.recs, held, strict=True))
                 ])  # fmt: skip
             self.fits += 1
-            mr.fold_X.append(X)
-        mr.ho = ho
-        return mr
+            cand.fold_X.append(X)
+        cand.ho = ho
+        return cand
 
-    def ho_loss(self, mr: ModelRun) -> np.ndarray:
+    def ho_loss(self, cand: Candidate) -> np.ndarray:
         """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
-        return (mr.ho - self.v) ** 2
+        return (cand.ho - self.v) ** 2
 
-    def ho_mse(self, mr: ModelRun, mask: np.ndarray | None = None) -> float:
+    def ho_mse(self, cand: Candidate, mask: np.ndarray | None = None) -> float:
         """The records-alike held-out mean squared error (over ``mask`` if given)."""
-        loss = self.w * self.ho_loss(mr)
+        loss = self.w * self.ho_loss(cand)
         if mask is None:
             return float(loss.sum() / self.n)
         return float(loss[mask].sum() / max(self.w[mask].sum(), 1e-300))
@@ -285,8 +285,8 @@ def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> t
     return True, ""
 
 
-def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool,
-                rung: int = 1) -> dict[str, ModelRun]:  # fmt: skip
+def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
+                rung: int = 1) -> dict[str, Candidate]:  # fmt: skip
     """Fit ref + each remaining element; with ``cv``, cross-validate those that can pay (a fit
     with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error)."""
     cands = {}
@@ -294,7 +294,7 @@ def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool,
         st = ctx.structure((*ref.effects, e), ref.st.knots)
         c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
         if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
-            c = ctx.run(st, fitting.neutralise(ref.X, (e,)))
+            c = ctx.evaluate(st, fitting.neutralise(ref.X, (e,)))
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
         cands[e] = c
@@ -303,7 +303,7 @@ def try_effects(ctx: Context, ref: ModelRun, remaining, cv: bool,
     return cands
 
 
-def judge(ctx: Context, ref: ModelRun, cands: dict[str, ModelRun]) -> list[dict]:
+def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dict]:
     """Held-out comparison of each candidate against ``ref`` (both cross-validated)."""
     n = ctx.n
     loss_ref = ctx.ho_loss(ref)
@@ -363,7 +363,7 @@ def identified(iv: intervals.Intervals, effect: str) -> str | None:
     return None
 
 
-def choose(ctx: Context, rows: list[dict], cands: dict[str, ModelRun]) -> str | None:
+def choose(ctx: Context, rows: list[dict], cands: dict[str, Candidate]) -> str | None:
     """The winner among candidates that pay: largest shrink, or a simpler one within one SE."""
     paying = [r for r in rows if r["pays"]]
     if not paying:
@@ -383,24 +383,24 @@ def choose(ctx: Context, rows: list[dict], cands: dict[str, ModelRun]) -> str | 
     return best["effect"]
 
 
-def ladder_row(ctx: Context, effect: str, run: ModelRun, prev: ModelRun, base: ModelRun) -> dict:
-    mse = ctx.ho_mse(run)
+def ladder_row(ctx: Context, effect: str, c: Candidate, prev: Candidate, base: Candidate) -> dict:
+    mse = ctx.ho_mse(c)
     return {
         "effect": effect,
         "heldout_rmse_mv": 1e3 * float(np.sqrt(mse)),
         "shrink": 1.0 - mse / ctx.ho_mse(prev),
         "shrink_vs_base": 1.0 - mse / ctx.ho_mse(base),
-        "delta_bic": bic(run.rss, ctx.n, run.k) - bic(prev.rss, ctx.n, prev.k),
-        "effects": list(run.effects),
+        "delta_bic": bic(c.rss, ctx.n, c.k) - bic(prev.rss, ctx.n, prev.k),
+        "effects": list(c.effects),
     }
 
 
-def climb(ctx: Context, base: ModelRun, first: str, first_run: ModelRun, candidates):
-    """The ladder from ``base`` through ``first``: greedily add what pays. Returns (rows, runs)
-    with one run per rung (the last is the selected model)."""
-    rows = [ladder_row(ctx, first, first_run, base, base)]
-    runs = [first_run]
-    final = first_run
+def climb(ctx: Context, base: Candidate, first: str, first_cand: Candidate, candidates):
+    """The ladder from ``base`` through ``first``: greedily add what pays. Returns (rows, chosen)
+    with one candidate per rung (the last is the selected model)."""
+    rows = [ladder_row(ctx, first, first_cand, base, base)]
+    chosen = [first_cand]
+    final = first_cand
     remaining = [e for e in candidates if e != first]
     while True:
         now = [e for e in remaining if applicable(ctx.recs, e, final.effects, ctx.table)[0]]
@@ -411,17 +411,17 @@ def climb(ctx: Context, base: ModelRun, first: str, first_run: ModelRun, candida
         if nxt is None:
             break
         rows.append(ladder_row(ctx, nxt, step[nxt], final, base))
-        runs.append(step[nxt])
+        chosen.append(step[nxt])
         final = step[nxt]
         remaining = [e for e in remaining if e != nxt]
-    return rows, runs
+    return rows, chosen
 
 
 # ----------------------------------------------------------------------------------------------
 # the whole ladder
 
 
-def fit_base(ctx: Context, capacity_ah=None, soc0=None) -> ModelRun:
+def fit_base(ctx: Context, capacity_ah=None, soc0=None) -> Candidate:
     """The base model (the context's OCV, R0, one RC, capacity) fitted to all training records
     from a handful of starts; its OCV-shape knots set on the SOC range it visits."""
     st = ctx.structure((), Knots(0.0, 0.2))
@@ -435,24 +435,24 @@ class Ladder:
     """The whole selection: the first rung (every applicable candidate against the base), the
     rungs that followed, and what was not tried and why."""
 
-    base: ModelRun
-    candidates: dict[str, ModelRun]  # the first rung's fits
+    base: Candidate
+    candidates: dict[str, Candidate]  # the first rung's fits
     rows: list[dict]  # the first rung's comparisons (``judge``)
     skipped: list[dict]  # {effect, applicable: False, reason}
     winner: str | None
     rungs: list[dict]  # one row per rung (``ladder_row``), the winner's first
-    runs: list[ModelRun]  # one fit per rung; the last is the climb's end
+    chosen: list[Candidate]  # one per rung; the last is the climb's end
     pruned: list[dict] = field(default_factory=list)  # elements dropped after the climb
-    final: ModelRun | None = None  # the selected model: the climb's end, pruned
+    final: Candidate | None = None  # the selected model: the climb's end, pruned
 
     @property
-    def selected(self) -> ModelRun:
+    def selected(self) -> Candidate:
         if self.final is not None:
             return self.final
-        return self.runs[-1] if self.runs else self.base
+        return self.chosen[-1] if self.chosen else self.base
 
 
-def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
+def prune(ctx: Context, final: Candidate) -> tuple[Candidate, list[dict]]:
     """Backward pruning (docs/gap-diagnosis.md, the addendum): each element of ``final``, the
     latest added first, stays only if ``final`` pays against the model without it (refitted from
     ``final`` with the element neutral, held out the same way); else it is dropped and the search
@@ -466,7 +466,7 @@ def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
             st = ctx.structure(rest, final.st.knots)
             start = fitting.neutralise(final.X, (e,))
             idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
-            reduced = ctx.run(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
+            reduced = ctx.evaluate(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
             ctx.fits += 1
             ctx.cross_validate(reduced)
             (row,) = judge(ctx, reduced, {e: final})
@@ -480,7 +480,7 @@ def prune(ctx: Context, final: ModelRun) -> tuple[ModelRun, list[dict]]:
     return final, dropped
 
 
-def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
+def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
     """Every applicable element tried on ``base`` (fitted to all training data, then, where its
     fit can pay, held out), the base re-polished where a candidate found it a better optimum, the
     winner, and the climb from it. The base and every candidate are cross-validated here."""
@@ -490,10 +490,10 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
     # base optimum: refit the base from there (the base must be at its best, or a candidate
     # "wins" by better optimisation alone)
     for e, c in cands.items():
-        rb = ctx.run(base.st, fitting.neutralise(c.X, (e,)))
+        rb = ctx.evaluate(base.st, fitting.neutralise(c.X, (e,)))
         if rb.rss < base.rss * (1 - 1e-9):
             idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
-            base = ctx.run(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
+            base = ctx.evaluate(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
     ctx.cross_validate(base)
     ctx.say("rung 1: base held out")
     # only a candidate whose full fit can pay is held out (as on the later rungs): one whose
@@ -509,46 +509,46 @@ def ladder(ctx: Context, base: ModelRun, effects=ecm.EFFECTS) -> Ladder:
     skipped = [{"effect": e, "applicable": False,
                 "reason": applicable(ctx.recs, e, (), ctx.table)[1]}
                for e in effects if e not in cands]  # fmt: skip
-    rungs, runs = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
-    final, pruned = prune(ctx, runs[-1]) if runs else (base, [])
-    return Ladder(base, cands, rows, skipped, winner, rungs, runs, pruned, final)
+    rungs, chosen = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
+    final, pruned = prune(ctx, chosen[-1]) if chosen else (base, [])
+    return Ladder(base, cands, rows, skipped, winner, rungs, chosen, pruned, final)
 
 
 # ----------------------------------------------------------------------------------------------
 # what the ladder's models say and predict (the diagnosis reports it; nothing here is a choice)
 
 
-def parameters(ctx: Context, run: ModelRun) -> dict:
-    """Report-named parameters of a run: the cell's, then each record's initial SOC as the rule
-    set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
-    fm = fitted_model(ctx, run)
+def parameters(ctx: Context, cand: Candidate) -> dict:
+    """Report-named parameters of a candidate: the cell's, then each record's initial SOC as
+    the rule set it (flat for one record, as ``per_record`` for several; h0 is 0 by the rule)."""
+    fm = fitted_model(ctx, cand)
     out = fm.parameters()
-    per = [{"soc0": float(run.X[r, ecm.IDX["soc0"]])} for r in range(len(ctx.recs))]
+    per = [{"soc0": float(cand.X[r, ecm.IDX["soc0"]])} for r in range(len(ctx.recs))]
     if len(per) == 1:
         out.update(per[0])
     else:
         out["per_record"] = [
             {"source": rec.source, **p} for rec, p in zip(ctx.recs, per, strict=True)
         ]
-    if {"thermal", "butler_volmer"} & set(run.effects):
+    if {"thermal", "butler_volmer"} & set(cand.effects):
         out["tref_k"] = ctx.recs[0].tref_k
     return out
 
 
-def fitted_model(ctx: Context, run: ModelRun, provenance=None) -> FittedModel:
-    return model_of(ctx.recs, run.st.config, run.X, run.st.knots, ctx.fix_q, provenance)
+def fitted_model(ctx: Context, cand: Candidate, provenance=None) -> FittedModel:
+    return model_of(ctx.recs, cand.st.config, cand.X, cand.st.knots, ctx.fix_q, provenance)
 
 
-def training_soc_range(ctx: Context, run: ModelRun) -> tuple[float, float]:
+def training_soc_range(ctx: Context, cand: Candidate) -> tuple[float, float]:
     """The SOC range the training records cover under a model (its own SOC trajectory)."""
     lo, hi = np.inf, -np.inf
     for r, rec in enumerate(ctx.recs):
-        _, tr = ecm.simulate_rows(rec, run.X[r], run.st.knots, run.st.config.table, traces=True)
+        _, tr = ecm.simulate_rows(rec, cand.X[r], cand.st.knots, cand.st.config.table, traces=True)
         lo, hi = min(lo, float(tr[0].min())), max(hi, float(tr[0].max()))
     return lo, hi
 
 
-def floors(ctx, selected: ModelRun, frames: dict, capacity_ah=None) -> dict[str, dict]:
+def floors(ctx, selected: Candidate, frames: dict, capacity_ah=None) -> dict[str, dict]:
     """Per validation record, the selected configuration fitted to that record alone (started by
     the same rule): what the model family reaches on it when it may see it."""
     out = {}
@@ -558,20 +558,20 @@ def floors(ctx, selected: ModelRun, frames: dict, capacity_ah=None) -> dict[str,
     return out
 
 
-def validation(ctx, rungs: dict[str, ModelRun], frames: dict,
+def validation(ctx, rungs: dict[str, Candidate], frames: dict,
                floor: dict[str, dict]) -> list[dict]:  # fmt: skip
     """One row per validation record × model of the ladder: errors over the record and inside
     the SOC range the training data covered, and beside each the record's floor (the selected
     configuration fitted to it). Nothing here feeds back into any choice."""
     rows = []
-    for name, run in rungs.items():
-        fm = fitted_model(ctx, run)
-        lo, hi = training_soc_range(ctx, run)
+    for name, cand in rungs.items():
+        fm = fitted_model(ctx, cand)
+        lo, hi = training_soc_range(ctx, cand)
         for source, frame in frames.items():
             v, tr = fm.simulate(frame, traces=True)
             inside = (tr[0] >= lo) & (tr[0] <= hi)
             err = prediction_errors(v, frame["voltage_v"].to_numpy(), inside)
-            rows.append({"record": source, "model": name, "effects": list(run.effects),
+            rows.append({"record": source, "model": name, "effects": list(cand.effects),
                          "starts_at_rest": ecm.starts_at_rest(fm.record(frame)),
                          "soc0": float(tr[0][0]), "training_soc_range": [lo, hi], **err,
                          "floor_rmse_mv": floor[source]["rmse_mv"],

@@ -151,7 +151,7 @@ def test_missing_file_is_one_line(tmp_path, capsys):
 def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
     path = _csv(tmp_path, _good())
     fake = ({"verdict": {"effect": "none"}}, {}, None)
-    monkeypatch.setattr(diagnose, "run", lambda *a, **k: fake)
+    monkeypatch.setattr(diagnose, "diagnose_records", lambda *a, **k: fake)
 
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")
@@ -369,7 +369,7 @@ def test_a_held_out_record_is_predicted_as_simulate_predicts_it():
     base = ctx.cross_validate(selection.fit_base(ctx))
     for r, frame in enumerate((a, b)):
         held = ctx.layout.folds[r]
-        fold = selection.ModelRun(base.st, base.fold_X[r], base.v, base.rss)
+        fold = selection.Candidate(base.st, base.fold_X[r], base.v, base.rss)
         v = fitted_model(ctx, fold).simulate(frame)
         np.testing.assert_allclose(base.ho[held], v, rtol=0, atol=1e-9)
     # and the fit that predicted record 0 saw record 1 only: its parameters differ
@@ -383,8 +383,8 @@ def test_pruning_drops_what_no_longer_pays_and_keeps_what_does():
     frame = with_voltage(profile_frame(), truth, noise_v=1e-3, seed=2)
     ctx = selection.Context([ecm.Record.from_frame(frame)])
     base = selection.fit_base(ctx)
-    runs = selection.try_effects(ctx, base, ["second_rc"], cv=False)
-    both = selection.try_effects(ctx, runs["second_rc"], ["current_offset"], cv=False)
+    cands = selection.try_effects(ctx, base, ["second_rc"], cv=False)
+    both = selection.try_effects(ctx, cands["second_rc"], ["current_offset"], cv=False)
     final = ctx.cross_validate(both["current_offset"])
     assert final.effects == ("second_rc", "current_offset")
     pruned, dropped = selection.prune(ctx, final)

@@ -65,7 +65,7 @@ def no_work(monkeypatch):
     def boom(*args, **kwargs):
         raise AssertionError("the command started its work before refusing")
 
-    for module, name in ((problem, "build"), (fit, "run"), (recovery, "run"),
+    for module, name in ((problem, "build"), (fit, "run"), (recovery, "recover"),
                          (synthetic, "generate")):  # fmt: skip
         monkeypatch.setattr(module, name, boom)
 

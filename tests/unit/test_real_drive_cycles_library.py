@@ -152,7 +152,7 @@ def test_cross_cycle_separates_the_models_own_error_from_the_transfer():
     a = _frame(1500, seed=6, table=table)
     b = _frame(1500, seed=7, table=table, params={**TRUTH, "r0_ohm": 0.05})  # another cell state
     models = {"base": ecm.Config((), table)}
-    rows = pd.DataFrame(cross_cycle.fit_each_run_all("25degC", {"a": a, "b": b}, models))
+    rows = pd.DataFrame(cross_cycle.fit_each_predict_all("25degC", {"a": a, "b": b}, models))
     assert len(rows) == 4
     assert rows["in_sample"].sum() == 2
     err = rows.set_index(["fit_on", "predict"])["rmse_mv"]

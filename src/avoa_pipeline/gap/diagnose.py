@@ -275,7 +275,7 @@ def gap_region(regions: list[dict], n: int) -> dict:
 # why: residual signatures
 
 
-def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of) -> dict:
+def signatures(rec, resid, soc, cands: dict, base: selection.Candidate, regions_of) -> dict:
     """Per element with a signature of its own (``Element.signature``): what the base residual
     looks like where that element would act, and how much of it the element's fit explains."""
 
@@ -286,9 +286,9 @@ def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of
     view = View(rec, resid, soc, time_since_step(rec), d, rec.imax(), t_mean)
     out = {e.name: {"acts": e.signature.acts, **e.signature.read(view)}
            for e in elements.REGISTRY.values() if not isinstance(e.signature, str)}  # fmt: skip
-    for e, run in runs.items():
-        if e in out and run is not None:
-            delta = run.v - base.v  # what the effect adds to the base model's voltage
+    for e, cand in cands.items():
+        if e in out and cand is not None:
+            delta = cand.v - base.v  # what the effect adds to the base model's voltage
             den = float(np.sum(resid**2))
             share = 1.0 - float(np.sum((resid - delta) ** 2)) / den if den else 0.0
             out[e]["explained_share"] = share
@@ -296,16 +296,16 @@ def signatures(rec, resid, soc, runs: dict, base: selection.ModelRun, regions_of
     return out
 
 
-def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) -> dict:
+def samples_used(ctx: selection.Context, models: dict[str, selection.Candidate]) -> dict:
     """What of the records entered the diagnosis (``diagnosis.json``'s ``samples``): every
     sample is simulated and scored; each least-squares fit sees every s-th residual. Beside it,
-    per model of ``runs``, its residual's correlation time and effective sample size: a stride
+    per model of ``models``, its residual's correlation time and effective sample size: a stride
     below the correlation time (fitted ≥ effective samples) drops residuals that repeat their
     neighbours and loses almost no information; on a residual at the white noise floor the fits
     average 1/stride of the noise they could (their parameters' noise SD √stride larger)."""
     idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
     strides = [int(i[1] - i[0]) if i.size > 1 else 1 for i in idx]
-    tau = {k: intervals.autocorrelation_time(ctx.v - r.v) for k, r in runs.items()}
+    tau = {k: intervals.autocorrelation_time(ctx.v - r.v) for k, r in models.items()}
     return {
         "given": ctx.n,
         "fitted": int(sum(i.size for i in idx)),
@@ -323,8 +323,8 @@ def samples_used(ctx: selection.Context, runs: dict[str, selection.ModelRun]) ->
 # the diagnosis
 
 
-def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, validate=(),
-        warnings=(), progress=True):  # fmt: skip
+def diagnose_records(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None,
+                     validate=(), warnings=(), progress=True):  # fmt: skip
     """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
 
     ``train``: the cell's checked training records (``records.Checked``, as ``inputs.py`` reads
@@ -402,7 +402,7 @@ def run(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None, val
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
 
 
-def _fit_base(ctx: selection.Context, sources, capacity_ah, soc0) -> selection.ModelRun:
+def _fit_base(ctx: selection.Context, sources, capacity_ah, soc0) -> selection.Candidate:
     """The base fit, refused (``sanity``) before anything else is spent on a base that does not
     fit at all."""
     base = selection.fit_base(ctx, capacity_ah, soc0)
@@ -421,7 +421,7 @@ def _context(train: list[Checked], table, capacity_ah, soc0) -> selection.Contex
     return selection.Context(recs, table, capacity_ah, soc0)
 
 
-def _where(ctx: selection.Context, base: selection.ModelRun):
+def _where(ctx: selection.Context, base: selection.Candidate):
     """The records joined, the base's residual and SOC, the noise floor, and where the base
     misses beyond it (``localize``)."""
     rec = Record.join(ctx.recs)
@@ -434,7 +434,7 @@ def _where(ctx: selection.Context, base: selection.ModelRun):
     return rec, resid, soc, noise_v, regions, windows
 
 
-def _selected_model(ctx, final: selection.ModelRun, iv: intervals.Intervals) -> FittedModel:
+def _selected_model(ctx, final: selection.Candidate, iv: intervals.Intervals) -> FittedModel:
     """The model.json of the selection, with its intervals (diagnosis.json carries the same)."""
     table = ctx.table
     model = selection.fitted_model(ctx, final, provenance={
@@ -447,8 +447,8 @@ def _selected_model(ctx, final: selection.ModelRun, iv: intervals.Intervals) -> 
     return model
 
 
-def _heldout_mv(ctx: selection.Context, run: selection.ModelRun, m=None) -> float:
-    return 1e3 * float(np.sqrt(ctx.ho_mse(run, m)))
+def _heldout_mv(ctx: selection.Context, cand: selection.Candidate, m=None) -> float:
+    return 1e3 * float(np.sqrt(ctx.ho_mse(cand, m)))
 
 
 def _verdict(ctx, lad, rec: Record, soc: np.ndarray, gap: dict, noise_v: float, undecided):
@@ -475,7 +475,7 @@ def _verdict(ctx, lad, rec: Record, soc: np.ndarray, gap: dict, noise_v: float, 
             "delta_bic": row["delta_bic"],
             "t": row["t"],
         }
-        for lr, r in zip(lad.rungs, lad.runs, strict=True):
+        for lr, r in zip(lad.rungs, lad.chosen, strict=True):
             lr["parameters"] = selection.parameters(ctx, r)
             rungs["+".join(r.effects)] = r
         rungs.setdefault("+".join(final.effects) or "base", final)  # after pruning
@@ -503,7 +503,7 @@ def _no_winner(verdict: dict, lad, rec: Record, noise_v: float) -> None:
     )
 
 
-def _selected(ctx: selection.Context, final: selection.ModelRun) -> dict:
+def _selected(ctx: selection.Context, final: selection.Candidate) -> dict:
     return {
         "name": "+".join(final.effects) or "base",
         "effects": list(final.effects),
@@ -512,7 +512,7 @@ def _selected(ctx: selection.Context, final: selection.ModelRun) -> dict:
     }
 
 
-def _undecided(final: selection.ModelRun, iv: intervals.Intervals, n_records: int) -> list:
+def _undecided(final: selection.Candidate, iv: intervals.Intervals, n_records: int) -> list:
     """The selected elements the records do not identify (docs/admission-rule.md), each with the
     record that would decide it."""
     return [
@@ -543,7 +543,7 @@ def _ocv(table) -> dict:
             "capacity_ah": table.capacity_ah}  # fmt: skip
 
 
-def _base(ctx, base: selection.ModelRun, n: int, noise_v: float, capacity_ah, soc0) -> dict:
+def _base(ctx, base: selection.Candidate, n: int, noise_v: float, capacity_ah, soc0) -> dict:
     rmse = float(np.sqrt(base.rss / n))
     return {
         "model": (
@@ -603,8 +603,8 @@ def _arrays(ctx: selection.Context, lad, rec: Record, soc: np.ndarray) -> dict:
 def diagnose(train, capacity_ah: float | None = None, soc0: float | None = None,
              source="<data>", **kw) -> dict:  # fmt: skip
     """The diagnosis (the dict written to diagnosis.json) of checked records or frames (as
-    :func:`run`); DataError on bad input."""
-    return run(train, capacity_ah, soc0, source, **kw)[0]
+    :func:`diagnose_records`); DataError on bad input."""
+    return diagnose_records(train, capacity_ah, soc0, source, **kw)[0]
 
 
 def _jsonable(obj):

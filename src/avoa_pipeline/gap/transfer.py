@@ -342,12 +342,12 @@ FIXED = {"1rc": (), "2rc": ("second_rc",)}
 
 
 def fit_fixed(frames, table) -> dict:
-    """The fixed circuits of :data:`FIXED` fitted to the training frames (``fitted.Fit`` each)."""
+    """The fixed circuits of :data:`FIXED` fitted to the training frames (``fitting.Fit`` each)."""
     return {key: fit_model(frames, Config(effects, table)) for key, effects in FIXED.items()}
 
 
-def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients,
-              profiles) -> list[dict]:  # fmt: skip
+def diagnose_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients,
+                   profiles) -> list[dict]:  # fmt: skip
     """Diagnose one cell's split as a user would and predict its unseen records; one row per
     unseen record with every model's RMSE (mV). Writes ``diagnosis.json`` and ``model.json``
     (and the fixed circuits' ``model_1rc.json``, ``model_2rc.json``) into ``out``."""
@@ -358,8 +358,8 @@ def run_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients
               if str(paths[record_name(cell, p, a)]) not in train]  # fmt: skip
     slow = str(paths[record_name(cell, SLOW, TRAIN_AMBIENT_C)])
     read = inputs.read_inputs(train, unseen, slow)
-    report, _, model = diagnose.run(read.train, ocv_table=read.ocv, validate=read.validate,
-                                    warnings=read.warnings)  # fmt: skip
+    report, _, model = diagnose.diagnose_records(
+        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
     (out / "diagnosis.json").write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
     (out / "model.json").write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")

@@ -122,8 +122,8 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     from ..io import write_json
 
     read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
-    report, _, model = diagnose.run(read.train, ocv_table=read.ocv, validate=read.validate,
-                                    warnings=read.warnings)  # fmt: skip
+    report, _, model = diagnose.diagnose_records(
+        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
@@ -211,7 +211,7 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
 
 
 def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
-    """The cross-cycle diagnostic (``cross_cycle.fit_each_run_all``) of the base circuit
+    """The cross-cycle diagnostic (``cross_cycle.fit_each_predict_all``) of the base circuit
     ``c20_2rc_lowsoc`` and of the configuration the diagnosis selected (its elements and OCV
     table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
     import pandas as pd
@@ -226,7 +226,7 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
         "c20_2rc_lowsoc": Config(C20_MODELS["c20_2rc_lowsoc"], read_ocv(ocv_csv)),
         "diagnosis_selected": FittedModel.load(model_json).config,
     }
-    df = pd.DataFrame(cross_cycle.fit_each_run_all(temp, _frames(cycles), models))
+    df = pd.DataFrame(cross_cycle.fit_each_predict_all(temp, _frames(cycles), models))
     df.insert(0, "temperature_c", float(ambient_c))
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)

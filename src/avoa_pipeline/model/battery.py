@@ -186,8 +186,8 @@ def first_sample_soc0(P_full: np.ndarray, v0: float, i0: float, qdis_ah: float) 
     return rational_soc0(vnom, 1.0 - beta, v0 + r0 * i0)
 
 
-def run_on_record(p_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
-                  dynamics: bool, qdis_ah: float) -> np.ndarray:  # fmt: skip
+def simulate_on_record(p_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
+                       dynamics: bool, qdis_ah: float) -> np.ndarray:  # fmt: skip
     """Terminal voltage of the paper's model (no load, no fade) on a measured record, started by
     :func:`first_sample_soc0`."""
     p = np.asarray(p_full, dtype=float)

@@ -698,25 +698,15 @@ def _validate(d, schema: dict, source: str) -> None:
         raise DataError(f"{source}: field '{field}': {what}")
 
 
-@dataclass
-class Fit:
-    """A configuration fitted to records: the model, each record's rows, the training RMSE."""
-
-    model: FittedModel
-    X: np.ndarray  # per-record internal rows (each record's initial state, by the rule, its own)
-    train_rmse_mv: float
-    nfev: int
-
-
 def fit_model(frames, config: Config, capacity_ah: float | None = None,
-              soc0: float | None = None, provenance: dict | None = None) -> Fit:  # fmt: skip
+              soc0: float | None = None, provenance: dict | None = None):  # fmt: skip
     """Fit ``config`` to one or several records of one cell: the base by multi-start least
     squares, then the configuration's elements one at a time, each started from the previous
     fit (as the diagnosis's ladder adds them). Shared cell parameters, each record started by
     the library's rule (``fitting.structure``) and counting alike; one reference temperature
     (the mean over all records). The training RMSE is the records-alike one (the root of the
     mean over records of each record's mean squared error). The model carries its parameters'
-    intervals (``model/intervals.py``)."""
+    intervals (``model/intervals.py``). Returns a ``fitting.Fit``."""
     from . import fitting, intervals
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
@@ -739,7 +729,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
            for r, rec in enumerate(recs)]  # fmt: skip
     model = model_of(recs, config, X, knots, fix_q, provenance)
     model.intervals = intervals.of_fit(recs, st, X).report()
-    return Fit(model, X, 1e3 * float(np.sqrt(np.mean(mse))), nfev)
+    return fitting.Fit(X, res.cost_fit, nfev, model, 1e3 * float(np.sqrt(np.mean(mse))))
 
 
 def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bool,

@@ -184,10 +184,15 @@ def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class FitResult:
-    X: np.ndarray  # per-record internal rows (R, NX)
-    cost_fit: float  # 0.5 · sum of squared fitting residuals (on the fitted samples)
+class Fit:
+    """A least-squares fit to records (the model layer's one result type); ``fitted.fit_model``'s
+    also carries the fitted model and the records-alike training RMSE."""
+
+    X: np.ndarray  # per-record internal rows (each record's initial state, by the rule, its own)
+    cost_fit: float  # 0.5 · sum of squared residuals on the fitted samples (of the last fit)
     nfev: int
+    model: FittedModel | None = None  # noqa: F821 - fitted.FittedModel: fitted imports this module
+    train_rmse_mv: float | None = None
 
 
 def fit_indices(n: int, mask: np.ndarray | None, max_points: int) -> np.ndarray:
@@ -285,7 +290,7 @@ class Problem:
 
 
 def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
-                  max_nfev: int = 200, tol: float = 1e-8) -> FitResult:  # fmt: skip
+                  max_nfev: int = 200, tol: float = 1e-8) -> Fit:  # fmt: skip
     """Least-squares fit of the free parameters of ``st`` from per-record rows ``X0``."""
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     if X0.shape[0] == 1 and len(recs) > 1:
@@ -297,11 +302,11 @@ def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
     res = least_squares(prob.residuals, z0, jac=prob.jacobian, bounds=(st.lo, st.hi),
                         method="trf", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
                         max_nfev=max_nfev)  # fmt: skip
-    return FitResult(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
+    return Fit(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
 
 
 def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60,
-            max_nfev=200) -> FitResult:  # fmt: skip
+            max_nfev=200) -> Fit:  # fmt: skip
     """Multi-start: each start on thinned records, the best refined on the fitted samples."""
     idx_full = indices(recs, masks, MAX_FIT_POINTS)
     if len(starts) == 1:

@@ -107,15 +107,15 @@ class LocalSearchAccounting:
             self._next_mark += self.pop_size
 
 
-def restart_loop(tracker: Tracker, rng: np.random.Generator, run_once) -> None:
-    """Call ``run_once(x0)`` from fresh uniform random starts until the budget is spent."""
+def restart_loop(tracker: Tracker, rng: np.random.Generator, search_from) -> None:
+    """Call ``search_from(x0)`` from fresh uniform random starts until the budget is spent."""
     while not tracker.done:
         x0 = tracker.random_uniform(rng, 1)[0]
         try:
             # a local search on an objective that returns +inf (a failed simulation) computes
             # inf - inf internally; that is harmless, so keep it out of the warnings
             with np.errstate(invalid="ignore", over="ignore"):
-                run_once(x0)
+                search_from(x0)
         except BudgetExhausted:
             break
 
@@ -131,11 +131,11 @@ def nelder_mead(tracker: Tracker, rng: np.random.Generator, pop_size: int, **set
     def search(ask) -> None:
         acc = LocalSearchAccounting(tracker, pop_size, ask)
 
-        def run_once(x0: np.ndarray) -> None:
+        def search_from(x0: np.ndarray) -> None:
             minimize(
                 acc.evaluate_one, x0, method="Nelder-Mead", bounds=bounds, options=dict(settings)
             )
 
-        restart_loop(tracker, rng, run_once)
+        restart_loop(tracker, rng, search_from)
 
     yield from search_steps(tracker, search)

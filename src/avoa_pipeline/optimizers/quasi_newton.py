@@ -85,9 +85,9 @@ def quasi_newton(tracker: Tracker, rng: np.random.Generator, pop_size: int, **se
             g[~np.isfinite(g)] = 0.0
             return float(f[0]), g
 
-        def run_once(x0: np.ndarray) -> None:
+        def search_from(x0: np.ndarray) -> None:
             minimize(fun, x0, jac=True, method="L-BFGS-B", bounds=bounds, options=settings)
 
-        restart_loop(tracker, rng, run_once)
+        restart_loop(tracker, rng, search_from)
 
     yield from search_steps(tracker, search)

@@ -16,8 +16,8 @@ from ...model.ecm import Config
 from .drive_cycles import fit_and_predict
 
 
-def fit_each_run_all(temp: str, cycles: dict[str, pd.DataFrame],
-                     models: dict[str, Config]) -> list[dict]:  # fmt: skip
+def fit_each_predict_all(temp: str, cycles: dict[str, pd.DataFrame],
+                         models: dict[str, Config]) -> list[dict]:  # fmt: skip
     """One row per (model, cycle fitted on, cycle predicted): RMSE and maximum error, and
     ``in_sample`` where the two cycles are the same."""
     rows = []

@@ -42,7 +42,7 @@ from ... import problem, seeds
 from ...errors import ConfigError, DataError
 from ...io import uniform_step
 from ...model import ecm
-from ...model.battery import PARAM_NAMES, first_sample_soc0, run_on_record
+from ...model.battery import PARAM_NAMES, first_sample_soc0, simulate_on_record
 from ...model.fitted import fit_model, prediction_errors
 from ...optimizers import ALGORITHMS, Budget, minimize
 
@@ -57,10 +57,10 @@ one RC, free capacity)."""
 
 def paper_simulate(params: dict, frame: pd.DataFrame, dynamics: bool, qdis: float) -> np.ndarray:
     """The paper's model with ``params`` on a record, from its first sample
-    (``battery.run_on_record``)."""
+    (``battery.simulate_on_record``)."""
     p = np.array([float(params.get(n, 1.0 if n == "tau" else 0.0)) for n in PARAM_NAMES])
-    return run_on_record(p, frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy(),
-                         _step(frame), dynamics, qdis)  # fmt: skip
+    return simulate_on_record(p, frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy(),
+                              _step(frame), dynamics, qdis)  # fmt: skip
 
 
 def _step(frame: pd.DataFrame) -> float:
