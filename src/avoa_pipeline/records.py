@@ -133,6 +133,14 @@ SIGNS = ("discharge-positive", "charge-positive")
 CANNOT_TELL = "cannot tell"
 
 
+def check_voltage(v: np.ndarray, source: str, column: str) -> None:
+    """A one-line DataError naming ``column`` unless every voltage lies in VOLTAGE_RANGE_V."""
+    lo, hi = VOLTAGE_RANGE_V
+    if v.min() < lo or v.max() > hi:
+        raise DataError(f"{source}: column {column!r}: values {v.min():g}..{v.max():g} outside "
+                        f"{lo:g}..{hi:g} V of one cell (mV given?)")  # fmt: skip
+
+
 # ----------------------------------------------------------------------------------------------
 # columns
 
@@ -270,12 +278,7 @@ def check_scale(
             f"amperes (a large-format cell); if it is mA, every fitted resistance is 1000 times "
             "too small and the capacity 1000 times too large: give the capacity to check"
         )
-    lo, hi = VOLTAGE_RANGE_V
-    if v.min() < lo or v.max() > hi:
-        raise DataError(
-            f"{source}: column {col['voltage_v']!r}: values {v.min():g}..{v.max():g} "
-            f"outside {lo:g}..{hi:g} V of one cell (mV given?)"
-        )
+    check_voltage(v, source, col["voltage_v"])
     if "temperature_c" in frame.columns:
         _check_temperature(frame["temperature_c"].to_numpy(dtype=float), source,
                            col["temperature_c"])  # fmt: skip

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError
-from ..records import VOLTAGE_RANGE_V, at_rest, current_scale, runs_of
+from ..records import at_rest, check_voltage, current_scale, runs_of
 from .ecm import OcvTable
 
 SLOW_C_RATE = 0.1
@@ -203,12 +203,7 @@ def from_table(frame: pd.DataFrame, source: str) -> OcvTable:
             f"{source}: column 'soc': values {soc.min():g}..{soc.max():g} outside "
             "[0, 1] (percent given?)"
         )
-    lo, hi = VOLTAGE_RANGE_V
-    if v.min() < lo or v.max() > hi:
-        raise DataError(
-            f"{source}: column 'ocv_v': values {v.min():g}..{v.max():g} outside "
-            f"{lo:g}..{hi:g} V of one cell (mV given?)"
-        )
+    check_voltage(v, source, "ocv_v")
     if np.ptp(soc) < MIN_TABLE_SPAN:
         raise DataError(
             f"{source}: column 'soc': the table spans SOC {soc.min():g}..{soc.max():g}"
