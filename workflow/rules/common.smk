@@ -131,6 +131,8 @@ def real_targets():
     out += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
     if PAN_EXP_TEMPS:
         out += ["results/real/drive_cycle_rmse.csv", "results/real/figures/panasonic_drive_cycles.png"]
+    if len(PAN_EXP_TEMPS) > 1:  # one model over temperature (issue 28)
+        out.append("results/real/joint_temperature.csv")
     return out + plan.cell_targets(config)
 
 
