@@ -253,7 +253,6 @@ if len(PAN_EXP_TEMPS) > 1:
             "logs/real/joint/table.log",
         params:
             ambient={t: REAL["panasonic"]["temperatures"][t]["ambient_c"] for t in PAN_EXP_TEMPS},
-            joint_dir=PAN_JOINT,
             own_dirs=pan_diagnoses()["diagnosis"],
             tests=PAN_JOINT_TESTS,
         threads: 1
