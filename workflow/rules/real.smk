@@ -215,7 +215,7 @@ PAN_JOINT_TESTS = {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
                    for c in real_dc.unseen_cycles(config, t)}  # every temperature's unseen cycles
 
 
-if len(PAN_EXP_TEMPS) > 1:
+if PAN_JOINT_ON:
 
     rule panasonic_joint:
         """The diagnosis of every temperature's training cycle and HPPC test together (one
