@@ -131,6 +131,8 @@ def real_targets():
     out += [f"{PAN_OUT}/cross_cycle/{t}.csv" for t in PAN_EXP_TEMPS]
     if PAN_EXP_TEMPS:
         out += ["results/real/drive_cycle_rmse.csv", "results/real/figures/panasonic_drive_cycles.png"]
+    if PAN_JOINT_ON:  # one model over temperature (issue 28)
+        out.append("results/real/joint_temperature.csv")
     return out + plan.cell_targets(config)
 
 
@@ -147,6 +149,7 @@ PAN_OUT = "results/real/panasonic"
 PAN_EXP_TEMPS = real_dc.temperatures(config) if PANASONIC and PAN_EXP else []
 PAN_EXP_TEMP_RE = plan.regex(PAN_EXP_TEMPS)  # the ptemp wildcard of experiment 1's rules
 PAN_GAP = bool(PAN_EXP.get("gap", True))
+PAN_JOINT_ON = bool(PAN_EXP.get("joint", True)) and len(PAN_EXP_TEMPS) > 1  # rules in real.smk
 
 
 def pan_sources(w):

@@ -207,6 +207,60 @@ rule panasonic_drive_cycles_notebook:
 
 
 # ------------------------------------------------------------------------------------------------
+# One model over temperature (issue 28; docs/real-data.md, "One model over temperature"): every
+# temperature's training records diagnosed together, beside each temperature's own diagnosis
+# ------------------------------------------------------------------------------------------------
+PAN_JOINT = "results/real/joint"
+PAN_JOINT_TESTS = {f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
+                   for c in real_dc.unseen_cycles(config, t)}  # every temperature's unseen cycles
+
+
+if PAN_JOINT_ON:
+
+    rule panasonic_joint:
+        """The diagnosis of every temperature's training cycle and HPPC test together (one
+        reference temperature, the mean of all; the thermal elements are candidates where the
+        measured temperature moves), the 25 degC C/20 test as --ocv, every temperature's unseen
+        cycles as validation records only: `python -m avoa_pipeline diagnose TRAIN... --ocv C20
+        --validate TESTS... --out DIR` without its figure."""
+        input:
+            train=[pan_canon(f"{t}/{r}") for t in PAN_EXP_TEMPS for r in (PAN_EXP["train"][t], "hppc")],
+            ocv=PAN_OCV_RECORD,
+            tests=list(PAN_JOINT_TESTS.values()),
+        output:
+            json=f"{PAN_JOINT}/diagnosis.json",
+            model=f"{PAN_JOINT}/model.json",
+        log:
+            "logs/real/joint/diagnosis.log",
+        benchmark:
+            "logs/real/joint/diagnosis.benchmark.tsv"
+        params:
+            tests=PAN_JOINT_TESTS,
+        threads: 1
+        script:
+            "../scripts/panasonic_joint.py"
+
+    rule panasonic_joint_table:
+        """Per temperature and unseen cycle, the joint model's RMSE and largest error beside
+        the temperature's own diagnosis (the `diagnosis_selected` rows of drive_cycle_rmse.csv,
+        read from the same diagnosis.json, so the table waits for no paper-model fit)."""
+        input:
+            joint=f"{PAN_JOINT}/diagnosis.json",
+            own=[f"{d}/diagnosis.json" for d in pan_diagnoses()["diagnosis"].values()],
+        output:
+            "results/real/joint_temperature.csv",
+        log:
+            "logs/real/joint/table.log",
+        params:
+            ambient={t: REAL["panasonic"]["temperatures"][t]["ambient_c"] for t in PAN_EXP_TEMPS},
+            own_dirs=pan_diagnoses()["diagnosis"],
+            tests=PAN_JOINT_TESTS,
+        threads: 1
+        script:
+            "../scripts/panasonic_joint_table.py"
+
+
+# ------------------------------------------------------------------------------------------------
 # Samsung 30Q and NASA B0005 (jobs in avoa_pipeline.jobs.real, one script per rule). A config
 # without real.samsung or real.nasa leaves that dataset's rules out. docs/real-data.md, sections
 # "Samsung INR18650-30Q", "NASA B0005".

@@ -114,10 +114,10 @@ def errors_mv(model_v: np.ndarray, frame: pd.DataFrame) -> dict:
 def fit_settings(cfg: dict, temp: str) -> dict:
     """What a paper-model fit at ``temp`` depends on beyond its data: the experiment's settings
     (bounds, budget, seeds, qdis_ah) and that temperature's training cycle, not the other
-    temperatures, the list of optimizers, the figure or the gap switch (a change to those
-    neither reaches nor reruns it)."""
+    temperatures, the list of optimizers, the figure or the gap and joint switches (a change to
+    those neither reaches nor reruns it)."""
     exp = experiment(cfg)
-    skip = ("train", "temperatures", "algorithms", "figure_cycle", "gap")
+    skip = ("train", "temperatures", "algorithms", "figure_cycle", "gap", "joint")
     return {**{k: v for k, v in exp.items() if k not in skip}, "train": exp["train"][temp]}
 
 

@@ -1,0 +1,80 @@
+"""Seconds to fit one Panasonic model over every temperature (issue 28's goal: ≤ 5 min on this
+2-core machine): ``python -m avoa_pipeline diagnose`` of each experiment temperature's training
+cycle and HPPC test together, the 25 °C C/20 test as ``--ocv``, in a child process (as rule
+``panasonic_joint`` runs it, without the unseen cycles unless ``--validate``). Prints its wall and
+CPU seconds, its peak RSS (the whole process, from ``os.wait4``), the load average before and
+after, and what ``diagnosis.json`` says it selected and how long it took; asserts nothing.
+
+The records are the canonical CSVs ``snakemake -j2 real`` writes (results/real/canonical).
+
+    nice -n 19 .venv/bin/python benchmarks/bench_joint.py
+    ... --validate    # also every temperature's unseen cycles (rule panasonic_joint does)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+from avoa_pipeline.plan import canonical_name
+
+
+def records(cfg: dict, canonical: Path) -> tuple[list[Path], list[Path], Path]:
+    """(training records, unseen cycles, the C/20 test) of the config's experiment temperatures,
+    by the rule of docs/real-data.md ("One model over temperature")."""
+    pan = cfg["real"]["panasonic"]
+    exp = pan["experiment"]
+    temps = exp.get("temperatures") or list(exp["train"])
+
+    def path(name: str) -> Path:
+        return canonical / f"{canonical_name(name)}.csv"
+
+    train = [path(f"{t}/{r}") for t in temps for r in (exp["train"][t], "hppc")]
+    unseen = [path(f"{t}/{c}") for t in temps for c in pan["temperatures"][t]["drive_cycles"]
+              if c != exp["train"][t]]  # fmt: skip
+    return train, unseen, path("25degC/ocv_c20")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--config", default="config/config.yaml")
+    ap.add_argument("--canonical", default="results/real/canonical")
+    ap.add_argument("--validate", action="store_true")
+    args = ap.parse_args()
+
+    cfg = yaml.safe_load(Path(args.config).read_text())
+    train, unseen, ocv = records(cfg, Path(args.canonical))
+    missing = [str(p) for p in (*train, *unseen, ocv) if not p.is_file()]
+    if missing:
+        sys.exit(f"error: {missing[0]}: no such file (run `snakemake -j2 real` first)")
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "avoa_pipeline", "diagnose", *map(str, train),
+               "--ocv", str(ocv), "--out", out]  # fmt: skip
+        if args.validate:
+            cmd += ["--validate", *map(str, unseen)]
+        load0 = os.getloadavg()[0]
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        if os.waitstatus_to_exitcode(status) != 0:
+            sys.exit(f"error: diagnose exited with {os.waitstatus_to_exitcode(status)}")
+        report = json.loads((Path(out) / "diagnosis.json").read_text())
+    print(f"joint diagnosis of {len(train)} records ({report['n_samples']:,} samples)"
+          f"{' + ' + str(len(unseen)) + ' unseen' if args.validate else ''}: "
+          f"wall {wall:.1f} s, CPU {usage.ru_utime + usage.ru_stime:.1f} s, "
+          f"peak RSS {usage.ru_maxrss / 1024:.0f} MB; load {load0:.2f} -> "
+          f"{os.getloadavg()[0]:.2f}; selected {report['selected']['name']}; "
+          f"diagnosis.json wall_s {report['wall_s']:.1f} (goal: <= 300 s)")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,79 @@
+"""One model over temperature (real/experiments/joint_temperature.py, jobs.real's table job): the
+joint diagnosis's unseen errors beside each temperature's own, from small synthetic reports."""
+
+import json
+
+import numpy as np
+import pandas as pd
+
+from avoa_pipeline.jobs.real import joint_temperature_table
+from avoa_pipeline.real.experiments import joint_temperature as jt
+from avoa_pipeline.real.experiments.drive_cycles import diagnosis_record
+
+
+def _report(selected: str, rows: dict[str, tuple[float, float]]) -> dict:
+    """A diagnosis.json with validation rows for the selected model and one other rung."""
+    validation = []
+    for record, (rmse, mx) in rows.items():
+        for model, scale in ((selected, 1.0), ("base", 2.0)):
+            errors = {"rmse_mv": rmse * scale, "max_err_mv": mx * scale,
+                      "rmse_in_training_soc_mv": rmse, "share_in_training_soc": 1.0}  # fmt: skip
+            validation.append({"record": record, "model": model, "effects": [model], **errors})
+    return {"source": ["a.csv", "b.csv"], "ocv": {}, "verdict": {}, "ladder": [],
+            "selected": {"name": selected, "heldout_rmse_mv": 1.0}, "wall_s": 1.0,
+            "validation": validation}  # fmt: skip
+
+
+AMBIENT = {"25degC": 25.0, "0degC": 0.0}
+JOINT = {"25degC/us06": (10.0, 50.0), "25degC/hwfet": (20.0, 60.0), "0degC/us06": (30.0, 90.0)}
+OWN = {"25degC": {"us06": (12.0, 55.0), "hwfet": (18.0, 40.0)}, "0degC": {"us06": (130.0, 400.0)}}
+
+
+def _records():
+    joint = diagnosis_record("all", _report("thermal", JOINT), "joint", {k: k for k in JOINT})
+    own = {t: diagnosis_record(t, _report(f"own_{t}", rows), "diagnosis")
+           for t, rows in OWN.items()}  # fmt: skip
+    return joint, own
+
+
+def test_table_puts_each_unseen_cycle_beside_its_temperatures_own_model():
+    joint, own = _records()
+    df = jt.table(joint, own, AMBIENT)
+    assert list(df.columns) == list(jt.COLUMNS)
+    assert list(zip(df["temperature_c"], df["cycle"], strict=True)) == [
+        (25.0, "hwfet"), (25.0, "us06"), (0.0, "us06")]  # fmt: skip
+    for row in df.itertuples():
+        temp = next(t for t, a in AMBIENT.items() if a == row.temperature_c)
+        assert (row.joint_rmse_mv, row.joint_max_err_mv) == JOINT[f"{temp}/{row.cycle}"]
+        assert (row.per_temperature_rmse_mv, row.per_temperature_max_err_mv) == OWN[temp][row.cycle]
+        assert row.per_temperature_model == f"own_{temp}"
+        assert row.joint_model == "thermal"
+    med = jt.medians(df).set_index("temperature_c")
+    assert med.loc[25.0].tolist() == [15.0, 15.0]  # joint, per temperature
+    assert med.loc[0.0].tolist() == [30.0, 130.0]
+
+
+def test_a_temperature_without_a_model_of_its_own_leaves_its_columns_empty():
+    joint, own = _records()
+    df = jt.table(joint, {"25degC": own["25degC"]}, AMBIENT)
+    cold = df[df["temperature_c"] == 0.0].iloc[0]
+    assert np.isnan(cold["per_temperature_rmse_mv"])
+    assert cold["joint_rmse_mv"] == 30.0
+
+
+def test_job_reads_the_diagnoses_and_names_the_cycles_by_their_files(tmp_path):
+    tests = {k: str(tmp_path / f"{k.replace('/', '_')}.csv") for k in JOINT}
+    (tmp_path / "joint").mkdir()
+    rep = _report("thermal", {tests[k]: e for k, e in JOINT.items()})
+    (tmp_path / "joint" / "diagnosis.json").write_text(json.dumps(rep))
+    own_dirs = {}
+    for temp, rows in OWN.items():
+        own_dirs[temp] = tmp_path / temp
+        own_dirs[temp].mkdir()
+        rep = _report(f"own_{temp}", {tests[f"{temp}/{c}"]: e for c, e in rows.items()})
+        (own_dirs[temp] / "diagnosis.json").write_text(json.dumps(rep))
+    out = tmp_path / "joint_temperature.csv"
+    joint_temperature_table(AMBIENT, tmp_path / "joint", own_dirs, tests, out, tmp_path / "log")
+    df = pd.read_csv(out)
+    assert df.loc[df["temperature_c"] == 0.0, "per_temperature_rmse_mv"].item() == 130.0
+    assert "0 °C 30.0 / 130.0" in (tmp_path / "log").read_text()
