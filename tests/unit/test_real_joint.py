@@ -73,7 +73,11 @@ def test_job_reads_the_diagnoses_and_names_the_cycles_by_their_files(tmp_path):
         rep = _report(f"own_{temp}", {tests[f"{temp}/{c}"]: e for c, e in rows.items()})
         (own_dirs[temp] / "diagnosis.json").write_text(json.dumps(rep))
     out = tmp_path / "joint_temperature.csv"
-    joint_temperature_table(AMBIENT, tmp_path / "joint", own_dirs, tests, out, tmp_path / "log")
+    stem = tmp_path / "figures" / "joint_temperature"
+    joint_temperature_table(AMBIENT, tmp_path / "joint", own_dirs, tests, out, stem,
+                            tmp_path / "log")  # fmt: skip
     df = pd.read_csv(out)
+    assert stem.with_suffix(".png").stat().st_size > 0
+    assert stem.with_suffix(".pdf").stat().st_size > 0
     assert df.loc[df["temperature_c"] == 0.0, "per_temperature_rmse_mv"].item() == 130.0
     assert "0 °C 30.0 / 130.0" in (tmp_path / "log").read_text()

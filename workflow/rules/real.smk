@@ -248,7 +248,9 @@ if PAN_JOINT_ON:
             joint=f"{PAN_JOINT}/diagnosis.json",
             own=[f"{d}/diagnosis.json" for d in pan_diagnoses()["diagnosis"].values()],
         output:
-            "results/real/joint_temperature.csv",
+            csv="results/real/joint_temperature.csv",
+            png="results/real/figures/joint_temperature.png",
+            pdf="results/real/figures/joint_temperature.pdf",
         log:
             "logs/real/joint/table.log",
         params:

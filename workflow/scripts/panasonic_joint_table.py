@@ -11,4 +11,5 @@ from avoa_pipeline.jobs.real import joint_temperature_table
 
 p = snakemake.params
 joint_temperature_table(dict(p.ambient), Path(snakemake.input.joint).parent, dict(p.own_dirs),
-                        dict(p.tests), snakemake.output[0], log)  # fmt: skip
+                        dict(p.tests), snakemake.output.csv,
+                        str(Path(snakemake.output.png).with_suffix("")), log)  # fmt: skip

@@ -147,13 +147,15 @@ def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
     return drive_cycles.diagnosis_record(temp, report, prefix, cycle_of, source=str(path))
 
 
-def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, log=None) -> None:
+def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, figure_stem,
+                            log=None) -> None:  # fmt: skip
     """``joint_temperature.csv``: the joint diagnosis in ``joint_dir`` (every temperature's
     training records) beside each temperature's own (``own_dirs``: temperature → folder), on
     the unseen cycles ``tests`` (``<temperature>/<cycle>`` → CSV); ``ambient``: temperature →
     °C."""
     from ..io import atomic_path
     from ..real.experiments import joint_temperature as jt
+    from ..report import real_figures
 
     joint = diagnosis_record("all", "joint", joint_dir, tests)
     own = {}
@@ -163,10 +165,13 @@ def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, 
     df = jt.table(joint, own, {t: float(a) for t, a in ambient.items()})
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
-    write_log(log, f"wrote {out_csv}: joint {joint['selected']}; median unseen RMSE joint / own "
-                   "[mV]: " + ", ".join(f"{r.temperature_c:g} °C {r.joint_rmse_mv:.1f} / "
-                                        f"{r.per_temperature_rmse_mv:.1f}"
-                                        for r in jt.medians(df).itertuples()))  # fmt: skip
+    real_figures.joint_temperature_figure(df, figure_stem)
+    medians = ", ".join(
+        f"{r.temperature_c:g} °C {r.joint_rmse_mv:.1f} / {r.per_temperature_rmse_mv:.1f}"
+        for r in jt.medians(df).itertuples()
+    )
+    write_log(log, f"wrote {out_csv}, {figure_stem}.png: joint {joint['selected']}; median unseen "
+                   f"RMSE joint / own [mV]: {medians}")  # fmt: skip
 
 
 def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out_runs,

@@ -5,6 +5,8 @@
   by median RMSE (:func:`shown_models`).
 - :func:`arrhenius_figure`: experiment 2, R0, Rtr, τ against SOC and their Arrhenius plots.
 - :func:`fade_figure`: experiment 3, capacity and resistance against the fade laws.
+- :func:`joint_temperature_figure`: issue 28, the unseen error against temperature, one model
+  over every temperature beside each temperature's own.
 
 Each writes ``<stem>.png`` and ``<stem>.pdf`` with :func:`.figures.save`.
 """
@@ -176,4 +178,28 @@ def fade_figure(table: pd.DataFrame, fits: pd.DataFrame, stem) -> None:
     fig.suptitle(
         "NASA PCoE B0005, 2 A discharges at 168 ageing states: the paper's fade law", fontsize=10
     )
+    save(fig, stem)
+
+
+def joint_temperature_figure(df: pd.DataFrame, stem) -> None:
+    """RMSE on each unseen cycle against temperature (``joint_temperature.csv``): the model
+    fitted over every temperature (filled) beside each temperature's own (open); the lines join
+    the medians over each temperature's cycles (the comparison docs/real-data.md reports)."""
+    fig = Figure(figsize=(6.4, 4.2), layout="constrained")
+    ax = fig.subplots()
+    med = df.groupby("temperature_c")[["joint_rmse_mv", "per_temperature_rmse_mv"]].median()
+    for col, label, color, fill in (
+        ("joint_rmse_mv", "one model, every temperature", "#1f77b4", True),
+        ("per_temperature_rmse_mv", "each temperature's own model", "#d62728", False),
+    ):
+        ax.plot(df["temperature_c"], df[col], "o", ms=6, color=color,
+                mfc=color if fill else "none", alpha=0.8)  # fmt: skip
+        ax.plot(med.index, med[col], "-", color=color, lw=1.5, label=f"{label} (median)")
+    ax.set_yscale("log")
+    ax.set_xlabel("chamber temperature [°C]")
+    ax.set_ylabel("RMSE on the unseen cycles [mV]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.suptitle("Panasonic NCR18650PF: unseen drive cycles, predicted with the measured "
+                 "temperature", fontsize=9)  # fmt: skip
     save(fig, stem)
