@@ -280,8 +280,9 @@ def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> t
         return False, why
     if el.requires and el.requires not in effects_now:
         return False, f"needs {el.requires} first"
-    if "table" in el.conflicts and table is not None:
-        return False, el.conflicts["table"]
+    why = el.conflict(table is not None, load=False)  # the diagnosis fits without a load
+    if why:
+        return False, why
     return True, ""
 
 

@@ -87,7 +87,7 @@ def test_signatures_read_a_record():
     frame = pd.DataFrame({"time_s": t, "current_a": i, "voltage_v": 3.7 - 0.05 * i,
                           "temperature_c": 25.0 + t / 1000.0})  # fmt: skip
     rec = ecm.Record.from_frame(frame)
-    v = View(rec, np.sin(t / 300) * 1e-3, np.linspace(0.9, 0.2, t.size), t % 400,
+    v = View(rec, np.sin(t / 300) * 1e-3, np.linspace(0.9, 0.2, t.size), t % 400, np.sign(i),
              np.sign(i), rec.imax(), lambda r: 0.0)  # fmt: skip
     for e in elements.REGISTRY.values():
         if isinstance(e.signature, Signature):

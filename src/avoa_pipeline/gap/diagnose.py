@@ -189,7 +189,7 @@ def region_masks(rec: Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarra
         ("direction", "discharge", d > 0),
         ("direction", "charge", d < 0),
     ]
-    since = time_since_step(rec)
+    since, _ = steps_of(rec)
     out += [
         ("since_step", "since step < 10 s", since < 10.0),
         ("since_step", "since step 10-600 s", (since >= 10.0) & (since < 600.0)),
@@ -215,14 +215,17 @@ def region_masks(rec: Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarra
     return out
 
 
-def time_since_step(rec: Record) -> np.ndarray:
-    """Seconds since the last current step (the record's start counts as one)."""
-    step = np.abs(np.diff(rec.i)) > STEP_FRACTION * rec.imax()
+def steps_of(rec: Record) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample, the seconds since the last current step (the record's start counts as one)
+    and that step's sign (+1 a rising current, 0 before any step)."""
+    di = np.diff(rec.i)
+    idx = np.flatnonzero(np.abs(di) > STEP_FRACTION * rec.imax()) + 1
     last = np.zeros(rec.n, dtype=int)
-    idx = np.flatnonzero(step) + 1
     last[idx] = idx
     last = np.maximum.accumulate(last)
-    return rec.t - rec.t[last]
+    sign = np.zeros(rec.n)
+    sign[idx] = np.sign(di[idx - 1])
+    return rec.t - rec.t[last], sign[last]
 
 
 def localize(rec, resid, soc, noise_v) -> tuple[list[dict], list[dict]]:
@@ -282,8 +285,9 @@ def signatures(rec, resid, soc, cands: dict, base: selection.Candidate, regions_
     def t_mean(r):
         return selection.loss_test(r, np.zeros_like(r), regions_of)[0]
 
+    since, step_sign = steps_of(rec)
     d = records.direction(rec.i, rec.imax())
-    view = View(rec, resid, soc, time_since_step(rec), d, rec.imax(), t_mean)
+    view = View(rec, resid, soc, since, step_sign, d, rec.imax(), t_mean)
     out = {e.name: {"acts": e.signature.acts, **e.signature.read(view)}
            for e in elements.REGISTRY.values() if not isinstance(e.signature, str)}  # fmt: skip
     for e, cand in cands.items():

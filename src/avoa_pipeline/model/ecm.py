@@ -294,11 +294,9 @@ class Config:
             el = elements.get(e)
             if el.requires and el.requires not in self.effects:
                 raise ValueError(f"element {e!r} needs {el.requires!r}")
-            for feature, why in el.conflicts.items():
-                if (feature == "table" and self.table is not None) or (
-                    feature == "load" and self.load_ohm is not None
-                ):
-                    raise ValueError(f"element {e!r} cannot join a {feature}: {why}")
+            why = el.conflict(self.table is not None, self.load_ohm is not None)
+            if why:
+                raise ValueError(f"element {e!r}: {why}")
 
     @property
     def ocv_kind(self) -> str:

@@ -74,9 +74,9 @@ class FittedModel:
         """Report-named physical values of the cell's parameters (initial states left out)."""
         out = ecm.report(self.x, self.names)
         p = ecm.physical(self.x, self.knots)
-        for e in ecm.EFFECTS:  # a vector element's values at its knots, in the registry's order
-            if e in self.config.effects and elements.get(e).vector is not None:
-                out.update(elements.get(e).vector.report(p))
+        for e in elements.REGISTRY.values():  # vector elements' knot values, registry order
+            if e.name in self.config.effects and e.vector is not None:
+                out.update(e.vector.report(p))
         return out
 
     def record(self, frame: pd.DataFrame) -> Record:

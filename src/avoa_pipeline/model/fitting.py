@@ -82,10 +82,8 @@ def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
     for n, p in ecm.PARAMS.items():
         if p.scale == "tau":
             out[n] = (tau_lo, tau_hi)
-        elif p.scale == "per_a":
-            out[n] = (p.scaled[0] / imax, p.scaled[1] / imax)
-        elif p.scale == "a":
-            out[n] = (p.scaled[0] * imax, p.scaled[1] * imax)
+        elif p.scaled is not None:
+            out[n] = (_by_current(p.scaled[0], p, imax), _by_current(p.scaled[1], p, imax))
     out["lq"] = (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo)))
     return out
 
@@ -96,13 +94,16 @@ def priors_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
     the start of a block held out, an efficiency without charge in the training blocks — and
     there they keep it neutral instead of letting the trust region wander to a bound."""
     imax = _stats(recs)["imax"]
+    return {n: (p.neutral, _by_current(p.prior_sd, p, imax)) for n, p in ecm.PARAMS.items()
+            if p.prior_sd is not None}  # fmt: skip
 
-    def sd(p):
-        if p.scale == "per_a":
-            return p.prior_sd / imax
-        return p.prior_sd * imax if p.scale == "a" else p.prior_sd
 
-    return {n: (p.neutral, sd(p)) for n, p in ecm.PARAMS.items() if p.prior_sd is not None}
+def _by_current(value: float, p, imax: float) -> float:
+    """``value`` of parameter ``p`` at the records' largest current (``Param.scale``: "per_a"
+    divides by it, "a" multiplies; otherwise the value stands)."""
+    if p.scale == "per_a":
+        return value / imax
+    return value * imax if p.scale == "a" else value
 
 
 @dataclass

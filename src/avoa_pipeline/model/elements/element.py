@@ -108,14 +108,15 @@ class Export:
 @dataclass(frozen=True)
 class View:
     """What a residual signature reads: a training record, the base model's residual on it (V),
-    the base's SOC, the seconds since the last current step, each sample's direction
-    (``records.direction``), the records' largest current and ``t_mean`` (the t statistic of a
-    residual's mean over the diagnosis's batches)."""
+    the base's SOC, the seconds since the last current step and that step's sign (+1 rising, 0
+    before any), each sample's direction (``records.direction``), the records' largest current
+    and ``t_mean`` (the t statistic of a residual's mean over the diagnosis's batches)."""
 
     rec: object  # ecm.Record
     resid: np.ndarray
     soc: np.ndarray
     since: np.ndarray
+    step_sign: np.ndarray
     direction: np.ndarray
     imax: float
     t_mean: Callable[[np.ndarray], float]
@@ -156,6 +157,12 @@ class Element:
     applies: Callable[[list, float], str] | None = None
     vector: Vector | None = None
     withheld: bool = False  # the withheld-effect check (gap/withheld.py) makes records with it
+
+    def conflict(self, table: bool, load: bool) -> str:
+        """Why the element cannot join a model with a measured OCV table / the paper's load
+        ("" when it can)."""
+        why = self.conflicts.get("table", "") if table else ""
+        return why or (self.conflicts.get("load", "") if load else "")
 
 
 def slope_mv(x: np.ndarray, y: np.ndarray) -> float | None:

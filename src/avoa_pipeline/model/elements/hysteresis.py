@@ -5,20 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import records
 from .element import Element, Export, Param, Signature, View
 
 
-def last_direction(rec) -> np.ndarray:
-    """+1 after discharge, −1 after charge, 0 before any current (per sample)."""
-    d = records.direction(rec.i, rec.imax())
-    idx = np.where(d != 0, np.arange(rec.n), 0)
+def last_direction(d: np.ndarray) -> np.ndarray:
+    """+1 after discharge, −1 after charge, 0 before any current (per sample), from each
+    sample's direction ``d`` (``records.direction``)."""
+    idx = np.where(d != 0, np.arange(d.size), 0)
     idx = np.maximum.accumulate(idx)
     return d[idx]
 
 
 def _read(v: View) -> dict:
-    rest, last = v.direction == 0, last_direction(v.rec)
+    rest, last = v.direction == 0, last_direction(v.direction)
     return {
         "rest_after_charge_mv": v.mean_mv(rest & (last < 0)),
         "rest_after_discharge_mv": v.mean_mv(rest & (last > 0)),

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...records import STEP_FRACTION
 from .element import Element, Export, Param, Piece, Signature, View
 
 R_LIMITS = (0.0, 2.0)
@@ -30,15 +29,7 @@ def rc_piece(j: int):
 def step_aligned(v: View) -> dict:
     """The mean residual after current steps, signed by the step's direction, in windows of the
     time since the step."""
-    rec, resid = v.rec, v.resid
-    di = np.diff(rec.i)
-    steps = np.flatnonzero(np.abs(di) > STEP_FRACTION * v.imax) + 1
-    sign = np.zeros(rec.n)
-    last = np.zeros(rec.n, dtype=int)
-    last[steps] = steps
-    last = np.maximum.accumulate(last)
-    sign[steps] = np.sign(di[steps - 1])
-    sgn = sign[last]
+    resid, sgn = v.resid, v.step_sign
     aligned = {}
     for lo, hi in ((0, 10), (10, 60), (60, 600), (600, np.inf)):
         m = (v.since >= lo) & (v.since < hi) & (sgn != 0)
