@@ -40,6 +40,9 @@ ACTIVE = {
     "r1_soc": {"r1_soc_u0": 0.5, "r1_soc_u2": 0.4},
     "r0_charge": {"r0_charge_log_ratio": 0.5},
     "bv_arrhenius": {"bv_inv_i0_per_a": 2.0, "bv_theta_i0_k": 6000.0},
+    "thermal_tau": {"thermal_theta_tau_k": 12000.0},
+    "entropic": {"entropic_dudt_v_per_k": 1e-3},
+    "capacity_temperature": {"capacity_temp_coeff_per_k": 0.02},
 }
 # parameters that only matter once their element's main parameter leaves neutral
 DORMANT = {
@@ -113,7 +116,30 @@ def test_element_neutral_is_base_and_active_differs(effect):
     neutral = ecm.simulate_rows(rec, x, ecm.Knots(0.0, 0.2))[:, 0]
     np.testing.assert_array_equal(neutral, base)
     active = simulate(frame, {**TRUTH, **ACTIVE[effect]})
-    assert np.sqrt(np.mean((active - base) ** 2)) > 1e-3  # at least 1 mV RMS
+    # at least 1 mV RMS; a law of the time constants acts only in the transients of TRUTH's
+    # 15 mΩ branch, the entropic term at most 1 mV/K on the profile's ±3 K (their exact action:
+    # test_temperature_laws_at_a_constant_offset)
+    least = {"thermal_tau": 2e-4, "entropic": 5e-4}.get(effect, 1e-3)
+    assert np.sqrt(np.mean((active - base) ** 2)) > least
+
+
+def test_temperature_laws_at_a_constant_offset():
+    """At a constant cell temperature ΔT away from the reference, each temperature law of issue
+    28 is its parameter changed once: θτ scales τ1, κQ the capacity, ∂U/∂T adds an offset (the
+    initial SOC rule included)."""
+    frame = profile_frame(temperature=False)
+    frame["temperature_c"] = 15.0
+    dinv = 1.0 / 288.15 - 1.0 / 298.15
+    laws = {"thermal_tau": ({"thermal_theta_tau_k": 5000.0},
+                            {"tau1_s": TRUTH["tau1_s"] * np.exp(5000.0 * dinv)}),
+            "capacity_temperature": ({"capacity_temp_coeff_per_k": 0.01},
+                                     {"capacity_ah": TRUTH["capacity_ah"] * (1.0 - 0.01 * 10.0)}),
+            "entropic": ({"entropic_dudt_v_per_k": 4e-4}, {"voltage_offset_v": -4e-4 * 10.0})}
+    for law, (with_law, changed) in laws.items():
+        got = simulate(frame, {**TRUTH, **with_law, "tref_k": 298.15})
+        want = simulate(frame, {**TRUTH, **changed, "tref_k": 298.15})
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-9, err_msg=law)
+        assert np.abs(got - simulate(frame, {**TRUTH, "tref_k": 298.15})).max() > 1e-4, law
 
 
 def test_the_new_elements_act_where_they_should():

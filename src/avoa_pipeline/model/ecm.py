@@ -18,6 +18,9 @@ convention everywhere):
     OCV     = Vnom·s̃/(1 − β(1 − s̃))  or  table(s̃),  + Σ_j d_j·φ_j(s̃)   (ocv_shape: hat functions)
     g_k     = 1 + k_low·exp(−s_k/σ)            soc_resistance: resistances rise near empty
     f0, f1  = exp(θ0,1·(1/T_k − 1/T_ref))      thermal (Arrhenius, measured T in K)
+    τ_j     → τ_j·exp(θτ·(1/T_k − 1/T_ref))    thermal_tau
+    OCV     += (∂U/∂T)·(T_k − T_ref)           entropic
+    Q       → Q·(1 + κQ·(T_k − T_ref))          capacity_temperature (in eq. 6 below)
     V_k     = OCV + M·h_k + c − f0·g_k·R0·i_k − Σ_j v_j,k − (2RT/F)·asinh(i_k/(2 i0))
     v_j,k+1 = a_j·v_j,k + f1·g_k·R_j·(1 − a_j)·i_k,  a_j = exp(−Δt/τ_j),  j = 1..3 (eq. 3)
     δ_k+1   = a_d·δ_k + (1 − a_d)·κ·i_k,  a_d = exp(−Δt/τ_d)
@@ -28,7 +31,7 @@ convention everywhere):
     s_k+1   = s_k − ie_k·Δt/(3600 Q)           eq. 6
 
 Neutral values (the element is then absent and the model is the base exactly): b = 0, δ: κ = 0,
-d = 0, k_low = 0, θ = 0, M = 0, c = 0, R2 = R3 = 0, 1/i0 = 0, η = 1. So every candidate nests the
+d = 0, k_low = 0, θ = 0, θτ = 0, ∂U/∂T = 0, κQ = 0, M = 0, c = 0, R2 = R3 = 0, 1/i0 = 0, η = 1. So every candidate nests the
 base and elements stack.
 
 Two vectors per parameter set. *Internal* (the optimiser's coordinates, :data:`NAMES`): log10 for
@@ -60,6 +63,7 @@ from . import elements, kernel
 from .elements.element import FARADAY, GAS_R, N_KNOTS, Param, Physical
 
 T_DEFAULT_K = 298.15
+KELVIN_PER_TWO_RT_F = FARADAY / (2.0 * GAS_R)  # T = (2RT/F) × this: the loop reads T from 2RT/F
 TABLE_POINTS = 1001  # measured OCV tables are resampled onto this uniform SOC grid (0.1 % steps)
 
 EFFECTS = elements.NAMES
@@ -116,10 +120,10 @@ BY_REPORT = {p.report: n for n, p in PARAMS.items()}
 _VECTOR_ELEMENTS = tuple(e.name for e in elements.REGISTRY.values() if e.vector is not None)
 N_SCALAR = NX - sum(len(elements.get(e).params) for e in _VECTOR_ELEMENTS)
 (VNOM, OMB, Q, SOC0, R0, R1, TAU1, R2, TAU2, R3, TAU3, KLOW, SIG, KD, TAUD, HM, GAM, H0, BVG,
- TH0, TH1, IOFF, VOFF, ETA, RHO, THBV) = range(N_SCALAR)  # fmt: skip
+ TH0, TH1, IOFF, VOFF, ETA, RHO, THBV, THTAU, DUDT, KQ) = range(N_SCALAR)  # fmt: skip
 _COLUMNS = ("vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1", "r2", "ltau2", "r3", "ltau3", "klow",
             "lsig", "kd", "ltaud", "hm", "lgamma", "h0", "bvg", "th0", "th1", "ioff", "voff",
-            "eta", "rho", "thbv")  # fmt: skip
+            "eta", "rho", "thbv", "thtau", "dudt", "kq")  # fmt: skip
 D0 = N_SCALAR
 L0 = D0 + N_KNOTS
 L1 = L0 + N_KNOTS
@@ -514,6 +518,9 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     eta = P[:, ETA].copy()
     rho = P[:, RHO].copy()
     thbv = P[:, THBV].copy()
+    thtau = P[:, THTAU].copy()
+    dudt = P[:, DUDT].copy()
+    kq = P[:, KQ].copy()
     d = P[:, D0 : D0 + nk].copy()
     l0 = P[:, L0 : L0 + nk].copy()
     l1 = P[:, L1 : L1 + nk].copy()
@@ -538,15 +545,20 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
     soc_r1 = np.any(l1 != 0.0)
     r0chg = np.any(rho != 0.0)
     bvarr = np.any(thbv != 0.0)
+    ttau = np.any(thtau != 0.0)
+    entr = np.any(dudt != 0.0)
+    qlaw = np.any(kq != 0.0)
     load = g_load != 0.0
     hx = np.zeros(m)  # the hysteresis decay of the last sample, per row
     # a held current between returned samples: the state's per-sample increments are constants
     # of the hold (no element there depends on the state itself), so they are computed once and
     # the states stepped in tight loops, the same operations in the same order as below
     fast = not load and not record and not low
-    if extras:  # noqa: SIM102 - as below
+    tdep = therm1  # the state's increments depend on the temperature: a hold ends where it moves
+    if extras:
         if soc_r1:
             fast = False
+        tdep = therm1 or ttau or qlaw
     b1, b2, b3, bd = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
     dqs, hs = np.zeros(m), np.zeros(m)
     hon = np.zeros(m, dtype=np.bool_)
@@ -558,6 +570,9 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
         # a load, whose current follows the voltage): the hysteresis decay is the same number,
         # so it is reused (one exp per row and sample was most of a hysteresis model's cost)
         held = not load and k > 0 and ik0 == cur[k - 1] and dtk == dt[k - 1]
+        if extras:  # noqa: SIM102 - as below
+            if qlaw and held:  # the decay's charge step follows the temperature's capacity
+                held = dinv_t[k] == dinv_t[k - 1]
         dinv = dinv_t[k]
         rtf = two_rt_f[k]
         row = sel[k]
@@ -567,10 +582,22 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                 a2[c] = np.exp(-dtk / tau2[c])
                 a3[c] = np.exp(-dtk / tau3[c])
                 ad[c] = np.exp(-dtk / taud[c])
+        qf = 1.0  # capacity_temperature's T − Tref, for its factor and for entropic's term
+        dtemp = 0.0
+        if extras:
+            if ttau:  # thermal_tau: the RC time constants follow the temperature
+                for c in range(m):
+                    ft = np.exp(thtau[c] * dinv)
+                    a1[c] = np.exp(-dtk / (tau1[c] * ft))
+                    a2[c] = np.exp(-dtk / (tau2[c] * ft))
+                    a3[c] = np.exp(-dtk / (tau3[c] * ft))
+            if qlaw or entr:
+                tk = rtf * KELVIN_PER_TWO_RT_F
+                dtemp = tk - 1.0 / (1.0 / tk - dinv)
         if fast and row < 0:
             e = k + 1
             while (e < n and sel[e] < 0 and cur[e] == ik0 and dt[e] == dtk
-                   and (not therm1 or dinv_t[e] == dinv)):  # fmt: skip
+                   and (not tdep or dinv_t[e] == dinv)):  # fmt: skip
                 e += 1
             if e - k > 1:
                 for c in range(m):
@@ -583,7 +610,9 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                     b3[c] = r3[c] * (1.0 - a3[c]) * gi
                     bd[c] = (1.0 - ad[c]) * kd[c] * i
                     ie = i if i > 0.0 else eta[c] * i
-                    dqs[c] = ie * dtk / q3600[c]
+                    if extras:
+                        qf = 1.0 + kq[c] * dtemp if qlaw else 1.0
+                    dqs[c] = ie * dtk / (q3600[c] * qf) if extras else ie * dtk / q3600[c]
                     hon[c] = hyst and i != 0.0
                     if hon[c]:
                         hx[c] = np.exp(-abs(dqs[c] * gam[c]))
@@ -652,6 +681,9 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
                         w = x - j
                         e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
                 e += voff[c]
+                if extras:  # noqa: SIM102 - as above
+                    if entr:
+                        e += dudt[c] * dtemp
                 if hyst:
                     e += hm[c] * h[c]
                 f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
@@ -697,7 +729,11 @@ def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t
             if diff:
                 dl[c] = ad[c] * dl[c] + (1.0 - ad[c]) * kd[c] * i
             ie = i if i > 0.0 else eta[c] * i
-            dq = ie * dtk / q3600[c]
+            if extras:
+                qf = 1.0 + kq[c] * dtemp if qlaw else 1.0
+                dq = ie * dtk / (q3600[c] * qf)
+            else:
+                dq = ie * dtk / q3600[c]
             if hyst and i != 0.0:
                 if not held:
                     hx[c] = np.exp(-abs(dq * gam[c]))
@@ -797,7 +833,8 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
     v_open = float(rec.v[0]) if np.isnan(rec.v_open) else rec.v_open
     i0 = rec.i_open + P[:, IOFF]
     f0 = np.exp(P[:, TH0] * rec.dinv_t[0]) * np.where(i0 < 0.0, np.exp(P[:, RHO]), 1.0)
-    v0 = v_open - P[:, HM] * P[:, H0]
+    dtemp0 = rec.two_rt_f[0] * KELVIN_PER_TWO_RT_F - rec.tref_k  # entropic's T − Tref
+    v0 = v_open - P[:, HM] * P[:, H0] - P[:, DUDT] * dtemp0
     shaped = np.any(P[:, D0 : D0 + N_KNOTS] != 0.0, axis=1)
     socr0 = np.any(P[:, L0 : L0 + N_KNOTS] != 0.0, axis=1)
     if table is None and not np.any(P[:, KLOW] != 0) and not (shaped | socr0).any():

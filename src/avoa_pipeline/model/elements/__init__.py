@@ -14,9 +14,11 @@ from __future__ import annotations
 from . import (
     butler_volmer,
     bv_arrhenius,
+    capacity_temperature,
     coulombic_efficiency,
     current_offset,
     diffusion,
+    entropic,
     hysteresis,
     ocv_shape,
     r0_charge,
@@ -25,6 +27,7 @@ from . import (
     second_rc,
     soc_resistance,
     thermal,
+    thermal_tau,
     third_rc,
     voltage_offset,
 )
@@ -48,6 +51,9 @@ REGISTRY: dict[str, Element] = {
         r1_soc,
         r0_charge,
         bv_arrhenius,
+        thermal_tau,
+        entropic,
+        capacity_temperature,
     )
 }
 NAMES = tuple(REGISTRY)

@@ -1,0 +1,33 @@
+"""A capacity that follows temperature: Q → Q·(1 + κQ·(T − Tref)), T the cell temperature, in
+the SOC's coulomb count (issue 28). A cold cell delivers less of its charge before the same
+voltage; with one capacity for every temperature the fitted initial SOCs are pushed to their
+bounds. Linear: over the span of a cell's records (tens of kelvin) a first-order term is what
+the records can identify. Offered only where the temperature moves."""
+
+from __future__ import annotations
+
+from .element import Element, Export, Param
+
+ELEMENT = Element(
+    name="capacity_temperature",
+    params={
+        "kq": Param(
+            "capacity_temp_coeff_per_k",
+            "lin",
+            0.0,
+            (-0.02, 0.02),
+            "±2 %/K: a lithium-ion cell's accessible capacity changes by well under 1 %/K "
+            "between −20 and 45 °C",
+            prior_sd=0.01,
+        )
+    },
+    starts=lambda row, imax: [dict(kq=0.002)],
+    signature="none of its own: a wrong capacity shows as a residual drifting with charge, "
+    "which the base's capacity and ocv_shape's signature read",
+    pybamm=Export(
+        "PyBaMM's Thevenin model has one cell capacity, a number, not a function of temperature"
+    ),
+    would_decide="full discharges at several temperatures",
+    compiled="extras",
+    needs_temperature=True,
+)
