@@ -130,11 +130,17 @@ def test_temperature_laws_at_a_constant_offset():
     frame = profile_frame(temperature=False)
     frame["temperature_c"] = 15.0
     dinv = 1.0 / 288.15 - 1.0 / 298.15
-    laws = {"thermal_tau": ({"thermal_theta_tau_k": 5000.0},
-                            {"tau1_s": TRUTH["tau1_s"] * np.exp(5000.0 * dinv)}),
-            "capacity_temperature": ({"capacity_temp_coeff_per_k": 0.01},
-                                     {"capacity_ah": TRUTH["capacity_ah"] * (1.0 - 0.01 * 10.0)}),
-            "entropic": ({"entropic_dudt_v_per_k": 4e-4}, {"voltage_offset_v": -4e-4 * 10.0})}
+    laws = {
+        "thermal_tau": (
+            {"thermal_theta_tau_k": 5000.0},
+            {"tau1_s": TRUTH["tau1_s"] * np.exp(5000.0 * dinv)},
+        ),
+        "capacity_temperature": (
+            {"capacity_temp_coeff_per_k": 0.01},
+            {"capacity_ah": TRUTH["capacity_ah"] * (1.0 - 0.01 * 10.0)},
+        ),
+        "entropic": ({"entropic_dudt_v_per_k": 4e-4}, {"voltage_offset_v": -4e-4 * 10.0}),
+    }
     for law, (with_law, changed) in laws.items():
         got = simulate(frame, {**TRUTH, **with_law, "tref_k": 298.15})
         want = simulate(frame, {**TRUTH, **changed, "tref_k": 298.15})

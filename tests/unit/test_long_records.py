@@ -40,7 +40,8 @@ def _rows(effects, m=7):
                                      ("thermal", "coulombic_efficiency", "current_offset"),
                                      ("soc_resistance",), ("r1_soc", "r0_charge"),
                                      ("thermal", "thermal_tau", "hysteresis"),
-                                     ("capacity_temperature", "entropic", "hysteresis")])  # fmt: skip
+                                     ("capacity_temperature", "entropic",
+                                      "hysteresis")])  # fmt: skip
 @pytest.mark.parametrize("temperature", ["constant", "steps"])
 def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature):
     """A fit asks for every s-th sample; the simulator then steps only the state between them

@@ -31,8 +31,8 @@ convention everywhere):
     s_k+1   = s_k − ie_k·Δt/(3600 Q)           eq. 6
 
 Neutral values (the element is then absent and the model is the base exactly): b = 0, δ: κ = 0,
-d = 0, k_low = 0, θ = 0, θτ = 0, ∂U/∂T = 0, κQ = 0, M = 0, c = 0, R2 = R3 = 0, 1/i0 = 0, η = 1. So every candidate nests the
-base and elements stack.
+d = 0, k_low = 0, θ = 0, θτ = 0, ∂U/∂T = 0, κQ = 0, M = 0, c = 0, R2 = R3 = 0, 1/i0 = 0, η = 1.
+So every candidate nests the base and elements stack.
 
 Two vectors per parameter set. *Internal* (the optimiser's coordinates, :data:`NAMES`): log10 for
 capacity, time constants, σ and the hysteresis rate, log10(1 − β) for the OCV curvature, and the
