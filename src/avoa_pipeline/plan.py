@@ -104,6 +104,11 @@ def nasa_source_sha256(cfg: Mapping) -> dict[str, str]:
     return {k: sources.get(k, "") for k in keys}
 
 
+SAMSUNG_JOINT_TABLE = "results/real/samsung_joint_temperature.csv"
+"""Issue 28 on the Samsung 30Q: the joint model and each training temperature's own on the
+unseen temperature (rules ``real_samsung_diagnose``, ``real_samsung_joint_table``)."""
+
+
 def cell_targets(cfg: Mapping) -> list[str]:
     """The final outputs of experiments 2 and 3 for the sections the config has."""
     real = cfg.get("real") or {}
@@ -111,6 +116,8 @@ def cell_targets(cfg: Mapping) -> list[str]:
     for section in ("samsung", "nasa"):
         if real.get(section):
             out += CELL_OUTPUTS[section]
+    if (real.get("samsung") or {}).get("joint"):  # one model over temperature (issue 28)
+        out.append(SAMSUNG_JOINT_TABLE)
     if real.get("samsung") and real.get("nasa"):
         out += CELL_OUTPUTS["report"]
     return out

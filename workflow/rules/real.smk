@@ -308,6 +308,54 @@ if SAMSUNG_CFG:
             "../scripts/real_samsung_arrhenius.py"
 
 
+if SAMSUNG_CFG.get("joint"):
+    SAMSUNG_JOINT = SAMSUNG_CFG["joint"]
+    SAMSUNG_FITS = {"joint": list(SAMSUNG_JOINT["train"]),
+                    **{t: [t] for t in SAMSUNG_JOINT["train"]}}  # the joint fit and each alone
+
+    def samsung_canon(temp):
+        return f"{REAL_CANON}/samsung_hppc_{temp}.csv"
+
+    rule real_samsung_diagnose:
+        """Issue 28 on the Samsung 30Q (docs/real-data.md, its rule): the diagnosis of the training
+        temperatures' HPPC tests together (sfit=joint) or of one alone, the unseen temperature's
+        test as a validation record only: `python -m avoa_pipeline diagnose TRAIN... --validate
+        UNSEEN --out DIR` without its figure."""
+        input:
+            train=lambda w: [samsung_canon(t) for t in SAMSUNG_FITS[w.sfit]],
+            unseen=samsung_canon(SAMSUNG_JOINT["unseen"]),
+        output:
+            json="results/real/samsung/diagnosis/{sfit}/diagnosis.json",
+            model="results/real/samsung/diagnosis/{sfit}/model.json",
+        wildcard_constraints:
+            sfit=plan.regex(SAMSUNG_FITS),
+        log:
+            "logs/real/samsung/diagnosis_{sfit}.log",
+        benchmark:
+            "logs/real/samsung/diagnosis_{sfit}.benchmark.tsv"
+        params:
+            tests=lambda w: {SAMSUNG_JOINT["unseen"]: samsung_canon(SAMSUNG_JOINT["unseen"])},
+        threads: 1
+        script:
+            "../scripts/real_samsung_diagnose.py"
+
+    rule real_samsung_joint_table:
+        """The unseen temperature's RMSE and largest error, the joint model beside each training
+        temperature's own."""
+        input:
+            expand("results/real/samsung/diagnosis/{sfit}/diagnosis.json", sfit=SAMSUNG_FITS),
+        output:
+            plan.SAMSUNG_JOINT_TABLE,
+        log:
+            "logs/real/samsung/joint_table.log",
+        params:
+            fits=list(SAMSUNG_FITS),
+            unseen=samsung_canon(SAMSUNG_JOINT["unseen"]),
+        threads: 1
+        script:
+            "../scripts/real_samsung_joint_table.py"
+
+
 if NASA_CFG:
 
     rule real_nasa_import:

@@ -270,6 +270,36 @@ def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
     write_log(log, f"wrote {out_csv}: {len(frame)} samples from {side['source_file']}")
 
 
+def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> None:
+    """``out_csv``: per diagnosis (label → its diagnosis.json), the selected model's RMSE and
+    largest error on the unseen record ``unseen_csv`` (its validation entry), with what trained
+    it and its temperature laws' parameters (issue 28 on the Samsung 30Q)."""
+    import json
+
+    import pandas as pd
+
+    target, rows = Path(unseen_csv).resolve(), []
+    for label, path in diagnoses.items():
+        report = json.loads(Path(path).read_text())
+        name = report["selected"]["name"]
+        hit = [v for v in report.get("validation") or []
+               if v["model"] == name and Path(v["record"]).resolve() == target]  # fmt: skip
+        if len(hit) != 1:
+            raise ValueError(f"{path}: no one validation entry of {name} on {unseen_csv}")
+        laws = {k: v for k, v in report["selected"]["parameters"].items()
+                if k.startswith(("thermal_", "bv_theta", "entropic", "capacity_temp"))}  # fmt: skip
+        trained = "+".join(Path(r["source"]).stem for r in report["records"])
+        rows.append({"fit": label, "trained_on": trained, "selected": name,
+                     "rmse_mv": hit[0]["rmse_mv"], "max_err_mv": hit[0]["max_err_mv"],
+                     "floor_rmse_mv": hit[0].get("floor_rmse_mv"),
+                     "laws": json.dumps(laws, sort_keys=True)})  # fmt: skip
+    df = pd.DataFrame(rows)
+    Path(out_csv).parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out_csv, index=False)
+    write_log(log, f"wrote {out_csv}: " + "; ".join(
+        f"{r.fit} {r.selected} {r.rmse_mv:.1f} mV" for r in df.itertuples()))  # fmt: skip
+
+
 def nasa_import(cfg, out_csv, log=None) -> None:
     from ..real.importers import nasa
 
