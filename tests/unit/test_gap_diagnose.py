@@ -42,9 +42,10 @@ def test_report_keys_and_json(base_report):
         if c["applicable"]:
             assert {"effect", "heldout_rmse_mv", "shrink", "delta_bic"} <= c.keys()
     skipped = {c["effect"]: c["reason"] for c in r["candidates"] if not c["applicable"]}
-    # the profile has charge and a moving temperature; two elements need another first
+    # the profile has charge and a moving temperature; three elements need another first
     assert skipped == {"third_rc": "needs second_rc first",
-                       "bv_arrhenius": "needs butler_volmer first"}  # fmt: skip
+                       "bv_arrhenius": "needs butler_volmer first",
+                       "thermal_tau": "needs thermal first"}  # fmt: skip
     assert r["verdict"]["effect"] in diagnoses()
     assert sum(reg["share"] for reg in r["localization"] if reg["group"] == "mode") == (
         pytest.approx(1.0)
