@@ -137,7 +137,8 @@ def test_which_elements_export():
 
 @pytest.mark.parametrize("element", [e for e in ecm.EFFECTS if not elements.get(e).pybamm.exported])
 def test_an_unsupported_element_is_refused_in_one_line_naming_it(element):
-    model = fitted("table", (element,))
+    needs = elements.get(element).requires  # what it is offered on top of, exported or not
+    model = fitted("table", (needs, element) if needs else (element,))
     with pytest.raises(X.UserError) as exc:
         X.check_exportable(model, "m.json", drop_unsupported=False)
     msg = str(exc.value)
