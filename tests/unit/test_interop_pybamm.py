@@ -9,6 +9,7 @@ all samples ≤ 0.1 mV, for every element that maps, alone and stacked, on both 
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -24,6 +25,7 @@ from test_ecm import ACTIVE, TRUTH
 from avoa_pipeline import cli
 from avoa_pipeline.interop import pybamm as X
 from avoa_pipeline.model import ecm, elements
+from avoa_pipeline.model.elements.element import Export
 from avoa_pipeline.model.fitted import FittedModel
 
 TOL_RMS_MV = 0.1
@@ -34,6 +36,8 @@ TREF_K = 300.15
 BASE = {k: v for k, v in TRUTH.items() if k != "soc0"}
 
 R1_SOC_GENTLE = {"r1_soc_u0": 0.3, "r1_soc_u2": 0.2}
+# test_ecm's 0.97 moves this record's voltage by 0.3 mV: too little to test the export by
+ETA_LOW = {"coulombic_efficiency": 0.8}
 
 # every exportable configuration the diagnosis can select: each element alone on the OCV kind
 # it applies to, RC branches 1-3, and everything stacked
@@ -58,6 +62,15 @@ CASES = [
     ("table", ("r0_charge",), {}),
     ("table", ("butler_volmer", "bv_arrhenius"), {}),
     ("table", ("second_rc", "r0_soc", "r1_soc", "r0_charge", "thermal"), R1_SOC_GENTLE),
+    # the states beyond Thevenin's (issue 28): submodels of the module's own
+    ("table", ("diffusion",), {}),
+    ("rational", ("diffusion",), {}),
+    ("rational", ("hysteresis",), {}),
+    ("table", ("current_offset",), {}),
+    ("table", ("coulombic_efficiency",), ETA_LOW),
+    ("table", ("hysteresis", "coulombic_efficiency"), ETA_LOW),
+    ("table", ("second_rc", "diffusion", "hysteresis", "thermal", "butler_volmer",
+               "current_offset", "coulombic_efficiency", "ocv_shape"), ETA_LOW),
 ]  # fmt: skip
 CASE_IDS = ["+".join((k, *e)) + ("-r1=0" if "r1_ohm" in x else "") for k, e, x in CASES]
 
@@ -126,17 +139,24 @@ def pybamm():
 # the table
 
 
-def test_which_elements_export():
-    """Which elements declare a mapping (``Element.pybamm``; test_elements checks each has one or
-    says why not)."""
-    exported = {e for e in ecm.EFFECTS if elements.get(e).pybamm.exported}
-    assert exported == {"second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
-                        "ocv_shape", "voltage_offset", "r0_soc", "r1_soc", "r0_charge",
-                        "bv_arrhenius"}  # fmt: skip
+def test_every_element_exports():
+    """Every element declares its piece of the export (``Element.pybamm``; issue 28)."""
+    assert [e for e in ecm.EFFECTS if not elements.get(e).pybamm.exported] == []
+    assert X.unsupported(fitted("table", ecm.EFFECTS[:6])) == []
 
 
-@pytest.mark.parametrize("element", [e for e in ecm.EFFECTS if not elements.get(e).pybamm.exported])
-def test_an_unsupported_element_is_refused_in_one_line_naming_it(element):
+def without_export(monkeypatch, *names):
+    """The registry with ``names`` declaring no piece (what an element PyBaMM cannot hold
+    declares), for the refusal and --drop-unsupported, which no element needs today."""
+    for name in names:
+        e = elements.get(name)
+        monkeypatch.setitem(elements.REGISTRY, name,
+                            dataclasses.replace(e, pybamm=Export("no way")))  # fmt: skip
+
+
+@pytest.mark.parametrize("element", ["diffusion", "hysteresis"])
+def test_an_unsupported_element_is_refused_in_one_line_naming_it(monkeypatch, element):
+    without_export(monkeypatch, element)
     model = fitted("table", (element,))
     with pytest.raises(X.UserError) as exc:
         X.check_exportable(model, "m.json", drop_unsupported=False)
@@ -181,10 +201,13 @@ def test_pybamm_from_the_written_module_gives_our_voltage(pybamm, tmp_path, kind
     assert rms_mv(v, ours) <= TOL_RMS_MV
 
 
-def test_a_record_solved_in_pieces_gives_our_voltage(pybamm):
-    """``simulate`` solves long records in pieces, each from the state the last ended in (SoC,
-    the RC voltages; the record's temperature): pieces of 70 intervals on this record."""
-    model = fitted("table", ("second_rc", "third_rc", "thermal", "butler_volmer"))
+@pytest.mark.parametrize("effects", [("second_rc", "third_rc", "thermal", "butler_volmer"),
+                                     ("diffusion", "hysteresis")])  # fmt: skip
+def test_a_record_solved_in_pieces_gives_our_voltage(pybamm, effects):
+    """``simulate`` solves long records in pieces, each from the state the last ended in
+    (``STATES``: SoC, the RC voltages, the surface-SOC lag, h; the record's temperature): pieces
+    of 70 intervals on this record."""
+    model = fitted("table", effects)
     frame = record(uniform=False)
     ours = model.simulate(frame, soc0=SOC0)
     cell = X.load_source(X.export(model, "model.json", soc0=SOC0).text)
@@ -271,7 +294,7 @@ def test_export_writes_a_module_that_loads_without_this_package(pybamm, tmp_path
         cell = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(cell)
         import pybamm
-        model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
+        model = cell.model()
         values = pybamm.ParameterValues(cell.get_parameter_values())
         values.process_model(model)
         d = json.load(open({str(data)!r}))
@@ -287,7 +310,9 @@ def test_export_writes_a_module_that_loads_without_this_package(pybamm, tmp_path
     assert rms_mv(v, ours) <= TOL_RMS_MV
 
 
-def test_drop_unsupported_exports_the_rest_and_writes_its_cost(pybamm, tmp_path, capsys):
+def test_drop_unsupported_exports_the_rest_and_writes_its_cost(pybamm, tmp_path, capsys,
+                                                               monkeypatch):  # fmt: skip
+    without_export(monkeypatch, "hysteresis", "diffusion")
     model = fitted("table", ("second_rc", "hysteresis", "diffusion"))
     model.save(tmp_path / "model.json")
     frame = measured(model, record())

@@ -24,6 +24,7 @@ point of this module. PyBaMM is imported only by the functions that need it (opt
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import textwrap
 import types
@@ -134,6 +135,17 @@ def _literal(value) -> str:
     return repr(float(value))
 
 
+def _entries(mapping: dict[str, str], indent: int = 4) -> str:
+    """Dict entries, one a line, keys as double-quoted strings (PyBaMM's own style for parameter
+    names), values as written (names and expressions of the module)."""
+    return "".join(f"{' ' * indent}{json.dumps(k, ensure_ascii=False)}: {v},\n"
+                   for k, v in mapping.items())  # fmt: skip
+
+
+def _dict(mapping: dict[str, str]) -> str:
+    return "{\n" + _entries(mapping) + "}" if mapping else "{}"
+
+
 def _base(m: FittedModel, p: Physical) -> Piece:
     table = m.config.table
     if table is None:
@@ -162,7 +174,7 @@ NumPy only. Use it like PyBaMM's own parameter sets:
     spec = importlib.util.spec_from_file_location("cell", "{file_doc}")
     cell = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cell)
-    model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
+    model = cell.model()  # PyBaMM's Thevenin model (OPTIONS), plus this cell's SUBMODELS
     values = pybamm.ParameterValues(cell.get_parameter_values())
 
 or run a record (current held over each interval, as avoa-pipeline's records define it):
@@ -200,6 +212,11 @@ JIG_THERMAL_MASS_J_PER_K = 1.0
 JIG_AIR_W_PER_K = 1.0e4
 THERMAL_LEAD_S = 2.0e-3  # 20 of those time constants
 CHUNK_SAMPLES = {chunk}  # simulate() solves a record in pieces of this many intervals
+# the model's states, each with the parameter of its initial value: simulate() starts each piece
+# of a record where the one before ended
+STATES = {states}
+# Thevenin's submodels this cell replaces or adds (model()); empty: PyBaMM's Thevenin model
+SUBMODELS = {submodels}
 LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
 UPPER_CUTOFF_V = {upper}
 
@@ -223,7 +240,17 @@ def get_parameter_values():
         "Cell-jig heat transfer coefficient [W/K]": CELL_JIG_W_PER_K,
         "Jig thermal mass [J/K]": JIG_THERMAL_MASS_J_PER_K,
         "Jig-air heat transfer coefficient [W/K]": JIG_AIR_W_PER_K,
-    }}
+{extra_values}    }}
+
+
+def model():
+    """PyBaMM's Thevenin model with OPTIONS, its submodels in the slots of SUBMODELS replaced
+    or added (the states this cell has beyond Thevenin's)."""
+    thevenin = pybamm.equivalent_circuit.Thevenin(options=OPTIONS, build=False)
+    for slot, submodel in SUBMODELS.items():
+        thevenin.submodels[slot] = submodel(thevenin.param, thevenin.options)
+    thevenin.build_model()
+    return thevenin
 
 
 def held(time_s, values, lead_s=0.0):
@@ -252,7 +279,8 @@ def drive(time_s, current_a, temperature_c=None):
     sample time. Times count from the first sample."""
     t = np.asarray(time_s, dtype=float)
     t = t - t[0]
-    updates = {{"Current function [A]": held(t, current_a)}}
+    current = np.asarray(current_a, dtype=float){current_terms}
+    updates = {{"Current function [A]": held(t, current)}}
     if temperature_c is not None:
         temp_k = np.asarray(temperature_c, dtype=float) + 273.15
         lead = min(THERMAL_LEAD_S, 0.1 * float(np.min(np.diff(t))))
@@ -266,7 +294,7 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
     """Terminal voltage (V) at each sample of a record, from PyBaMM's Thevenin model with these
     parameters (IDAKLU solver; the voltage at t_k is the one just after row k's current is
     applied, as avoa-pipeline computes it). Solved in pieces of ``chunk`` intervals, each
-    starting from the state the one before ended in (SoC, RC voltages; the temperature is the
+    starting from the state the one before ended in (STATES; the temperature is the
     record's): PyBaMM's time per step grows with the length of the held current, so one piece
     for a whole long record costs time quadratic in its length."""
     t = np.asarray(time_s, dtype=float)
@@ -283,8 +311,7 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
         part = slice(a, b + 1)
         updates, tt = drive(t[part], cur[part], None if temp is None else temp[part])
         values.update(updates)
-        model = pybamm.equivalent_circuit.Thevenin(options=OPTIONS)
-        sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
+        sim = pybamm.Simulation(model(), parameter_values=values, solver=solver)
         solution = sim.solve(t_eval=tt, t_interp=tt)
         voltage = solution["Voltage [V]"].entries
         if voltage.size != tt.size:
@@ -295,10 +322,8 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
             return np.concatenate(pieces)
         pieces.append(voltage[:-1])
         values = values.copy()
-        values["Initial SoC"] = float(solution["SoC"].entries[-1])
-        for n in range(1, OPTIONS["number of rc elements"] + 1):
-            name = f"Element-{{n}} overpotential [V]"
-            values[f"Element-{{n}} initial overpotential [V]"] = float(solution[name].entries[-1])
+        for state, initial in STATES.items():
+            values[initial] = float(solution[state].entries[-1])
         a = b
 '''
 
@@ -392,9 +417,20 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
             r_val, c_val = r_name, f"{tau_name} / {r_name}"
         rc_values += (f'        "R{n} [Ohm]": {r_val},\n        "C{n} [F]": {c_val},\n'
                       f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
+    states = {"SoC": "Initial SoC"} | {
+        f"Element-{n} overpotential [V]": f"Element-{n} initial overpotential [V]"
+        for n in range(1, len(branches) + 1)
+    }
+    states |= {v: i for p in pieces.values() for v, i in p.states}
+    submodels = {slot: cls for p in pieces.values() for slot, cls in p.submodels}
+    extra_values = {name: expr for p in pieces.values() for name, expr in p.parameters}
+    current_terms = "".join(f" + {t}" for p in pieces.values() for t in p.current_terms)
     text += _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
         r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
+        states=_dict({k: json.dumps(v, ensure_ascii=False) for k, v in states.items()}),
+        submodels=_dict(submodels), current_terms=current_terms,
+        extra_values=_entries(extra_values, indent=8),
     )  # fmt: skip
     return text
 
@@ -417,7 +453,7 @@ def build(module: types.ModuleType):
     these options takes every parameter it needs from these values."""
     pybamm = require_pybamm()
     values = pybamm.ParameterValues(module.get_parameter_values())
-    model = pybamm.equivalent_circuit.Thevenin(options=module.OPTIONS)
+    model = module.model()
     values.process_model(model, inplace=False)  # raises on a missing parameter
     return dict(module.OPTIONS), values
 
