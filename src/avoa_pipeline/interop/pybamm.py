@@ -52,6 +52,10 @@ SOLVER_TOL = 1e-6
 """rtol = atol of the IDAKLU solver in the generated ``simulate``: 0.012-0.017 mV RMS (0.06 mV at
 worst) from our simulator on records of 2,222 and 15,000 samples, where IDAKLU's defaults give
 up to 0.094 mV RMS and 0.33 mV at worst (``benchmarks/bench_pybamm_export.py``, docs/pybamm.md)."""
+AGREEMENT_RMS_MV = 0.1
+"""What the export promises: PyBaMM's voltage from the module within 0.1 mV RMS of our
+simulator's on a record (the unit tests' bound, docs/pybamm.md); ``export --record`` measures it
+on the record and warns above it."""
 CHUNK_SAMPLES = 500
 """The generated ``simulate`` solves a record in pieces of this many intervals: PyBaMM's time per
 step grows with the length of the held current. 15,000 samples: 68 s in one piece, 12-17 s in
@@ -512,6 +516,27 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
         dropped = {e: {"why": elements.get(e).pybamm.how, **summary} for e in drop}
     text = module_source(exported, s0, note, source, dropped, file_name)
     return Export(text, exported, drop, cost, summary, s0, note)
+
+
+def agreement(module: types.ModuleType, model: FittedModel, frame: pd.DataFrame,
+              soc0: float) -> dict:  # fmt: skip
+    """PyBaMM's voltage from a loaded module (its ``simulate``, the record's temperature as the
+    ambient where it has one) against ``model.simulate`` on ``frame``, both from ``soc0``: RMS
+    and largest |difference| (mV) and PyBaMM's seconds; ``error`` instead when PyBaMM fails."""
+    import time
+
+    pybamm = require_pybamm()
+    ours = model.simulate(frame, soc0=soc0)
+    temp = frame["temperature_c"].to_numpy() if "temperature_c" in frame.columns else None
+    start = time.perf_counter()
+    try:
+        theirs = module.simulate(frame["time_s"].to_numpy(), frame["current_a"].to_numpy(), temp,
+                                 initial_soc=soc0)  # fmt: skip
+    except (RuntimeError, pybamm.SolverError) as exc:
+        return {"error": " ".join(str(exc).split())}
+    d = 1e3 * np.abs(np.asarray(theirs) - ours)
+    return {"rms_mv": float(np.sqrt(np.mean(d**2))), "max_abs_mv": float(d.max()),
+            "seconds": time.perf_counter() - start}  # fmt: skip
 
 
 def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame,
