@@ -276,6 +276,10 @@ def test_export_writes_a_module_that_loads_without_this_package(pybamm, tmp_path
                               capsys)  # fmt: skip
     assert code == 0
     assert "initial SOC" in stdout
+    # on a record, PyBaMM ran the module before it was written: its difference from ours
+    agreement = float(stdout.split(" mV RMS, ")[0].rsplit(" ", 1)[1])
+    assert 0.0 < agreement <= TOL_RMS_MV
+    assert "from our simulator" in stdout
     assert not (tmp_path / "cell.dropped.csv").exists()
     loaded = FittedModel.load(tmp_path / "model.json")
     ours = loaded.simulate(frame)  # the initial SOC by the library's rule, as the export's
@@ -347,6 +351,23 @@ def test_drop_unsupported_exports_the_rest_and_writes_its_cost(pybamm, tmp_path,
     # what the file holds is what exported_v says
     v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"])
     assert rms_mv(v, cost["exported_v"]) <= TOL_RMS_MV
+
+
+def test_a_difference_above_the_promise_is_a_warning(pybamm, tmp_path, capsys, monkeypatch):
+    """export --record warns in one line where PyBaMM's voltage strays from ours by more than
+    AGREEMENT_RMS_MV (here made 0, so that any difference does); the module is written."""
+    monkeypatch.setattr(X, "AGREEMENT_RMS_MV", 0.0)
+    model = fitted("table", ("diffusion", "hysteresis"))
+    model.save(tmp_path / "model.json")
+    measured(model, record()).to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "cell.py"
+    code, _, err = run_cli(["export", str(tmp_path / "model.json"), "--to", "pybamm", "--out",
+                            str(out), "--record", str(tmp_path / "rec.csv")], capsys)  # fmt: skip
+    assert code == 0
+    warning = [line for line in err.splitlines() if "differs from our simulator" in line]
+    assert len(warning) == 1
+    assert warning[0].startswith("warning: ")
+    assert out.exists()
 
 
 def _tamper(tmp_path, how):
