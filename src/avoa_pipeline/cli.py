@@ -523,12 +523,17 @@ def _export_table(args) -> None:
     with atomic_paths(out, sidecar_of(out)) as (tmp, tmp_side):
         frame.to_csv(tmp, index=False, float_format="%.10g")
         tmp_side.write_text(json.dumps(side, indent=1, ensure_ascii=False) + "\n")
-    worst = max(side["interpolation_error"].items(), key=lambda kv: kv[1]["max_rel"])
+    col, worst = max(side["interpolation_error"].items(), key=lambda kv: kv[1]["max_rel"])
     inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    strays = ("linear interpolation gives the model's laws at the middle of every grid cell"
+              if worst["at_soc"] is None else
+              f"linear interpolation strays at most {100 * worst['max_rel']:.2g} % ({col}; "
+              f"{worst['max_abs']:.3g} {side['columns'][col]['unit']} at SOC "
+              f"{worst['at_soc']:.3g}, {worst['at_temperature_c']:g} °C) from the model between "
+              "grid points")  # fmt: skip
     print(f"{args.model}: wrote {out} ({len(side['grid']['temperature_c'])} temperatures × "
           f"{len(side['grid']['soc'])} SOC values, {model.config.name}) and {sidecar_of(out)}; "
-          f"linear interpolation strays at most {100 * worst[1]['max_rel']:.2g} % ({worst[0]}) "
-          "from the model between grid points")  # fmt: skip
+          f"{strays}")  # fmt: skip
 
 
 def _export_pybamm(args) -> None:

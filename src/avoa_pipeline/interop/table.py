@@ -260,26 +260,26 @@ def cannot(model: FittedModel) -> list[str]:
 def interpolation_error(model: FittedModel, soc: np.ndarray, temperature_c: np.ndarray) -> dict:
     """Per column, the largest |linear interpolation − the model's law| at the middle of each
     grid cell (SOC midpoints at every grid temperature, temperature midpoints at every grid
-    SOC), absolute (the column's unit) and relative to the law there."""
-    exact_at = {}
-    mid_s = 0.5 * (soc[1:] + soc[:-1])
+    SOC): absolute (the column's unit), where (SOC, °C), and the largest relative to the law."""
     on_grid = grid_values(model, soc, temperature_c)
-    exact_at["soc"] = (grid_values(model, mid_s, temperature_c),
-                       _midpoints(on_grid, soc.size, axis=1))  # fmt: skip
+    mid_s = 0.5 * (soc[1:] + soc[:-1])
+    pairs = [(grid_values(model, mid_s, temperature_c), _midpoints(on_grid, soc.size, axis=1))]
     if temperature_c.size > 1:
         mid_t = 0.5 * (temperature_c[1:] + temperature_c[:-1])
-        exact_at["temperature"] = (grid_values(model, soc, mid_t),
-                                   _midpoints(on_grid, soc.size, axis=0))  # fmt: skip
+        pairs.append((grid_values(model, soc, mid_t), _midpoints(on_grid, soc.size, axis=0)))
     out = {}
     for col in on_grid.columns[2:]:
-        worst_abs, worst_rel = 0.0, 0.0
-        for exact, linear in exact_at.values():
-            d = np.abs(linear[col] - exact[col].to_numpy())
-            worst_abs = max(worst_abs, float(d.max()))
-            scale = np.abs(exact[col].to_numpy())
-            rel = np.divide(d, scale, out=np.zeros_like(d), where=scale > 0)
-            worst_rel = max(worst_rel, float(rel.max()))
-        out[col] = {"max_abs": worst_abs, "max_rel": worst_rel}
+        worst = {"max_abs": 0.0, "at_soc": None, "at_temperature_c": None, "max_rel": 0.0}
+        for exact, linear in pairs:
+            law = exact[col].to_numpy()
+            d = np.abs(linear[col] - law)
+            k = int(np.argmax(d))
+            if d[k] > worst["max_abs"]:
+                worst |= {"max_abs": float(d[k]), "at_soc": float(exact["soc"].iloc[k]),
+                          "at_temperature_c": float(exact["temperature_c"].iloc[k])}  # fmt: skip
+            rel = np.divide(d, np.abs(law), out=np.zeros_like(d), where=law != 0)
+            worst["max_rel"] = max(worst["max_rel"], float(rel.max()))
+        out[col] = worst
     return out
 
 
