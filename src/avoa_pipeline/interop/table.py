@@ -50,7 +50,7 @@ docs/real-data.md), so ± 10 K covers it and a little beyond. Give ``--temperatu
 range you need (the Arrhenius laws extrapolate outside the training records' range)."""
 TEMPERATURE_STEP_K = 2.0
 """The default temperature step: an Arrhenius factor with θ = 4,000 K bends by 0.23 % per K²
-near 25 °C, so a linear interpolation over 2 K is off by at most 0.1 % of the resistance
+near 25 °C, so a linear interpolation over 2 K is off by about 0.1 % of the resistance
 (h²/8 times the curvature)."""
 SOC_RANGE = (0.0, 1.0)
 """A grid SOC lies in [0, 1]: the state of charge a BMS table covers."""
