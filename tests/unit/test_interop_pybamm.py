@@ -253,6 +253,26 @@ def test_parameter_values_are_the_written_modules(pybamm):
         assert ocv == pytest.approx(float(want), abs=1e-12)
 
 
+def test_pybamm_model_carries_the_states_beyond_thevenins(pybamm):
+    """``pybamm_model``: the module's model, with the surface-SOC lag and the hysteresis state,
+    solved by PyBaMM for a constant discharge: h falls towards −1 at the rate γ·I/(3600·Q) and
+    δ rises towards κ·I with τ_d, as their closed forms say."""
+    model = fitted("table", ("diffusion", "hysteresis"))
+    pb_model, values = X.pybamm_model(model, soc0=SOC0)
+    assert {"Surface SoC lag", "Hysteresis state"} <= set(pb_model.variables.keys())
+    amps = 2.0
+    values["Current function [A]"] = amps
+    sim = pybamm.Simulation(pb_model, parameter_values=values,
+                            solver=pybamm.IDAKLUSolver(rtol=1e-8, atol=1e-8))  # fmt: skip
+    t = np.array([0.0, 100.0, 300.0])
+    sol = sim.solve(t_eval=t, t_interp=t)
+    P = ecm.to_physical(model.x)[0]
+    h = -1.0 + np.exp(-P[ecm.GAM] * amps * t / (3600 * P[ecm.Q]))
+    delta = P[ecm.KD] * amps * (1.0 - np.exp(-t / P[ecm.TAUD]))
+    np.testing.assert_allclose(sol["Hysteresis state"].entries, h, atol=1e-6)
+    np.testing.assert_allclose(sol["Surface SoC lag"].entries, delta, atol=1e-6)
+
+
 # ----------------------------------------------------------------------------------------------
 # the command
 

@@ -553,11 +553,10 @@ def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame
     })  # fmt: skip
 
 
-def parameter_values(model: FittedModel, soc0: float | None = None,
-                     drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
-    """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
-    module text the export writes, executed in place, for a model that passes the export's
-    check without a record (``FittedModel.check_cell``). Elements PyBaMM's Thevenin model cannot
+def loaded_module(model: FittedModel, soc0: float | None = None, drop_unsupported: bool = False,
+                  source: str = "model") -> types.ModuleType:  # fmt: skip
+    """The module the export writes for ``model``, executed in place, for a model that passes
+    the export's check without a record (``FittedModel.check_cell``). Elements PyBaMM cannot
     hold are a UserError unless ``drop_unsupported`` (then dropped without a cost: the CLI
     measures that on a record)."""
     drop = check_exportable(model, source, drop_unsupported)
@@ -565,4 +564,22 @@ def parameter_values(model: FittedModel, soc0: float | None = None,
     s0, note = initial_soc_of(model, None, soc0)
     text = module_source(without(model, drop), s0, note, source,
                          {e: {"why": elements.get(e).pybamm.how} for e in drop})  # fmt: skip
-    return build(load_source(text))
+    return load_source(text)
+
+
+def parameter_values(model: FittedModel, soc0: float | None = None,
+                     drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
+    """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
+    module text the export writes (:func:`loaded_module`). A model with states beyond
+    Thevenin's (diffusion, hysteresis, the coulombic efficiency) needs the module's own model,
+    with its submodels: :func:`pybamm_model`."""
+    return build(loaded_module(model, soc0, drop_unsupported, source))
+
+
+def pybamm_model(model: FittedModel, soc0: float | None = None,
+                 drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
+    """(the PyBaMM model, pybamm.ParameterValues) for ``model``: the module's ``model()``
+    (Thevenin with the cell's submodels) and its values, checked together (:func:`build`)."""
+    module = loaded_module(model, soc0, drop_unsupported, source)
+    _, values = build(module)
+    return module.model(), values
