@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import textwrap
 import types
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ import pandas as pd
 from .. import __version__
 from ..errors import UserError
 from ..model import ecm, elements, fitting
+from ..model.elements.coulombic_efficiency import counted_piece
 from ..model.elements.element import Physical, Piece, flat_ends
 from ..model.elements.second_rc import rc_piece
 from ..model.fitted import FittedModel
@@ -285,7 +287,7 @@ def drive(time_s, current_a, temperature_c=None):
     t = t - t[0]
     current = np.asarray(current_a, dtype=float){current_terms}
     updates = {{"Current function [A]": held(t, current)}}
-    if temperature_c is not None:
+{drive_extra}    if temperature_c is not None:
         temp_k = np.asarray(temperature_c, dtype=float) + 273.15
         lead = min(THERMAL_LEAD_S, 0.1 * float(np.min(np.diff(t))))
         updates["Ambient temperature [K]"] = held(t, temp_k, lead)
@@ -333,10 +335,45 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
 
 
 def _resistance_function(name: str, value: str, factors: list[str], terms: list[str],
-                         doc: str) -> str:  # fmt: skip
+                         doc: str, held_soc: bool = False) -> str:  # fmt: skip
     expr = " * ".join([value, *factors])
     expr = " + ".join([expr, *terms])
-    return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n    return {expr}\n'
+    start = "    soc = soc_at_interval_start(soc, current)\n" if held_soc else ""
+    return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n{start}    return {expr}\n'
+
+
+_SOC = re.compile(r"\bsoc\b")
+SINCE = "Time since the interval's start [s]"
+
+_INTERVAL_START = f'''
+def soc_at_interval_start(soc, current):
+    """The SoC at the start of the record's interval: avoa-pipeline holds an SOC-dependent
+    resistance over each interval at its value there (zero-order hold; the RC branches' update
+    reads it). The current is held over the interval, so that SoC is the SoC now plus the charge
+    counted since; drive() gives the time since (a sawtooth, 0 at each sample). Its default, 0,
+    follows the SoC as it moves (a continuous-time model)."""
+    since = pybamm.FunctionParameter("{SINCE}", {{"Time [s]": pybamm.t}})
+    return soc + counted(current) * since / (3600 * CAPACITY_AH)
+
+
+def since_interval_start(time_s):
+    """A function of time for PyBaMM: the time since the start of the interval it lies in (0
+    at each time_s[k], rising to the interval's length), back to 0 over the last 1e-6 of each
+    interval, as held() switches."""
+    t = np.asarray(time_s, dtype=float)
+    dt = np.diff(t)
+    x = np.append(np.column_stack([t[:-1], t[1:] - 1e-6 * dt]).ravel(), [t[-1], t[-1] + dt[-1]])
+    y = np.append(np.column_stack([0.0 * dt, (1.0 - 1e-6) * dt]).ravel(), [0.0, dt[-1]])
+    return lambda time: pybamm.Interpolant(x, y, time, interpolator="linear")
+'''
+
+
+def _interval_start_piece(p: Physical) -> Piece:
+    """What SOC-dependent resistances add: the SoC at each interval's start, from the charge
+    counted since (:data:`_INTERVAL_START`), so that PyBaMM holds them as our simulator does."""
+    c = counted_piece(p)
+    return Piece(constants=c.constants, helpers=(*c.helpers, _INTERVAL_START),
+                 parameters=(*c.parameters, (SINCE, "0.0")))  # fmt: skip
 
 
 def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source: str,
@@ -349,6 +386,10 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     p = ecm.physical(model.x, model.knots)
     pieces = {"base": _base(model, p), "rc1": rc_piece(1)(p)}
     pieces |= {e: elements.get(e).pybamm.piece(p) for e in model.config.effects}
+    # a resistance that follows the SoC reads it at the interval's start, as our simulator does
+    held_soc = any(_SOC.search(f) for q in pieces.values() for _, f in (*q.factors, *q.terms))
+    if held_soc:
+        pieces["interval_start"] = _interval_start_piece(p)
     consts = {name: (value, note) for p in pieces.values() for name, value, note in p.constants}
     # a branch with R = 0 holds no voltage (it starts at 0): left out, the rest renumbered
     branches = sorted(b for p in pieces.values() for b in p.branches if consts[b[1]][0] != 0.0)
@@ -404,6 +445,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
             of(factors, "R0"),
             of(terms, "R0"),
             "R0 [Ohm] at the cell temperature (°C), current and SoC.",
+            held_soc,
         )
         r0_value = "r0"
     rc_values = ""
@@ -411,7 +453,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         f, t = of(factors, "RC", f"R{j}"), of(terms, "RC", f"R{j}")
         if f or t:
             text += _resistance_function(
-                f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model)."
+                f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model).", held_soc
             )
             text += (f'\n\ndef c{n}(T_cell, current, soc):\n    """C{n} [F] = τ/R{n}: the '
                      f'time constant stays fixed."""\n    return {tau_name} / '
@@ -433,6 +475,8 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
         r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
         states=_dict({k: json.dumps(v, ensure_ascii=False) for k, v in states.items()}),
+        drive_extra=(f"    updates[{json.dumps(SINCE)}] = since_interval_start(t)\n"
+                     if held_soc else ""),
         submodels=_dict(submodels), current_terms=current_terms,
         extra_values=_entries(extra_values, indent=8),
     )  # fmt: skip
