@@ -218,8 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--record",
         default=None,
         metavar="DATA.csv",
-        help="a record of the cell: its initial SOC, and where --drop-unsupported measures "
-        "what dropping costs",
+        help="a record of the cell: its initial SOC, where PyBaMM runs the module against our "
+        "simulator before it is written, and where --drop-unsupported measures what dropping costs",
     )
     x.add_argument(
         "--drop-unsupported",

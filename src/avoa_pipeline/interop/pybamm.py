@@ -14,8 +14,14 @@ JSON (``ParameterValues.to_json``) stores them in its internal expression-tree f
 Every element of the model library declares how it maps onto Thevenin's parameters, or why it
 cannot (``Element.pybamm``, ``model/elements/``). An element that maps contributes a ``Piece``
 (constants, helper functions, terms of the OCV, RC branches, factors and terms of the
-resistances); the module text is assembled here from the pieces, and :func:`parameter_values`
-executes that same text, so the file and the in-process parameters cannot differ.
+resistances; issue 28: submodels for states beyond Thevenin's, their parameters and states, a
+term of drive()'s current); the module text is assembled here from the pieces, and
+:func:`parameter_values` / :func:`pybamm_model` execute that same text, so the file and the
+in-process model cannot differ. Since issue 28 every element maps: diffusion and hysteresis are
+states of their own (submodels written in the module; their ODEs are our zero-order-hold
+updates exactly for a held current), and SOC-dependent resistances read the SoC at the start of
+each interval of a record (``soc_at_interval_start``), as our simulator holds them.
+``export --record`` runs the module on the record (:func:`agreement`) before it is written.
 
 Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
 point of this module. PyBaMM is imported only by the functions that need it (optional extra).
