@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -51,12 +52,12 @@ def lookup(tab: pd.DataFrame, column: str, soc: float, temp_c: float) -> float:
 def table_simulator(tab: pd.DataFrame, side: dict, frame: pd.DataFrame, soc0: float):
     """The sidecar's recursion, every column read from the table at (T_k, s_k)."""
     sc = {k: v["value"] for k, v in side["scalars"].items()}
-    n_rc = sum(c.startswith("tau") for c in tab.columns)
+    branches = [int(c[3:-2]) for c in tab.columns if c.startswith("tau")]
     t = frame["time_s"].to_numpy()
     i_meas = frame["current_a"].to_numpy()
     temps = frame["temperature_c"].to_numpy()
     q = 3600.0 * sc["capacity_ah"]
-    s, delta, h, v_rc = soc0, 0.0, 0.0, np.zeros(n_rc)
+    s, delta, h, v_rc = soc0, 0.0, 0.0, np.zeros(len(branches))
     out = np.empty(t.size)
     for k in range(t.size):
         dt = t[k + 1] - t[k] if k + 1 < t.size else 1.0
@@ -70,9 +71,9 @@ def table_simulator(tab: pd.DataFrame, side: dict, frame: pd.DataFrame, soc0: fl
                                                       * (1 / tk - 1 / sc["tref_k"]))  # fmt: skip
             v -= 2 * ecm.GAS_R * tk / ecm.FARADAY * math.asinh(0.5 * inv_i0 * i)
         out[k] = v
-        for j in range(n_rc):
-            a = math.exp(-dt / lookup(tab, f"tau{j + 1}_s", s, temp))
-            v_rc[j] = a * v_rc[j] + (1 - a) * lookup(tab, f"r{j + 1}_ohm", s, temp) * i
+        for n, j in enumerate(branches):
+            a = math.exp(-dt / lookup(tab, f"tau{j}_s", s, temp))
+            v_rc[n] = a * v_rc[n] + (1 - a) * lookup(tab, f"r{j}_ohm", s, temp) * i
         ad = math.exp(-dt / sc["diffusion_tau_s"])
         delta = ad * delta + (1 - ad) * sc["diffusion_soc_per_a"] * i
         ie = i if i > 0 else sc["coulombic_efficiency"] * i
@@ -134,6 +135,14 @@ def test_the_columns_are_the_laws_and_the_sidecar_says_what_they_mean(tmp_path, 
     # a coarse grid strays from the exponential laws: the sidecar says so, and so does the line
     assert errors["r0_ohm"]["max_rel"] > 0.01
     assert "strays at most" in stdout
+
+
+def test_a_branch_without_resistance_is_left_out(tmp_path, capsys):
+    """R1 = 0 holds no voltage (and C1 = τ1/R1 has no value): branch 2 stays branch 2."""
+    tab, _, _ = write_table(tmp_path, capsys, fitted("table", ("second_rc",), {"r1_ohm": 0.0}))
+    rc = [c for c in tab.columns if re.fullmatch(r"(r|tau|c)[123]_(ohm|s|f)", c)]
+    assert rc == ["r2_ohm", "tau2_s", "c2_f"]
+    assert np.isfinite(tab.drop(columns="soc").to_numpy()).all()
 
 
 def test_defaults_follow_the_model(tmp_path, capsys):

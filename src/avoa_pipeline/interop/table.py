@@ -97,11 +97,11 @@ def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
 
 
 def _branches(P: np.ndarray) -> list[tuple[int, int, int]]:
-    """The RC branches a table carries: (number, R column, τ column); branch 1 always, 2 and 3
-    where their resistance is not 0 (a branch with R = 0 holds no voltage)."""
-    out = [(1, ecm.R1, ecm.TAU1)]
-    out += [(j, r, t) for j, r, t in ((2, ecm.R2, ecm.TAU2), (3, ecm.R3, ecm.TAU3)) if P[r] != 0]
-    return out
+    """The RC branches a table carries: (number, R column, τ column), each where its
+    resistance is not 0 (a branch with R = 0 holds no voltage, and its C = τ/R has no value);
+    numbered as the model numbers them."""
+    branches = ((1, ecm.R1, ecm.TAU1), (2, ecm.R2, ecm.TAU2), (3, ecm.R3, ecm.TAU3))
+    return [(j, r, t) for j, r, t in branches if P[r] != 0]
 
 
 def default_soc_grid(model: FittedModel) -> np.ndarray:
