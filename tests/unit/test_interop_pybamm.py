@@ -218,6 +218,20 @@ def test_a_record_solved_in_pieces_gives_our_voltage(pybamm, effects):
     assert rms_mv(v, ours) <= TOL_RMS_MV
 
 
+def test_a_record_that_starts_full_and_charges_runs(pybamm):
+    """Our model has no SoC bounds: a record from SOC 1 (the export's default, and the library's
+    rule on a record that starts at the top of the OCV) that charges first runs in PyBaMM too
+    (the module's model() drops Thevenin's SoC events, which would stop it at once)."""
+    model = fitted("table", ("second_rc", "hysteresis"))
+    frame = record()
+    frame["current_a"] = -frame["current_a"]  # charge first
+    ours = model.simulate(frame, soc0=1.0)
+    cell = X.load_source(X.export(model, "model.json").text)
+    assert cell.INITIAL_SOC == 1.0
+    v = cell.simulate(frame["time_s"], frame["current_a"], frame["temperature_c"])
+    assert rms_mv(v, ours) <= TOL_RMS_MV
+
+
 def test_without_a_measured_temperature_the_cell_sits_at_the_reference(pybamm, tmp_path):
     """No temperature column: the module's ambient (T_ref) holds the cell there, where the
     Arrhenius factors are 1, as in our simulator with the record's temperature at T_ref."""

@@ -257,11 +257,14 @@ def get_parameter_values():
 
 def model():
     """PyBaMM's Thevenin model with OPTIONS, its submodels in the slots of SUBMODELS replaced
-    or added (the states this cell has beyond Thevenin's)."""
+    or added (the states this cell has beyond Thevenin's), without its SoC events."""
     thevenin = pybamm.equivalent_circuit.Thevenin(options=OPTIONS, build=False)
     for slot, submodel in SUBMODELS.items():
         thevenin.submodels[slot] = submodel(thevenin.param, thevenin.options)
     thevenin.build_model()
+    # avoa-pipeline's model has no SoC bounds (its OCV holds its end values): Thevenin's events
+    # at SoC 0 and 1 would stop a record that starts full (INITIAL_SOC 1) or charges beyond it
+    thevenin.events = [e for e in thevenin.events if e.name not in ("Minimum SoC", "Maximum SoC")]
     return thevenin
 
 
