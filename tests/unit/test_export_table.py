@@ -226,6 +226,16 @@ def test_a_bad_out_or_model_gets_one_line_and_nothing_is_written(tmp_path, capsy
     assert not out.with_suffix(".json").exists()
 
 
+def test_every_element_is_expressed_and_another_is_refused(monkeypatch):
+    """The table writes every element's law (EXPRESSED); an element it does not know (one added
+    to the library later) is refused in one line, not written without its law."""
+    assert set(ecm.EFFECTS) == T.EXPRESSED
+    monkeypatch.setattr(T, "EXPRESSED", T.EXPRESSED - {"thermal"})
+    with pytest.raises(T.UserError, match="thermal") as exc:
+        T.export_table(fitted("table", ("thermal",)), "m.json")
+    assert "\n" not in str(exc.value)
+
+
 def test_parse_grid_and_the_defaults_directly():
     assert T.parse_grid("0, 0.5,1", "--soc-grid", T.SOC_RANGE, "").tolist() == [0, 0.5, 1]
     model = fitted("table", ("butler_volmer",))  # RT/F: Butler–Volmer depends on temperature

@@ -56,6 +56,14 @@ SOC_RANGE = (0.0, 1.0)
 """A grid SOC lies in [0, 1]: the state of charge a BMS table covers."""
 TEMPERATURE_DEPENDENT = ("thermal", "butler_volmer", "bv_arrhenius")
 """Elements whose laws depend on the cell temperature (Butler–Volmer through RT/F)."""
+EXPRESSED = frozenset({
+    "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
+    "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency",
+    "r0_soc", "r1_soc", "r0_charge", "bv_arrhenius",
+})  # fmt: skip
+"""The elements whose laws :func:`grid_values` and :func:`scalars` write. A model with another
+element (one added to the library after this module) is refused in one line rather than
+written without its law: the table would be wrong where that element acts."""
 
 
 def _temperature_factor(theta_k: float, temp_k: np.ndarray, tref_k: float) -> np.ndarray:
@@ -323,6 +331,10 @@ def export_table(model: FittedModel, source: str, soc: np.ndarray | None = None,
     if model.config.load_ohm is not None:
         raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
                         "test rig, not of the cell; a table of the cell has none")  # fmt: skip
+    unknown = [e for e in model.config.effects if e not in EXPRESSED]
+    if unknown:
+        raise UserError(f"{source}: field 'effects': the table export does not write the law of "
+                        f"{', '.join(unknown)} yet (interop/table.py EXPRESSED)")  # fmt: skip
     soc = default_soc_grid(model) if soc is None else np.asarray(soc, dtype=float)
     if temperature_c is None:
         temperature_c = default_temperatures(model)
