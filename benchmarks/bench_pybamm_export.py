@@ -10,10 +10,20 @@ steps of 1, 2 or 4 s (``2222@1-4s``, at 1e-8 only: our simulator holds its facto
 step). Rows: IDAKLU at rtol = atol = 1e-8, 1e-7 and 1e-6 (the module's default) and at its own
 defaults (rtol 1e-4, atol 1e-6); for the thermal stack, also at 1e-6 without the thermal lead
 (THERMAL_LEAD_S = 0: the ambient switched at the sample time); with ``--chunks``, the stack at
-1e-6 solved in pieces of each size given (the module's default: CHUNK_SAMPLES).
+1e-6 solved in pieces of each size given (the module's default: CHUNK_SAMPLES). ``--only``:
+the configurations with any of these elements.
+
+``--real MODEL.json RECORD.csv``: instead, a fitted model on a record of its cell, as ``export
+--record`` runs it (initial SOC by the library's rule, the record's temperature; rtol = atol =
+1e-6, then 1e-7 and 1e-8; the SOC where the difference is largest): the model, then
+the model plus hysteresis (M = 10 mV, γ = 100, test_ecm's values), then plus hysteresis, a
+coulombic efficiency of 0.98 and a current offset of 0.1 % of the record's largest current
 
     nice -n 10 .venv/bin/python benchmarks/bench_pybamm_export.py [--sizes 2222 15000]
     ... --sizes 15000 --chunks 250 500 1000 2000 15000
+    ... --only diffusion hysteresis current_offset coulombic_efficiency
+    ... --real results/real/panasonic/diagnosis/25degC/model.json \
+        results/real/canonical/panasonic_25degC_us06.csv
 """
 
 from __future__ import annotations
@@ -43,6 +53,10 @@ ELEMENT = {
     "thermal": {"thermal_theta_r0_k": 4000.0, "thermal_theta_rc_k": 3000.0},
     "butler_volmer": {"bv_inv_i0_per_a": 0.5},
     "ocv_shape": {"ocv_shape_u0_v": 0.01, "ocv_shape_u1_v": -0.006},
+    "diffusion": {"diffusion_soc_per_a": 0.02, "diffusion_tau_s": 600.0},
+    "hysteresis": {"hysteresis_m_v": 0.01, "hysteresis_gamma": 100.0},
+    "coulombic_efficiency": {"coulombic_efficiency": 0.95},
+    "current_offset": {"current_offset_a": 0.03},
 }
 CONFIGS = [
     ("table", ("second_rc",)),
@@ -50,6 +64,10 @@ CONFIGS = [
     ("table", ("soc_resistance",)),
     ("table", ("second_rc", "third_rc", "soc_resistance", "thermal", "butler_volmer",
                "ocv_shape")),
+    ("table", ("diffusion",)),
+    ("rational", ("hysteresis",)),
+    ("table", ("second_rc", "diffusion", "hysteresis", "thermal", "coulombic_efficiency",
+               "current_offset")),
 ]  # fmt: skip
 
 
@@ -100,11 +118,64 @@ def pybamm_voltage(cell, frame, rtol, atol, lead=True, chunk=None):
         cell.THERMAL_LEAD_S = saved
 
 
+def with_elements(model: FittedModel, values: dict) -> FittedModel:
+    """``model`` plus the elements of report-named ``values`` (their bounds ±1 around them)."""
+    config = model.config
+    x = model.x.copy()
+    bounds = dict(model.bounds)
+    for key, value in values.items():
+        name, v = ecm.internal_value(key, value)
+        element = ecm.PARAMS[name].element
+        if element not in config.effects:
+            config = config.with_effect(element)
+        x[ecm.IDX[name]] = v
+        bounds[name] = (v - 1.0, v + 1.0)
+    return FittedModel(config, x, model.knots, model.tref_k, bounds, model.provenance,
+                       model.current_scale_a)  # fmt: skip
+
+
+def real(model_path: str, record_path: str) -> None:
+    """A fitted model on a record of its cell, as ``export --record`` runs it (rtol = atol =
+    1e-6), and at 1e-7 and 1e-8; with the SOC where the difference is largest."""
+    from avoa_pipeline import inputs
+
+    model = FittedModel.load(model_path)
+    frame = inputs.read_record(record_path).frame
+    imax = float(np.max(np.abs(frame["current_a"])))
+    hysteresis = {"hysteresis_m_v": 0.01, "hysteresis_gamma": 100.0}
+    variants = [model, with_elements(model, hysteresis),
+                with_elements(model, {**hysteresis, "coulombic_efficiency": 0.98,
+                                      "current_offset_a": 0.001 * imax})]  # fmt: skip
+    print(f"{'configuration':<72} {'rtol=atol':>9} {'RMS mV':>8} {'max mV':>8} {'at SOC':>6} "
+          f"{'PyBaMM s':>8} {'effect mV':>9}")  # fmt: skip
+    temp = frame["temperature_c"].to_numpy() if "temperature_c" in frame.columns else None
+    for m in variants:
+        soc0 = m.initial_soc(m.record(frame))
+        module = export_pybamm.load_source(export_pybamm.export(m, model_path, frame=frame).text)
+        ours, traces = m.simulate(frame, soc0=soc0, traces=True)
+        # what the added elements move our voltage by (0 for the model as fitted)
+        effect = 1e3 * np.sqrt(np.mean((ours - model.simulate(frame, soc0=soc0)) ** 2))
+        for tol in (1e-6, 1e-7, 1e-8):
+            t0 = time.perf_counter()
+            v = module.simulate(frame["time_s"].to_numpy(), frame["current_a"].to_numpy(), temp,
+                                initial_soc=soc0, rtol=tol, atol=tol)  # fmt: skip
+            seconds = time.perf_counter() - t0
+            d = 1e3 * np.abs(v - ours)
+            print(f"{m.config.name:<72} {tol:>9g} {np.sqrt(np.mean(d**2)):>8.4f} {d.max():>8.4f} "
+                  f"{traces[0][np.argmax(d)]:>6.3f} {seconds:>8.1f} {effect:>9.2f}",
+                  flush=True)  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--sizes", type=int, nargs="+", default=[2222, 15000])
     p.add_argument("--chunks", type=int, nargs="*", default=[], help="piece sizes to time")
+    p.add_argument("--only", nargs="*", default=[], help="configurations with these elements")
+    p.add_argument("--real", nargs=2, metavar=("MODEL", "RECORD"), default=None)
     args = p.parse_args()
+    if args.real:
+        real(*args.real)
+        return
     rng = np.random.default_rng(1)
     print(f"{'record':>9} {'configuration':<72} {'solver':<22} {'RMS mV':>8} {'max mV':>8} "
           f"{'PyBaMM s':>8} {'ours s':>8}")  # fmt: skip
@@ -114,6 +185,8 @@ def main() -> None:
     for name, frame in records:
         for kind, effects in CONFIGS:
             if name.endswith("s") and "soc_resistance" not in effects:
+                continue
+            if args.only and not set(args.only) & set(effects):
                 continue
             model = model_of(kind, effects)
             cell = export_pybamm.load_source(export_pybamm.export(model, "m", soc0=SOC0).text)

@@ -177,13 +177,36 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     s.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
 
-    x = sub.add_parser("export", help="a diagnosis's model for PyBaMM (its Thevenin model)")
+    x = sub.add_parser(
+        "export", help="a diagnosis's model for PyBaMM, or as a BMS lookup table (CSV)"
+    )
     x.add_argument("model", help="model.json written by diagnose")
-    x.add_argument("--to", choices=("pybamm",), required=True, help="the simulator")
+    x.add_argument(
+        "--to",
+        choices=EXPORT_TARGETS,
+        required=True,
+        help="pybamm: a PyBaMM parameter module (.py); table: R0, RC branches and OCV on an "
+        "SOC × temperature grid (.csv, with a .json sidecar; docs/pybamm.md)",
+    )
     x.add_argument(
         "--out",
         required=True,
-        help="the parameter module (.py) that PyBaMM loads without this package (docs/pybamm.md)",
+        help="the parameter module (.py) that PyBaMM loads without this package, or the "
+        "table (.csv; its sidecar .json beside it)",
+    )
+    x.add_argument(
+        "--soc-grid",
+        default=None,
+        metavar="S1,S2,...",
+        help="--to table: the SOC values, increasing, in [0, 1] (default: 0-1 in 0.01 steps "
+        "plus the model's SOC knots)",
+    )
+    x.add_argument(
+        "--temperatures",
+        default=None,
+        metavar="T1,T2,...",
+        help="--to table: the temperatures in °C, increasing (default: the model's reference "
+        "temperature, ±10 K in 2 K steps where the model depends on temperature)",
     )
     x.add_argument(
         "--soc0",
@@ -195,8 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--record",
         default=None,
         metavar="DATA.csv",
-        help="a record of the cell: its initial SOC, and where --drop-unsupported measures "
-        "what dropping costs",
+        help="a record of the cell: its initial SOC, where PyBaMM runs the module against our "
+        "simulator before it is written, and where --drop-unsupported measures what dropping costs",
     )
     x.add_argument(
         "--drop-unsupported",
@@ -461,7 +484,59 @@ def cmd_simulate(args) -> None:
     )
 
 
+EXPORT_TARGETS = ("pybamm", "table")
+"""What ``export --to`` writes: PyBaMM's parameter module, or a BMS-style lookup table."""
+
+
 def cmd_export(args) -> None:
+    if args.to == "table":
+        return _export_table(args)
+    if args.soc_grid is not None or args.temperatures is not None:
+        raise UserError("--soc-grid and --temperatures apply to --to table")
+    return _export_pybamm(args)
+
+
+def _export_table(args) -> None:
+    import json
+    from pathlib import Path
+
+    from . import inputs, records
+    from .interop import table
+    from .io import atomic_paths, check_output, sidecar_of
+
+    if args.record is not None or args.soc0 is not None or args.drop_unsupported:
+        raise UserError("--record, --soc0 and --drop-unsupported apply to --to pybamm")
+    out = Path(args.out)
+    if out.suffix != ".csv":
+        raise UserError(f"--out {args.out}: the table is a CSV; end it .csv")
+    check_output(out, inputs=[args.model])
+    check_output(sidecar_of(out), inputs=[args.model], what="--out's sidecar")
+    soc = temps = None
+    if args.soc_grid is not None:
+        soc = table.parse_grid(args.soc_grid, "--soc-grid", table.SOC_RANGE, "")
+    if args.temperatures is not None:
+        temps = table.parse_grid(args.temperatures, "--temperatures",
+                                 records.TEMPERATURE_RANGE_C, "°C")  # fmt: skip
+    model, _ = _model_and_record(args, None)
+    model.check_cell(None, None, args.model)  # what simulate and export --to pybamm refuse
+    frame, side = table.export_table(model, args.model, soc, temps)
+    with atomic_paths(out, sidecar_of(out)) as (tmp, tmp_side):
+        frame.to_csv(tmp, index=False, float_format="%.10g")
+        tmp_side.write_text(json.dumps(side, indent=1, ensure_ascii=False) + "\n")
+    col, worst = max(side["interpolation_error"].items(), key=lambda kv: kv[1]["max_rel"])
+    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    strays = ("linear interpolation gives the model's laws at the middle of every grid cell"
+              if worst["at_soc"] is None else
+              f"linear interpolation strays at most {100 * worst['max_rel']:.2g} % ({col}; "
+              f"{worst['max_abs']:.3g} {side['columns'][col]['unit']} at SOC "
+              f"{worst['at_soc']:.3g}, {worst['at_temperature_c']:g} °C) from the model between "
+              "grid points")  # fmt: skip
+    print(f"{args.model}: wrote {out} ({len(side['grid']['temperature_c'])} temperatures × "
+          f"{len(side['grid']['soc'])} SOC values, {model.config.name}) and {sidecar_of(out)}; "
+          f"{strays}")  # fmt: skip
+
+
+def _export_pybamm(args) -> None:
     import contextlib
     from pathlib import Path
 
@@ -481,7 +556,10 @@ def cmd_export(args) -> None:
     ex = to_pybamm.export(
         model, args.model, args.soc0, frame, args.record, args.drop_unsupported, out.name
     )
-    options, _ = to_pybamm.build(to_pybamm.load_source(ex.text))  # it loads before it is written
+    module = to_pybamm.load_source(ex.text)
+    options, _ = to_pybamm.build(module)  # it loads before it is written
+    # on a record, PyBaMM runs the module before it is written: its voltage against ours
+    check = None if frame is None else to_pybamm.agreement(module, ex.model, frame, ex.initial_soc)
     cost_path = out.with_suffix(".dropped.csv")
     with (
         atomic_path(out) as tmp,
@@ -502,7 +580,18 @@ def cmd_export(args) -> None:
         )
     from . import inputs
 
-    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    notes = _flag_lines(args.model, model.at_bounds(), model.intervals)
+    if check is not None and "error" in check:
+        notes.append(f"{out}: PyBaMM could not run {args.record}: {check['error']}")
+    elif check is not None:
+        line += (f"; PyBaMM from {out.name} on {args.record}: {check['rms_mv']:.3g} mV RMS, "
+                 f"{check['max_abs_mv']:.3g} mV at most from our simulator "
+                 f"({check['seconds']:.1f} s)")  # fmt: skip
+        if check["rms_mv"] > to_pybamm.AGREEMENT_RMS_MV:
+            notes.append(f"{out}: PyBaMM differs from our simulator by {check['rms_mv']:.3g} mV "
+                         f"RMS on {args.record}, above {to_pybamm.AGREEMENT_RMS_MV:g} mV "
+                         "(docs/pybamm.md: the step and soc_resistance)")  # fmt: skip
+    inputs.warn(notes)
     print(line)
 
 

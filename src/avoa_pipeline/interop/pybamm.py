@@ -14,8 +14,14 @@ JSON (``ParameterValues.to_json``) stores them in its internal expression-tree f
 Every element of the model library declares how it maps onto Thevenin's parameters, or why it
 cannot (``Element.pybamm``, ``model/elements/``). An element that maps contributes a ``Piece``
 (constants, helper functions, terms of the OCV, RC branches, factors and terms of the
-resistances); the module text is assembled here from the pieces, and :func:`parameter_values`
-executes that same text, so the file and the in-process parameters cannot differ.
+resistances; issue 28: submodels for states beyond Thevenin's, their parameters and states, a
+term of drive()'s current); the module text is assembled here from the pieces, and
+:func:`parameter_values` / :func:`pybamm_model` execute that same text, so the file and the
+in-process model cannot differ. Since issue 28 every element maps: diffusion and hysteresis are
+states of their own (submodels written in the module; their ODEs are our zero-order-hold
+updates exactly for a held current), and SOC-dependent resistances read the SoC at the start of
+each interval of a record (``soc_at_interval_start``), as our simulator holds them.
+``export --record`` runs the module on the record (:func:`agreement`) before it is written.
 
 Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
 point of this module. PyBaMM is imported only by the functions that need it (optional extra).
@@ -24,7 +30,9 @@ point of this module. PyBaMM is imported only by the functions that need it (opt
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
+import re
 import textwrap
 import types
 from dataclasses import dataclass
@@ -36,6 +44,7 @@ import pandas as pd
 from .. import __version__
 from ..errors import UserError
 from ..model import ecm, elements, fitting
+from ..model.elements.coulombic_efficiency import counted_piece
 from ..model.elements.element import Physical, Piece, flat_ends
 from ..model.elements.second_rc import rc_piece
 from ..model.fitted import FittedModel
@@ -51,6 +60,10 @@ SOLVER_TOL = 1e-6
 """rtol = atol of the IDAKLU solver in the generated ``simulate``: 0.012-0.017 mV RMS (0.06 mV at
 worst) from our simulator on records of 2,222 and 15,000 samples, where IDAKLU's defaults give
 up to 0.094 mV RMS and 0.33 mV at worst (``benchmarks/bench_pybamm_export.py``, docs/pybamm.md)."""
+AGREEMENT_RMS_MV = 0.1
+"""What the export promises: PyBaMM's voltage from the module within 0.1 mV RMS of our
+simulator's on a record (the unit tests' bound, docs/pybamm.md); ``export --record`` measures it
+on the record and warns above it."""
 CHUNK_SAMPLES = 500
 """The generated ``simulate`` solves a record in pieces of this many intervals: PyBaMM's time per
 step grows with the length of the held current. 15,000 samples: 68 s in one piece, 12-17 s in
@@ -134,6 +147,17 @@ def _literal(value) -> str:
     return repr(float(value))
 
 
+def _entries(mapping: dict[str, str], indent: int = 4) -> str:
+    """Dict entries, one a line, keys as double-quoted strings (PyBaMM's own style for parameter
+    names), values as written (names and expressions of the module)."""
+    return "".join(f"{' ' * indent}{json.dumps(k, ensure_ascii=False)}: {v},\n"
+                   for k, v in mapping.items())  # fmt: skip
+
+
+def _dict(mapping: dict[str, str]) -> str:
+    return "{\n" + _entries(mapping) + "}" if mapping else "{}"
+
+
 def _base(m: FittedModel, p: Physical) -> Piece:
     table = m.config.table
     if table is None:
@@ -162,7 +186,7 @@ NumPy only. Use it like PyBaMM's own parameter sets:
     spec = importlib.util.spec_from_file_location("cell", "{file_doc}")
     cell = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(cell)
-    model = pybamm.equivalent_circuit.Thevenin(options=cell.OPTIONS)
+    model = cell.model()  # PyBaMM's Thevenin model (OPTIONS), plus this cell's SUBMODELS
     values = pybamm.ParameterValues(cell.get_parameter_values())
 
 or run a record (current held over each interval, as avoa-pipeline's records define it):
@@ -200,6 +224,11 @@ JIG_THERMAL_MASS_J_PER_K = 1.0
 JIG_AIR_W_PER_K = 1.0e4
 THERMAL_LEAD_S = 2.0e-3  # 20 of those time constants
 CHUNK_SAMPLES = {chunk}  # simulate() solves a record in pieces of this many intervals
+# the model's states, each with the parameter of its initial value: simulate() starts each piece
+# of a record where the one before ended
+STATES = {states}
+# Thevenin's submodels this cell replaces or adds (model()); empty: PyBaMM's Thevenin model
+SUBMODELS = {submodels}
 LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
 UPPER_CUTOFF_V = {upper}
 
@@ -223,7 +252,20 @@ def get_parameter_values():
         "Cell-jig heat transfer coefficient [W/K]": CELL_JIG_W_PER_K,
         "Jig thermal mass [J/K]": JIG_THERMAL_MASS_J_PER_K,
         "Jig-air heat transfer coefficient [W/K]": JIG_AIR_W_PER_K,
-    }}
+{extra_values}    }}
+
+
+def model():
+    """PyBaMM's Thevenin model with OPTIONS, its submodels in the slots of SUBMODELS replaced
+    or added (the states this cell has beyond Thevenin's), without its SoC events."""
+    thevenin = pybamm.equivalent_circuit.Thevenin(options=OPTIONS, build=False)
+    for slot, submodel in SUBMODELS.items():
+        thevenin.submodels[slot] = submodel(thevenin.param, thevenin.options)
+    thevenin.build_model()
+    # avoa-pipeline's model has no SoC bounds (its OCV holds its end values): Thevenin's events
+    # at SoC 0 and 1 would stop a record that starts full (INITIAL_SOC 1) or charges beyond it
+    thevenin.events = [e for e in thevenin.events if e.name not in ("Minimum SoC", "Maximum SoC")]
+    return thevenin
 
 
 def held(time_s, values, lead_s=0.0):
@@ -252,8 +294,9 @@ def drive(time_s, current_a, temperature_c=None):
     sample time. Times count from the first sample."""
     t = np.asarray(time_s, dtype=float)
     t = t - t[0]
-    updates = {{"Current function [A]": held(t, current_a)}}
-    if temperature_c is not None:
+    current = np.asarray(current_a, dtype=float){current_terms}
+    updates = {{"Current function [A]": held(t, current)}}
+{drive_extra}    if temperature_c is not None:
         temp_k = np.asarray(temperature_c, dtype=float) + 273.15
         lead = min(THERMAL_LEAD_S, 0.1 * float(np.min(np.diff(t))))
         updates["Ambient temperature [K]"] = held(t, temp_k, lead)
@@ -266,7 +309,7 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
     """Terminal voltage (V) at each sample of a record, from PyBaMM's Thevenin model with these
     parameters (IDAKLU solver; the voltage at t_k is the one just after row k's current is
     applied, as avoa-pipeline computes it). Solved in pieces of ``chunk`` intervals, each
-    starting from the state the one before ended in (SoC, RC voltages; the temperature is the
+    starting from the state the one before ended in (STATES; the temperature is the
     record's): PyBaMM's time per step grows with the length of the held current, so one piece
     for a whole long record costs time quadratic in its length."""
     t = np.asarray(time_s, dtype=float)
@@ -283,8 +326,7 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
         part = slice(a, b + 1)
         updates, tt = drive(t[part], cur[part], None if temp is None else temp[part])
         values.update(updates)
-        model = pybamm.equivalent_circuit.Thevenin(options=OPTIONS)
-        sim = pybamm.Simulation(model, parameter_values=values, solver=solver)
+        sim = pybamm.Simulation(model(), parameter_values=values, solver=solver)
         solution = sim.solve(t_eval=tt, t_interp=tt)
         voltage = solution["Voltage [V]"].entries
         if voltage.size != tt.size:
@@ -295,19 +337,52 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
             return np.concatenate(pieces)
         pieces.append(voltage[:-1])
         values = values.copy()
-        values["Initial SoC"] = float(solution["SoC"].entries[-1])
-        for n in range(1, OPTIONS["number of rc elements"] + 1):
-            name = f"Element-{{n}} overpotential [V]"
-            values[f"Element-{{n}} initial overpotential [V]"] = float(solution[name].entries[-1])
+        for state, initial in STATES.items():
+            values[initial] = float(solution[state].entries[-1])
         a = b
 '''
 
 
 def _resistance_function(name: str, value: str, factors: list[str], terms: list[str],
-                         doc: str) -> str:  # fmt: skip
+                         doc: str, held_soc: bool = False) -> str:  # fmt: skip
     expr = " * ".join([value, *factors])
     expr = " + ".join([expr, *terms])
-    return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n    return {expr}\n'
+    start = "    soc = soc_at_interval_start(soc, current)\n" if held_soc else ""
+    return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n{start}    return {expr}\n'
+
+
+_SOC = re.compile(r"\bsoc\b")
+SINCE = "Time since the interval's start [s]"
+
+_INTERVAL_START = f'''
+def soc_at_interval_start(soc, current):
+    """The SoC at the start of the record's interval: avoa-pipeline holds an SOC-dependent
+    resistance over each interval at its value there (zero-order hold; the RC branches' update
+    reads it). The current is held over the interval, so that SoC is the SoC now plus the charge
+    counted since; drive() gives the time since (a sawtooth, 0 at each sample). Its default, 0,
+    follows the SoC as it moves (a continuous-time model)."""
+    since = pybamm.FunctionParameter("{SINCE}", {{"Time [s]": pybamm.t}})
+    return soc + counted(current) * since / (3600 * CAPACITY_AH)
+
+
+def since_interval_start(time_s):
+    """A function of time for PyBaMM: the time since the start of the interval it lies in (0
+    at each time_s[k], rising to the interval's length), back to 0 over the last 1e-6 of each
+    interval, as held() switches."""
+    t = np.asarray(time_s, dtype=float)
+    dt = np.diff(t)
+    x = np.append(np.column_stack([t[:-1], t[1:] - 1e-6 * dt]).ravel(), [t[-1], t[-1] + dt[-1]])
+    y = np.append(np.column_stack([0.0 * dt, (1.0 - 1e-6) * dt]).ravel(), [0.0, dt[-1]])
+    return lambda time: pybamm.Interpolant(x, y, time, interpolator="linear")
+'''
+
+
+def _interval_start_piece(p: Physical) -> Piece:
+    """What SOC-dependent resistances add: the SoC at each interval's start, from the charge
+    counted since (:data:`_INTERVAL_START`), so that PyBaMM holds them as our simulator does."""
+    c = counted_piece(p)
+    return Piece(constants=c.constants, helpers=(*c.helpers, _INTERVAL_START),
+                 parameters=(*c.parameters, (SINCE, "0.0")))  # fmt: skip
 
 
 def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source: str,
@@ -320,6 +395,10 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     p = ecm.physical(model.x, model.knots)
     pieces = {"base": _base(model, p), "rc1": rc_piece(1)(p)}
     pieces |= {e: elements.get(e).pybamm.piece(p) for e in model.config.effects}
+    # a resistance that follows the SoC reads it at the interval's start, as our simulator does
+    held_soc = any(_SOC.search(f) for q in pieces.values() for _, f in (*q.factors, *q.terms))
+    if held_soc:
+        pieces["interval_start"] = _interval_start_piece(p)
     consts = {name: (value, note) for p in pieces.values() for name, value, note in p.constants}
     # a branch with R = 0 holds no voltage (it starts at 0): left out, the rest renumbered
     branches = sorted(b for p in pieces.values() for b in p.branches if consts[b[1]][0] != 0.0)
@@ -375,6 +454,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
             of(factors, "R0"),
             of(terms, "R0"),
             "R0 [Ohm] at the cell temperature (°C), current and SoC.",
+            held_soc,
         )
         r0_value = "r0"
     rc_values = ""
@@ -382,7 +462,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         f, t = of(factors, "RC", f"R{j}"), of(terms, "RC", f"R{j}")
         if f or t:
             text += _resistance_function(
-                f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model)."
+                f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model).", held_soc
             )
             text += (f'\n\ndef c{n}(T_cell, current, soc):\n    """C{n} [F] = τ/R{n}: the '
                      f'time constant stays fixed."""\n    return {tau_name} / '
@@ -392,9 +472,22 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
             r_val, c_val = r_name, f"{tau_name} / {r_name}"
         rc_values += (f'        "R{n} [Ohm]": {r_val},\n        "C{n} [F]": {c_val},\n'
                       f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
+    states = {"SoC": "Initial SoC"} | {
+        f"Element-{n} overpotential [V]": f"Element-{n} initial overpotential [V]"
+        for n in range(1, len(branches) + 1)
+    }
+    states |= {v: i for p in pieces.values() for v, i in p.states}
+    submodels = {slot: cls for p in pieces.values() for slot, cls in p.submodels}
+    extra_values = {name: expr for p in pieces.values() for name, expr in p.parameters}
+    current_terms = "".join(f" + {t}" for p in pieces.values() for t in p.current_terms)
     text += _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
         r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
+        states=_dict({k: json.dumps(v, ensure_ascii=False) for k, v in states.items()}),
+        drive_extra=(f"    updates[{json.dumps(SINCE)}] = since_interval_start(t)\n"
+                     if held_soc else ""),
+        submodels=_dict(submodels), current_terms=current_terms,
+        extra_values=_entries(extra_values, indent=8),
     )  # fmt: skip
     return text
 
@@ -417,7 +510,7 @@ def build(module: types.ModuleType):
     these options takes every parameter it needs from these values."""
     pybamm = require_pybamm()
     values = pybamm.ParameterValues(module.get_parameter_values())
-    model = pybamm.equivalent_circuit.Thevenin(options=module.OPTIONS)
+    model = module.model()
     values.process_model(model, inplace=False)  # raises on a missing parameter
     return dict(module.OPTIONS), values
 
@@ -478,6 +571,27 @@ def export(model: FittedModel, source: str, soc0: float | None = None,
     return Export(text, exported, drop, cost, summary, s0, note)
 
 
+def agreement(module: types.ModuleType, model: FittedModel, frame: pd.DataFrame,
+              soc0: float) -> dict:  # fmt: skip
+    """PyBaMM's voltage from a loaded module (its ``simulate``, the record's temperature as the
+    ambient where it has one) against ``model.simulate`` on ``frame``, both from ``soc0``: RMS
+    and largest |difference| (mV) and PyBaMM's seconds; ``error`` instead when PyBaMM fails."""
+    import time
+
+    pybamm = require_pybamm()
+    ours = model.simulate(frame, soc0=soc0)
+    temp = frame["temperature_c"].to_numpy() if "temperature_c" in frame.columns else None
+    start = time.perf_counter()
+    try:
+        theirs = module.simulate(frame["time_s"].to_numpy(), frame["current_a"].to_numpy(), temp,
+                                 initial_soc=soc0)  # fmt: skip
+    except (RuntimeError, pybamm.SolverError) as exc:
+        return {"error": " ".join(str(exc).split())}
+    d = 1e3 * np.abs(np.asarray(theirs) - ours)
+    return {"rms_mv": float(np.sqrt(np.mean(d**2))), "max_abs_mv": float(d.max()),
+            "seconds": time.perf_counter() - start}  # fmt: skip
+
+
 def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame,
                   soc0: float) -> pd.DataFrame:  # fmt: skip
     """What dropping costs on ``frame``, by the package's simulator, both from ``soc0``:
@@ -492,11 +606,10 @@ def dropping_cost(model: FittedModel, exported: FittedModel, frame: pd.DataFrame
     })  # fmt: skip
 
 
-def parameter_values(model: FittedModel, soc0: float | None = None,
-                     drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
-    """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
-    module text the export writes, executed in place, for a model that passes the export's
-    check without a record (``FittedModel.check_cell``). Elements PyBaMM's Thevenin model cannot
+def loaded_module(model: FittedModel, soc0: float | None = None, drop_unsupported: bool = False,
+                  source: str = "model") -> types.ModuleType:  # fmt: skip
+    """The module the export writes for ``model``, executed in place, for a model that passes
+    the export's check without a record (``FittedModel.check_cell``). Elements PyBaMM cannot
     hold are a UserError unless ``drop_unsupported`` (then dropped without a cost: the CLI
     measures that on a record)."""
     drop = check_exportable(model, source, drop_unsupported)
@@ -504,4 +617,22 @@ def parameter_values(model: FittedModel, soc0: float | None = None,
     s0, note = initial_soc_of(model, None, soc0)
     text = module_source(without(model, drop), s0, note, source,
                          {e: {"why": elements.get(e).pybamm.how} for e in drop})  # fmt: skip
-    return build(load_source(text))
+    return load_source(text)
+
+
+def parameter_values(model: FittedModel, soc0: float | None = None,
+                     drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
+    """(options, pybamm.ParameterValues) of PyBaMM's Thevenin model for ``model``: the same
+    module text the export writes (:func:`loaded_module`). A model with states beyond
+    Thevenin's (diffusion, hysteresis, the coulombic efficiency) needs the module's own model,
+    with its submodels: :func:`pybamm_model`."""
+    return build(loaded_module(model, soc0, drop_unsupported, source))
+
+
+def pybamm_model(model: FittedModel, soc0: float | None = None,
+                 drop_unsupported: bool = False, source: str = "model"):  # fmt: skip
+    """(the PyBaMM model, pybamm.ParameterValues) for ``model``: the module's ``model()``
+    (Thevenin with the cell's submodels) and its values, checked together (:func:`build`)."""
+    module = loaded_module(model, soc0, drop_unsupported, source)
+    _, values = build(module)
+    return module.model(), values

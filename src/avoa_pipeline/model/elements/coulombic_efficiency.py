@@ -6,7 +6,44 @@ from __future__ import annotations
 import numpy as np
 
 from ... import records
-from .element import Element, Export, Param, Signature, View, slope_mv
+from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+
+_COUNTED = '''
+def counted(current):
+    """The current as the SoC counts it: a charge (I < 0) times the coulombic efficiency η
+    (1: all of it; the SoC and the hysteresis rate count this current)."""
+    eta = pybamm.Parameter("Coulombic efficiency")
+    return current * (1.0 + (eta - 1.0) * (current < 0))
+'''
+
+_COUNTED_CHARGE = '''
+class CountedCharge(pybamm.equivalent_circuit_elements.OCVElement):
+    """coulombic_efficiency: PyBaMM's OCV element, its SoC counting charge times η:
+    dSoC/dt = −counted(I)/(3600·Q)."""
+
+    def set_rhs(self, variables):
+        soc = variables["SoC"]
+        current = counted(variables["Current [A]"])
+        self.rhs = {soc: -current / self.param.cell_capacity / 3600}
+'''
+
+
+def counted_piece(p) -> Piece:
+    """The counted current (charge times η; η = 1 without this element), which the SoC and
+    hysteresis's rate read: shared with hysteresis's piece, written once into the module."""
+    return Piece(
+        constants=(("COULOMBIC_EFFICIENCY", p["eta"], "η: the share of a charge the SoC counts "
+                    "(1: all)"),),
+        helpers=(_COUNTED,),
+        parameters=(("Coulombic efficiency", "COULOMBIC_EFFICIENCY"),),
+    )  # fmt: skip
+
+
+def _piece(p) -> Piece:
+    c = counted_piece(p)
+    return Piece(constants=c.constants, helpers=(*c.helpers, _COUNTED_CHARGE),
+                 parameters=c.parameters,
+                 submodels=(("Open-circuit voltage", "CountedCharge"),))  # fmt: skip
 
 
 def _read(v: View) -> dict:
@@ -37,8 +74,9 @@ ELEMENT = Element(
         "SOC falls behind after charging: rest residual against charge put in", _read
     ),
     pybamm=Export(
-        "PyBaMM's Thevenin model counts charge with one capacity in both directions "
-        "(dSoC/dt = −I/(3600·Q), Q a scalar)"
+        "PyBaMM's OCV element with its SoC counting a charge (I < 0) times η: dSoC/dt = "
+        "−I·(1 + (η − 1)·[I < 0])/(3600·Q) (a submodel in the slot of Thevenin's OCV element)",
+        _piece,
     ),
     would_decide="a full charge and discharge between two rests",
     applies=_applies,

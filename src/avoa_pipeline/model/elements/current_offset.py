@@ -3,7 +3,13 @@ and the hysteresis."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Signature, View, slope_mv
+from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+
+
+def _piece(p) -> Piece:
+    return Piece(constants=(("CURRENT_OFFSET_A", p["ioff"], "current_offset: drive() adds it to a "
+                             "measured current (0 for a true one)"),),
+                 current_terms=("CURRENT_OFFSET_A",))  # fmt: skip
 
 
 def _read(v: View) -> dict:
@@ -32,8 +38,10 @@ ELEMENT = Element(
         "SOC drift with time (rest voltage trend) and a constant ohmic shift", _read
     ),
     pybamm=Export(
-        "an offset of the training records' current sensor, not of the cell: PyBaMM's Thevenin "
-        "model runs on the current it is given (its SOC and every drop see that current)"
+        "an offset of the training records' current sensor, not of the cell: drive() adds it to "
+        "a measured current (as avoa-pipeline's simulator does with any record); PyBaMM's "
+        "parameters and a current given to PyBaMM directly do not carry it",
+        _piece,
     ),
     would_decide="a full charge and discharge between two rests",
     withheld=True,

@@ -3,7 +3,58 @@ a single-particle model); unlike an RC branch its voltage scales with the OCV's 
 
 from __future__ import annotations
 
-from .element import Element, Export, Param
+from .element import Element, Export, Param, Piece
+
+_SURFACE_SOC_LAG = '''
+class SurfaceSocLag(pybamm.BaseSubModel):
+    """diffusion: the OCV sees the surface SoC, SoC − δ, where δ lags the current:
+    dδ/dt = (κ·I − δ)/τ_d. For a current held over each interval this is exactly avoa-pipeline's
+    δ_k+1 = a·δ_k + (1 − a)·κ·I_k, a = exp(−Δt/τ_d). It fills the slot of PyBaMM's diffusion
+    element (Fan 2022), a Fickian slab with one parameter, which is not this lag."""
+
+    def __init__(self, param, options=None):
+        super().__init__(param)
+        self.model_options = options
+
+    def get_fundamental_variables(self):
+        return {"Surface SoC lag": pybamm.Variable("Surface SoC lag")}
+
+    def get_coupled_variables(self, variables):
+        soc = variables["SoC"]
+        surface = soc - variables["Surface SoC lag"]
+        variables.update({
+            "Surface SoC": surface,
+            "Diffusion overpotential [V]": self.param.ocv(surface) - self.param.ocv(soc),
+        })
+        return variables
+
+    def set_rhs(self, variables):
+        lag = variables["Surface SoC lag"]
+        kappa = pybamm.Parameter("Surface SoC lag per current [1/A]")
+        tau = pybamm.Parameter("Surface SoC lag time constant [s]")
+        self.rhs = {lag: (kappa * variables["Current [A]"] - lag) / tau}
+
+    def set_initial_conditions(self, variables):
+        initial = pybamm.Parameter("Initial surface SoC lag")
+        self.initial_conditions = {variables["Surface SoC lag"]: initial}
+'''
+
+
+def _piece(p) -> Piece:
+    return Piece(
+        constants=(("DIFFUSION_SOC_PER_A", p["kd"], "diffusion: κ, the surface-SOC lag per A "
+                    "held (steady state)"),
+                   ("DIFFUSION_TAU_S", p["ltaud"], "diffusion: τ_d, the lag's time constant"),
+                   ("INITIAL_SURFACE_SOC_LAG", 0.0, "δ at the start (avoa-pipeline starts "
+                    "every record at 0)")),
+        helpers=(_SURFACE_SOC_LAG,),
+        submodels=(("Diffusion", "SurfaceSocLag"),),
+        parameters=(("Surface SoC lag per current [1/A]", "DIFFUSION_SOC_PER_A"),
+                    ("Surface SoC lag time constant [s]", "DIFFUSION_TAU_S"),
+                    ("Initial surface SoC lag", "INITIAL_SURFACE_SOC_LAG")),
+        states=(("Surface SoC lag", "Initial surface SoC lag"),),
+    )  # fmt: skip
+
 
 ELEMENT = Element(
     name="diffusion",
@@ -31,10 +82,12 @@ ELEMENT = Element(
     starts=lambda row, imax: [dict(kd=0.02 / imax, ltaud=ltd) for ltd in (2.0, 3.0)],
     signature="second_rc's (relaxation after current steps) reads it too",
     pybamm=Export(
-        "PyBaMM's diffusion element (Fan 2022) is Fickian diffusion in a slab with one "
-        "parameter τ_D, which fixes both the time scales (τ_D/(n²π²)) and the size of the "
-        "surface-SOC lag (τ_D·I/(3·3600·Q) in steady state); avoa-pipeline's is a first-order lag "
-        "with its own size κ and time constant τ_d: no τ_D gives the same voltage"
+        "a state of its own beside Thevenin's (a submodel in the slot of PyBaMM's diffusion "
+        "element): the surface-SOC lag δ, dδ/dt = (κ·I − δ)/τ_d, and the OCV at SoC − δ. "
+        "PyBaMM's own diffusion element (Fan 2022, a Fickian slab) is not used: its one "
+        "parameter τ_D fixes both the time scales (τ_D/(n²π²)) and the size of the lag "
+        "(τ_D·I/(3·3600·Q) in steady state), where ours has its own size κ and time constant τ_d",
+        _piece,
     ),
     would_decide="a long rest after a load (relaxation over an hour or more)",
 )

@@ -82,6 +82,14 @@ class Piece:
     (our branch number, R constant, τ constant); ``factors`` and ``terms``: (resistor,
     expression of ``T_cell`` (°C), ``current`` (A, discharge positive), ``soc``) multiplying or
     added to a resistance; the resistor is "R0", "RC" (every RC branch) or "R1".."R3".
+
+    An element with a state of its own beyond Thevenin's (a surface-SOC lag, hysteresis) adds
+    ``submodels``: (the Thevenin model's submodel slot it fills or adds, a ``pybamm.BaseSubModel``
+    class defined in its ``helpers``); ``parameters``: (PyBaMM parameter name, expression) entries
+    of ``get_parameter_values()`` its submodels read; ``states``: (state variable, the parameter
+    of its initial value), which the module's ``simulate`` carries from one piece of a record to
+    the next. ``current_terms``: expressions added to a measured current by the module's
+    ``drive`` (a current sensor's offset, which belongs to the record, not to the cell).
     """
 
     constants: tuple[tuple[str, object, str], ...] = ()
@@ -90,6 +98,10 @@ class Piece:
     branches: tuple[tuple[int, str, str], ...] = ()
     factors: tuple[tuple[str, str], ...] = ()
     terms: tuple[tuple[str, str], ...] = ()
+    submodels: tuple[tuple[str, str], ...] = ()
+    parameters: tuple[tuple[str, str], ...] = ()
+    states: tuple[tuple[str, str], ...] = ()
+    current_terms: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

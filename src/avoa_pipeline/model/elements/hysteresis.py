@@ -5,7 +5,74 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Signature, View
+from .coulombic_efficiency import counted_piece
+from .element import Element, Export, Param, Piece, Signature, View
+
+_HYSTERESIS = '''
+class Hysteresis(pybamm.BaseSubModel):
+    """hysteresis (Plett 2004, eq. 13): a state h that goes to −1 while discharging and to +1
+    while charging, at a rate γ per capacity of charge counted, and adds M·h to the voltage:
+    dh/dt = −γ·|Ic|·(h + sgn I)/(3600·Q) = −γ·(|Ic|·h + Ic)/(3600·Q), Ic = counted(I). For a
+    current held over each interval this is exactly avoa-pipeline's h_k+1 = e·h_k − (1 − e)·sgn I_k,
+    e = exp(−|γ·Ic_k·Δt/(3600·Q)|); at I = 0 h holds, as there."""
+
+    def __init__(self, param, options=None):
+        super().__init__(param)
+        self.model_options = options
+
+    def get_fundamental_variables(self):
+        h = pybamm.Variable("Hysteresis state")
+        m = pybamm.Parameter("Hysteresis voltage [V]")
+        return {"Hysteresis state": h, "Hysteresis overpotential [V]": m * h}
+
+    def set_rhs(self, variables):
+        h = variables["Hysteresis state"]
+        current = counted(variables["Current [A]"])
+        gamma = pybamm.Parameter("Hysteresis rate")
+        rate = gamma / (3600 * self.param.cell_capacity)
+        self.rhs = {h: -rate * (abs(current) * h + current)}
+
+    def set_initial_conditions(self, variables):
+        initial = pybamm.Parameter("Initial hysteresis state")
+        self.initial_conditions = {variables["Hysteresis state"]: initial}
+
+
+class VoltageWithHysteresis(pybamm.equivalent_circuit_elements.VoltageModel):
+    """PyBaMM's voltage of the Thevenin model plus the hysteresis overpotential M·h (and the
+    power and resistance that follow from it)."""
+
+    def get_coupled_variables(self, variables):
+        hysteresis = variables["Hysteresis overpotential [V]"]
+        variables = super().get_coupled_variables(variables)
+        voltage = variables["Voltage [V]"] + hysteresis
+        current = variables["Current [A]"]
+        nonzero = (current > 0) + (current < 0)
+        variables.update({
+            "Voltage [V]": voltage,
+            "Battery voltage [V]": voltage,
+            "Power [W]": voltage * current,
+            "Resistance [Ohm]": pybamm.sign(current) * voltage / (current + 1.0 - nonzero),
+        })
+        return variables
+'''
+
+
+def _piece(p) -> Piece:
+    c = counted_piece(p)
+    return Piece(
+        constants=(("HYSTERESIS_M_V", p["hm"], "hysteresis: M, the voltage at h = ±1"),
+                   ("HYSTERESIS_GAMMA", p["lgamma"], "hysteresis: γ, the rate per capacity of "
+                    "charge"),
+                   ("INITIAL_HYSTERESIS_STATE", 0.0, "h at the start (avoa-pipeline starts every "
+                    "record at 0)"),
+                   *c.constants),
+        helpers=(*c.helpers, _HYSTERESIS),
+        submodels=(("Hysteresis", "Hysteresis"), ("Voltage", "VoltageWithHysteresis")),
+        parameters=(("Hysteresis voltage [V]", "HYSTERESIS_M_V"),
+                    ("Hysteresis rate", "HYSTERESIS_GAMMA"),
+                    ("Initial hysteresis state", "INITIAL_HYSTERESIS_STATE"), *c.parameters),
+        states=(("Hysteresis state", "Initial hysteresis state"),),
+    )  # fmt: skip
 
 
 def last_direction(d: np.ndarray) -> np.ndarray:
@@ -58,7 +125,11 @@ ELEMENT = Element(
     signature=Signature(
         "rest voltage after charge above that after discharge; load offset ±M", _read
     ),
-    pybamm=Export("PyBaMM's Thevenin model has no hysteresis state"),
+    pybamm=Export(
+        "a state of its own beside Thevenin's (a submodel): h, dh/dt = −γ·(|Ic|·h + Ic)/(3600·Q) "
+        "with Ic the current as the SoC counts it, and M·h added to the voltage",
+        _piece,
+    ),
     would_decide="rests at one SOC reached once by charge and once by discharge",
     withheld=True,
 )
