@@ -120,14 +120,17 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     from .. import inputs
     from ..gap import diagnose
     from ..io import write_json
+    from ..model import heat
 
     read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
     report, _, model = diagnose.diagnose_records(
         read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
+    heat_line = heat.attach(model, read.train)  # as the command does
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
     write_log(log, f"{', '.join(map(str, train_csvs))}: selected {report['selected']['name']}; "
+                   f"{heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
                    f"{report['wall_s']:.0f} s")  # fmt: skip
 
