@@ -597,7 +597,8 @@ def _heat_schema() -> dict:
 
     entry = _object({"value": _number(), "low95": _nullable(_number()),
                      "high95": _nullable(_number()), "at_bound": {"type": "boolean"}})  # fmt: skip
-    kelvin = _number(0.0, None, "a temperature error (K)")
+    span = hi_c - lo_c  # no temperature error exceeds a cell's whole temperature range
+    kelvin = _number(0.0, span, "a cell's temperature span (K)")
     record = _object({
         "record": {"type": "string"},
         "ambient_c": _number(lo_c, hi_c, "a cell's temperature range (°C)"),
@@ -616,42 +617,55 @@ def _heat_schema() -> dict:
         "entropic_candidate": entry,
         "records": _list(record, at_least=1),
         "rmse_k": kelvin,
-        "fixed_point": _object({"tolerance_k": _number(0.0, None, "a tolerance (K)", True),
+        "fixed_point": _object({"tolerance_k": _number(0.0, span, "a cell's temperature span "
+                                                        "(K)", True),
                                 "max_passes": {"type": "integer", "minimum": 1,
                                                "maximum": MAX_COUNT}}),
     })  # fmt: skip
 
 
 def _check_heat(h: dict, source: str) -> None:
-    """What the schema cannot say of a heat block: each parameter inside the bounds it was
-    fitted in; C_th and hA positive; dU/dT 0 unless the entropic term was admitted (and then
-    with an interval entry); each interval entry's value the parameter's, its ends around it."""
+    """What the schema cannot say of a heat block: its bounds the library's (the fit searched
+    them; written for readers), each parameter inside them; dU/dT 0 unless the entropic term was
+    admitted, and an interval entry for it exactly then; each interval entry's value the
+    parameter's (the candidate's inside its bounds, and dU/dT itself where admitted), its
+    ``at_bound`` what the bounds say, its ends around the value and inside the bounds."""
     where = f"{source}: field 'heat"
     params, bounds = h["parameters"], h["bounds"]
-    for key, value in params.items():
-        lo, hi = bounds[key]
-        if lo > hi:
-            raise DataError(f"{where}.bounds.{key}': lower {lo:g} above upper {hi:g}")
-        tol = 1e-9 * max(1.0, abs(hi - lo))
-        if not lo - tol <= value <= hi + tol:
-            raise DataError(f"{where}.parameters.{key}': {value:g} outside the bounds it was "
-                            f"fitted in [{lo:g}, {hi:g}]")  # fmt: skip
+    for key in params:
+        lo, hi = _HEAT_LIMITS[key]
+        if list(bounds[key]) != [lo, hi]:
+            raise DataError(f"{where}.bounds.{key}': {json.dumps(bounds[key])}, but the fit "
+                            f"searched the library's range [{lo:g}, {hi:g}] (written for "
+                            "readers, never read)")  # fmt: skip
+    entry = "field 'heat.intervals.dudt_v_per_k'"
     if h["entropic"] != ("dudt_v_per_k" in h["intervals"]):
-        raise DataError(f"{where}.intervals': {'no' if h['entropic'] else 'an'} entry "
-                        f"dudt_v_per_k, but entropic is {json.dumps(h['entropic'])}")  # fmt: skip
+        raise DataError(f"{where}.entropic': {json.dumps(h['entropic'])}, but {entry} is "
+                        f"{'missing' if h['entropic'] else 'there'} (an entry exactly where "
+                        "dU/dT was admitted)")  # fmt: skip
     if not h["entropic"] and params["dudt_v_per_k"] != 0.0:
         raise DataError(f"{where}.parameters.dudt_v_per_k': {params['dudt_v_per_k']:g}, but "
                         "entropic is false (dU/dT not admitted: 0)")  # fmt: skip
-    for key, e in h["intervals"].items():
-        at = f"{where}.intervals.{key}"
-        if not math.isclose(e["value"], params[key], rel_tol=DERIVED_RTOL, abs_tol=1e-15):
+    cand = h["entropic_candidate"]
+    want = {**params, "entropic_candidate": cand["value"]}
+    if h["entropic"]:
+        want["entropic_candidate"] = params["dudt_v_per_k"]
+    entries = {**h["intervals"], "entropic_candidate": cand}
+    for key, e in entries.items():
+        at = (f"{where}.intervals.{key}" if key != "entropic_candidate"
+              else f"{where}.entropic_candidate")  # fmt: skip
+        lo, hi = _HEAT_LIMITS.get(key, DUDT_LIMITS)
+        if not math.isclose(e["value"], want[key], rel_tol=DERIVED_RTOL, abs_tol=1e-15):
             raise DataError(f"{at}.value': {e['value']:.10g}, but the parameter is "
-                            f"{params[key]:.10g}")  # fmt: skip
-        _check_ends(e, at)
-        _check_at_bound(e, bounds[key], key, at)
-    _check_ends(h["entropic_candidate"], f"{where}.entropic_candidate")
-    _check_at_bound(h["entropic_candidate"], bounds["dudt_v_per_k"], "dudt_v_per_k",
-                    f"{where}.entropic_candidate")  # fmt: skip
+                            f"{want[key]:.10g}")  # fmt: skip
+        if not lo <= e["value"] <= hi:
+            raise DataError(f"{at}.value': {e['value']:.6g} outside the bounds it was fitted in "
+                            f"[{lo:g}, {hi:g}]")  # fmt: skip
+        _check_at_bound(e, (lo, hi), key, at)
+        _check_ends(e, at, lo, hi)
+
+
+DUDT_LIMITS = heat_mod.DUDT_LIMITS_V_PER_K
 
 
 def _check_at_bound(e: dict, bounds, key: str, at: str) -> None:
@@ -659,27 +673,33 @@ def _check_at_bound(e: dict, bounds, key: str, at: str) -> None:
     (log10 for C_th and hA, the value for dU/dT)."""
     from . import fitting
 
-    f = (lambda v: v) if key == "dudt_v_per_k" else math.log10
+    f = math.log10 if key in ("c_th_j_per_k", "ha_w_per_k") else (lambda v: v)
     bound = bool(fitting.at_bound(f(e["value"]), f(bounds[0]), f(bounds[1])))
     if e["at_bound"] != bound:
         raise DataError(f"{at}.at_bound': {json.dumps(e['at_bound'])}, but the value "
                         f"{'is' if bound else 'is not'} at a bound of the fit")  # fmt: skip
 
 
-def _check_ends(e: dict, at: str) -> None:
+def _check_ends(e: dict, at: str, lo: float, hi: float) -> None:
     """An interval entry's ends: both numbers or both null (null exactly at a bound), the low
-    end at most the value, the high end at least it."""
+    end at most the value, the high end at least it, both inside the bounds [lo, hi]."""
     has = not e["at_bound"]
     for key in ("low95", "high95"):
         if (e[key] is None) == has:
             raise DataError(f"{at}.{key}': {json.dumps(e[key])}, but the parameter "
                             f"{'has' if has else 'has no'} interval")  # fmt: skip
-    if has:
-        tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
-        if not e["low95"] <= e["value"] + tol:
-            raise DataError(f"{at}.low95': {e['low95']:.6g}, above the value {e['value']:.6g}")
-        if not e["high95"] >= e["value"] - tol:
-            raise DataError(f"{at}.high95': {e['high95']:.6g}, below the value {e['value']:.6g}")
+    if not has:
+        return
+    tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
+    ptol = LIMIT_RTOL * max(abs(lo), abs(hi))
+    for key, ok in (("low95", e["low95"] <= e["value"] + tol),
+                    ("high95", e["high95"] >= e["value"] - tol)):  # fmt: skip
+        if not ok:
+            raise DataError(f"{at}.{key}': {e[key]:.6g}, on the wrong side of the value "
+                            f"{e['value']:.6g}")  # fmt: skip
+        if not lo - ptol <= e[key] <= hi + ptol:
+            raise DataError(f"{at}.{key}': {e[key]:.6g}, outside the bounds it was fitted in "
+                            f"[{lo:g}, {hi:g}]")  # fmt: skip
 
 
 def _derived_keys(config: Config) -> list[str]:
