@@ -238,6 +238,7 @@ def joint_heat_figure(traces: pd.DataFrame, df: pd.DataFrame, stem) -> None:
             ax.set_xlabel("time [min]", fontsize=7)
     else:
         axes[0].text(0.5, 0.5, "the joint model has no heat block", ha="center", va="center")
-    fig.suptitle("Panasonic NCR18650PF, unseen drive cycles: cell temperature from the ambient "
-                 "alone (one model, every temperature)", fontsize=9)  # fmt: skip
+    fig.suptitle("Panasonic NCR18650PF, unseen drive cycles: the cell temperature predicted "
+                 "from the ambient alone\n(one model of every temperature, its heat block)",
+                 fontsize=9)  # fmt: skip
     save(fig, stem)
