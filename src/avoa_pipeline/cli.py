@@ -383,21 +383,24 @@ def cmd_diagnose(args) -> None:
         check_output(out / name, inputs=given)
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
+    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
     report, arrays, model = diagnose.diagnose_records(read.train, args.capacity_ah, args.soc0,
                                                       ocv_table=read.ocv, validate=read.validate,
                                                       warnings=read.warnings)  # fmt: skip
-    heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it
     names = ("diagnosis.png", "diagnosis.json", "model.json")
     with atomic_paths(*(out / n for n in names)) as (png, js, mj):
         figure.render(report, arrays, png)
+        heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
     inputs.warn(read.warnings)  # once the command succeeded: an error stays one line
     inputs.warn(_flag_lines(out / "model.json", report.get("at_bounds", ()),
                             report.get("intervals")))  # fmt: skip
+    if model.heat is not None:
+        inputs.warn(f"{out / 'model.json'}: {flag}" for flag in heat.flags(model.heat))
     inputs.warn(
         f"{out / 'diagnosis.json'}: {u['effect']} selected, but {u['why']}: these records may "
         f"not identify it; would decide it: {u['would_decide']}"

@@ -154,3 +154,17 @@ def test_the_block_survives_model_json(tmp_path):
     a = heat.predict(model, model.heat, frame, AMBIENT_C)
     b = heat.predict(back, back.heat, frame, AMBIENT_C)
     np.testing.assert_array_equal(a.temp_k, b.temp_k)
+
+
+def test_attach_says_what_it_wrote_or_why_not():
+    model = cell()
+    recs = [checked(measured(model, TRUE, drive(12), 13), 0)]
+    line = heat.attach(model, recs)
+    assert line.startswith("heat block: C_th ")
+    assert model.heat is not None
+    plain = cell(("second_rc",))
+    assert heat.attach(plain, recs).startswith("no heat block (the model has no thermal")
+    assert plain.heat is None
+    bad = records.check(recs[0].frame, "bad.csv", meta={"ambient_temperature_c": "cold"})
+    with pytest.raises(DataError, match=r"bad\.csv's sidecar"):
+        heat.training_ambients([bad])

@@ -123,6 +123,7 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     from ..model import heat
 
     read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
+    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
     report, _, model = diagnose.diagnose_records(
         read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
     heat_line = heat.attach(model, read.train)  # as the command does

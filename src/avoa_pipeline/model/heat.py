@@ -237,6 +237,16 @@ def ambient_of(checked) -> tuple[float, str]:
                     "'ambient_temperature_c': no ambient")  # fmt: skip
 
 
+def training_ambients(checked) -> list[tuple[float, str]]:
+    """The ambient of every record that could train the heat block (a measured temperature
+    moving at least MIN_RANGE_C), so that a bad sidecar is refused before a diagnosis runs."""
+    return [ambient_of(c) for c in checked if _moves(c.frame)]
+
+
+def _moves(frame: pd.DataFrame) -> bool:
+    return "temperature_c" in frame.columns and float(np.ptp(frame["temperature_c"])) >= MIN_RANGE_C
+
+
 def check_ambient(value, where: str) -> float:
     """An ambient (°C): a finite number within AMBIENT_RANGE_C, else a one-line DataError."""
     lo, hi = AMBIENT_RANGE_C
@@ -276,7 +286,7 @@ def training_records(model, checked) -> list[Training]:
     out = []
     for c in checked:
         f = c.frame
-        if "temperature_c" not in f.columns or float(np.ptp(f["temperature_c"])) < MIN_RANGE_C:
+        if not _moves(f):
             continue
         amb, where = ambient_of(c)
         measured = f["temperature_c"].to_numpy(dtype=float) + KELVIN
