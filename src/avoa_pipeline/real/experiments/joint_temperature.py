@@ -25,12 +25,13 @@ COLUMNS = ("temperature_c", "cycle", "joint_rmse_mv", "joint_max_err_mv",
            "per_temperature_model")  # fmt: skip
 HEAT_COLUMNS = ("temperature_rmse_k", "temperature_max_err_k", "joint_rmse_predicted_t_mv",
                 "joint_max_err_predicted_t_mv", "joint_rmse_measured_t_mv", "ambient_c",
-                "fixed_point_passes")  # fmt: skip
+                "fixed_point_passes", "fixed_point_last_change_k")  # fmt: skip
 """What :func:`heat_rows` adds per unseen cycle: the temperature predicted from the ambient
 against the thermocouple (RMSE, largest error, K), the joint model's voltage on it (RMSE,
 largest error, mV) beside its voltage on the measured temperature (RMSE, mV: the table's
 ``joint_rmse_mv`` recomputed from model.json, a check that both run the same model), the ambient
-and the passes of the fixed point."""
+the passes of the fixed point and the largest change of its last pass (K; converged below
+``heat.FIXED_POINT_TOL_K``)."""
 
 
 def key(temp: str, cycle: str) -> str:
@@ -98,7 +99,8 @@ def heat_rows(model, tests: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
                      "joint_rmse_predicted_t_mv": on_pred["rmse_mv"],
                      "joint_max_err_predicted_t_mv": on_pred["max_err_mv"],
                      "joint_rmse_measured_t_mv": on_meas["rmse_mv"], "ambient_c": ambient,
-                     "fixed_point_passes": pred.passes})  # fmt: skip
+                     "fixed_point_passes": pred.passes,
+                     "fixed_point_last_change_k": pred.last_change_k})  # fmt: skip
         traces.append(pd.DataFrame({"key": k, "time_s": frame["time_s"].to_numpy(),
                                     "temperature_c": measured,
                                     "temperature_c_predicted": predicted}))  # fmt: skip
