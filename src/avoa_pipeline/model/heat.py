@@ -42,6 +42,11 @@ temperatures; the Panasonic data have a C/20 test at 25 °C only). It is fitted 
 candidate: kept when its 95 % interval excludes 0 and it is not at a bound (:func:`fit_heat`,
 ``entropic``), decided on the training records alone. It enters the heat only, not the OCV the
 voltage sees (an entropic OCV shift is an electrical element's business, issue 28 item 1).
+On the Panasonic 18650PF (the joint diagnosis's eight training records, 25 to −10 °C) it is
+identified and admitted: −0.27 mV/K [−0.43, −0.10] (docs/real-data.md, "Self-heating predicted:
+the measurement"): the drive cycles discharge the cell by 2-2.6 Ah each, so the reversible heat
+does not cancel over a record, and the temperature records at four ambients tell it from the
+irreversible heat, which grows with |i| (the reversible one with i).
 
 Ambient of a record (:func:`ambient_of`): its sidecar's ``ambient_temperature_c`` where it has
 one, else its first temperature sample (a record starts at rest, at the ambient it soaked in).
