@@ -168,3 +168,20 @@ def test_attach_says_what_it_wrote_or_why_not():
     bad = records.check(recs[0].frame, "bad.csv", meta={"ambient_temperature_c": "cold"})
     with pytest.raises(DataError, match=r"bad\.csv's sidecar"):
         heat.training_ambients([bad])
+
+
+@pytest.mark.skipif("entropic" not in ecm.EFFECTS, reason="the library has no entropic element")
+def test_an_electrical_entropic_term_is_the_heats_reversible_term_not_an_overpotential():
+    """The model's own dU/dT shifts its OCV: that shift is no loss, and its reversible heat
+    −i·T·dU/dT is in the heat (issue 28 item 1's element, where the library has it)."""
+    plain = cell(("thermal",))
+    config = ecm.Config(("thermal", "entropic"))
+    values = {**TRUTH, **ACTIVE["thermal"], heat.ELECTRICAL_DUDT: 3e-4}
+    bounds = {n: fitting.internal_limits(n) for n in config.names() if not ecm.PARAMS[n].per_record}
+    ent = FittedModel(config, ecm.vector(values), plain.knots, plain.tref_k, bounds)
+    frame = drive(6)
+    temp = np.full(len(frame), 300.0)
+    q_plain, _ = heat.heat_of(plain, frame, temp, soc0=0.9)
+    q_ent, _ = heat.heat_of(ent, frame, temp, soc0=0.9)
+    i = frame["current_a"].to_numpy()
+    np.testing.assert_allclose(q_ent - q_plain, -i * 300.0 * 3e-4, rtol=0, atol=1e-9)

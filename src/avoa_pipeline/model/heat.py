@@ -46,7 +46,9 @@ On the Panasonic 18650PF (the joint diagnosis's eight training records, 25 to �
 identified and admitted: −0.27 mV/K [−0.43, −0.10] (docs/real-data.md, "Self-heating predicted:
 the measurement"): the drive cycles discharge the cell by 2-2.6 Ah each, so the reversible heat
 does not cancel over a record, and the temperature records at four ambients tell it from the
-irreversible heat, which grows with |i| (the reversible one with i).
+irreversible heat, which grows with |i| (the reversible one with i). A model with an
+electrical ``entropic`` element (issue 28 item 1) brings its own dU/dT: it is the reversible
+heat's, and its OCV shift is part of the OCV in q (:data:`ELECTRICAL_DUDT`).
 
 Ambient of a record (:func:`ambient_of`): its sidecar's ``ambient_temperature_c`` where it has
 one, else its first temperature sample (a record starts at rest, at the ambient it soaked in).
@@ -142,14 +144,29 @@ def heat_parts(model, frame: pd.DataFrame, temp_k: np.ndarray,
                soc0: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """(irreversible heat i·(OCV(s) − V) in W, the reversible heat per unit dU/dT −i·T in
     W/(V/K), model voltage V) of ``model`` on ``frame`` run at the cell temperature ``temp_k``
-    (K, one per sample)."""
+    (K, one per sample). With the model's own entropic element (:data:`ELECTRICAL_DUDT`) its
+    OCV shift is in the OCV and its reversible heat in the first term."""
     temp_k = np.asarray(temp_k, dtype=float)
     run = frame.assign(temperature_c=temp_k - KELVIN)
     with np.errstate(all="ignore"):  # an extreme model is judged by its voltage, not here
         v, tr = model.simulate(run, soc0=soc0, traces=True)
     ocv = ecm.ocv_values(ecm.to_physical(model.x)[0], tr[0], model.knots, model.config.table)
     i = tr[4]  # the battery current (a fitted current offset included)
-    return i * (ocv - v), -i * temp_k, v
+    ent = electrical_dudt(model)  # the model's own entropic term: its OCV, its reversible heat
+    ocv = ocv + ent * (temp_k - model.tref_k)
+    return i * (ocv - v) - i * temp_k * ent, -i * temp_k, v
+
+
+ELECTRICAL_DUDT = "entropic_dudt_v_per_k"
+"""The report name of the dU/dT of an electrical ``entropic`` element (OCV + dU/dT·(T − Tref),
+issue 28 item 1), where the library and the model have one: its OCV shift belongs to the OCV in
+q (it is no overpotential) and its dU/dT gives the reversible heat, so the heat block admits no
+dU/dT of its own beside it (:func:`fit_heat`)."""
+
+
+def electrical_dudt(model) -> float:
+    """The model's electrical dU/dT (V/K; 0 without an ``entropic`` element)."""
+    return float(model.parameters().get(ELECTRICAL_DUDT, 0.0))
 
 
 def heat_of(model, frame: pd.DataFrame, temp_k: np.ndarray, dudt: float = 0.0,
@@ -416,7 +433,8 @@ def fit_heat(model, checked) -> tuple[Heat | None, str]:
         return None, (f"no training record has a measured temperature_c moving "
                       f"{MIN_RANGE_C:g} °C or more: nothing to fit C_th and hA to")  # fmt: skip
     plain, ent = fit_records(recs, False), fit_records(recs, True)
-    entropic = bool(ent.excludes_zero(2))
+    # with the model's own entropic element its dU/dT is already in the heat (heat_parts)
+    entropic = bool(ent.excludes_zero(2)) and "entropic" not in model.config.effects
     fit = ent if entropic else plain
     c, h, d = _unpack(fit.z)
     intervals = {"c_th_j_per_k": _entry(fit, 0, c), "ha_w_per_k": _entry(fit, 1, h)}
