@@ -16,12 +16,13 @@ resistor (``load_ohm``: the current follows the voltage) is refused.
 
 The filter: filterpy 2.0's ``UnscentedKalmanFilter`` (sigma points, the unscented transform, the
 update), a kept library rather than a hand-written one. filterpy calls the model once per sigma
-point; :class:`_VectorUKF` makes it one vectorised call per step instead (its process sigmas in
-one call, its measurement sigmas computed in one call and handed to filterpy in its order):
-about 0.5 ms a sample, a 15,000-s record at 1 Hz in under 10 s (well over the 20× real time
-the issue asks; the measured numbers are in docs/real-data.md). An EKF would need the Jacobian
-of every element written out and kept in step with ecm's equations; the sigma points need only
-the equations.
+point; ``VectorUKF`` (in :func:`_filterpy`) makes it one vectorised call per step instead (its
+process sigmas in one call, its measurement sigmas computed in one call and handed to filterpy
+in its order): about 1 ms a sample on the shared 2-core machine under load, the 14,102-s 25 °C
+LA92 record at 1 Hz in 13.4 s (1,052× real time; the issue asks 20×; docs/real-data.md). An
+EKF would need the Jacobian of every element written out and kept in step with ecm's equations;
+the sigma points need only the equations. filterpy is a dependency for this module alone
+(environment.txt, pyproject.toml).
 
 The noise, from the model file alone (never tuned per record; each constant below says why):
 
