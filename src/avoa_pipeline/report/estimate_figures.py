@@ -70,13 +70,14 @@ def soc_estimation_figure(table: pd.DataFrame, stem, goals: dict | None = None) 
               for c in cycles]  # fmt: skip
         ax.bar(x, y, width, color=f"C{j}", label=f"filter, {run}")
         ax.plot(x, cc, ls="none", marker="o", mfc="none", color=f"C{j}")
-    for value, text in (goals or {}).items():
-        ax.axhline(value, color="0.4", lw=0.7, ls=":")
-        ax.text(len(cycles) - 0.5, value, text, fontsize=7, va="bottom", ha="right")
+    for value, text in (goals or {}).items():  # goals as fractions of SOC, drawn in %
+        ax.axhline(100 * value, color="0.4", lw=0.7, ls=":")
+        ax.text(len(cycles) - 0.5, 100 * value, text, fontsize=7, va="bottom", ha="right")
     ax.set_xticks(np.arange(len(cycles)), [f"{t}\n{c}" for t, c in cycles], fontsize=8)
     ax.set_ylabel("SOC RMSE after 5 min (%)")
     ax.set_yscale("log")
     ax.set_title("SOC estimation on the unseen Panasonic cycles (o: coulomb counting from the "
-                 "same start)", fontsize=9)  # fmt: skip
+                 "same start with the same current; 0 from the true start)",
+                 fontsize=9)  # fmt: skip
     ax.legend(fontsize=7, ncols=2)
     save(fig, stem)
