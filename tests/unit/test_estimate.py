@@ -270,3 +270,26 @@ def test_out_must_be_a_csv(tmp_path, capsys):
     code, _, err = run_cli(["estimate", m, rec, "--out", str(tmp_path / "soc.txt")], capsys)
     assert code == 2
     assert "must end .csv" in err
+
+
+# ----------------------------------------------------------------------------------------------
+# the experiment (real/experiments/soc_estimation.py)
+
+
+def test_the_experiment_runs_the_protocols_four_runs_per_cycle():
+    from avoa_pipeline.real.experiments import soc_estimation as se
+
+    model = fitted("table", ("second_rc",))
+    frame = measured(model, drive(seconds=600))
+    settings = se.run_settings(model, frame)
+    assert list(settings) == list(se.RUNS)
+    soc0 = model.initial_soc(model.record(frame))
+    assert settings["start_plus_20"][0] == pytest.approx(soc0 + 0.2)  # not clipped
+    assert settings["start_minus_20"][0] == pytest.approx(soc0 - 0.2)
+    assert settings["bias_plus_1pct"][1] == pytest.approx(0.01 * frame["current_a"].abs().max())
+    rows = pd.DataFrame(se.cycle_rows(model, frame, "25degC", "synthetic"))
+    assert list(rows["run"]) == list(se.RUNS)
+    assert (rows["soc0_true"] == soc0).all()
+    assert rows.loc[rows["run"] == "start_plus_20", "cc_rmse_after_window"].item() == pytest.approx(
+        0.2
+    )
