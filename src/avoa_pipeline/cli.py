@@ -547,7 +547,6 @@ start from a full cell is 1.2), but one beyond half the range past either end is
 
 
 def cmd_estimate(args) -> None:
-    import argparse
     import json
 
     import numpy as np
