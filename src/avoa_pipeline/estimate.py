@@ -90,8 +90,8 @@ SIGMA_SPREAD = 1.0
 Gaussian prior; the unscented transform is exact to second order at any spread). Not at ±√3 sd
 (a Gaussian's fourth moment, Julier & Uhlmann 2004): with the start's SOC sd of 0.25 near full
 charge those points sit 0.43 past the OCV table's end, where the voltage is only the
-continuation of :meth:`Model._beyond` (on the 25 °C training LA92 record the start then swung
-5 % off before the voltage brought it back)."""
+continuation of :meth:`Model._beyond` (on the 25 °C training LA92 record the first update from
+the true start then moved the SOC 6 % off; docs/real-data.md has what else was tried)."""
 
 END_SLOPE_SPAN = 0.02
 """The SOC span at each end of a measured OCV table over which the filter reads the slope it
