@@ -412,8 +412,10 @@ class Estimate:
     wall_s: float
 
 
-def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float) -> Estimate:
-    """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring)."""
+def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float,
+               source: str = "<record>") -> Estimate:  # fmt: skip
+    """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring);
+    refused (one line naming ``source``) where it breaks down."""
     points_cls, ukf_cls = _filterpy()
     model = model.extended()
     L, n = model.layout, model.layout.n
@@ -445,6 +447,10 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
             dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
             r += float(dv @ dv)
         ukf.update_all(inp.v[k], h_all, np.array([[r]]))
+        if not (np.all(np.isfinite(ukf.x)) and np.all(np.isfinite(ukf.P))):
+            raise DataError(f"{source}: the filter's state is not finite after sample {k + 1} "
+                            f"(t = {inp.t[k]:g} s): the model's voltage cannot follow this "
+                            "record")  # fmt: skip
         soc[k], sd[k] = ukf.x[0], np.sqrt(max(ukf.P[0, 0], 0.0))
         mv[k], inn[k], bias[k] = inp.v[k] - ukf.y[0], ukf.y[0], ukf.x[ib]
         bsd[k] = np.sqrt(max(ukf.P[ib, ib], 0.0))
@@ -456,7 +462,12 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
         q[ib, ib] += bias_sd**2 * dt / BIAS_DRIFT_TIME_S
         q[ie, ie] += noise.residual_sd_v**2 * (1.0 - np.exp(-2.0 * dt / tau_c_s))
         ukf.Q = q
-        ukf.predict(dt=dt, i_read=i_k, dinv=dinv)
+        try:
+            ukf.predict(dt=dt, i_read=i_k, dinv=dinv)
+        except np.linalg.LinAlgError:  # scipy's is numpy's
+            raise DataError(f"{source}: the filter's covariance is no longer positive definite "
+                            f"at sample {k + 1} (t = {inp.t[k]:g} s): the model's voltage "
+                            "cannot follow this record") from None  # fmt: skip
         ukf.P = 0.5 * (ukf.P + ukf.P.T)  # rounding must not cost the Cholesky factor its symmetry
     return Estimate(soc, sd, mv, inn, bias, bsd, time.perf_counter() - started)
 
@@ -514,7 +525,7 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
     rec = fitted.record(rec_frame)
     guess = fitted.initial_soc(rec) if soc0 is None else float(soc0)
     i_scale = fitted.current_scale_a or float(np.max(np.abs(rec.i)))
-    est = run_filter(model, noise, Inputs.of(rec, bias_a), guess, i_scale)
+    est = run_filter(model, noise, Inputs.of(rec, bias_a), guess, i_scale, rec.source)
     frame = pd.DataFrame({"time_s": rec.t, "soc": est.soc, "soc_sd": est.soc_sd,
                           "model_v": est.model_v, "innovation_v": est.innovation_v})  # fmt: skip
     duration = float(rec.t[-1] - rec.t[0]) if rec.n > 1 else 0.0

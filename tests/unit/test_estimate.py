@@ -17,6 +17,7 @@ from test_ecm import ACTIVE, TRUTH
 
 from avoa_pipeline import cli
 from avoa_pipeline import estimate as E
+from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm, intervals
 from avoa_pipeline.model.fitted import FittedModel
 
@@ -178,6 +179,17 @@ def test_a_current_bias_of_one_percent_of_the_peak_stays_within_two_percent():
     # well inside that
     drift = bias * (frame["time_s"].iloc[-1] - frame["time_s"].iloc[0]) / 3600 / BASE["capacity_ah"]
     assert abs(out["soc_error"].iloc[-1]) < 0.25 * drift
+
+
+def test_a_filter_that_breaks_down_is_one_line_naming_the_record():
+    model = fitted("table", ("second_rc",))
+    frame = measured(model, drive(seconds=300))
+    frame.loc[100, "voltage_v"] = np.nan  # what the records layer refuses before (a file)
+    frame.attrs["source"] = "rec.csv"
+    with pytest.raises(DataError, match=r"^rec.csv: the filter's state is not finite after "
+                       r"sample 101 \(t = 100 s\)") as err:  # fmt: skip
+        E.estimate_record(model, frame, SOC0)
+    assert "\n" not in str(err.value)
 
 
 def test_score_reads_the_issues_numbers():
