@@ -146,9 +146,9 @@ def run(model, frame, guess, bias=0.0):
     return E.estimate_record(model, frame, guess, bias, SOC0).frame
 
 
-@pytest.mark.parametrize("offset", [0.2, -0.2])
-def test_from_a_wrong_start_it_converges_and_its_band_covers_the_truth(offset):
-    model = fitted("table", ("second_rc", "diffusion"))
+@pytest.mark.parametrize(("kind", "offset"), [("table", 0.2), ("table", -0.2), ("rational", 0.2)])
+def test_from_a_wrong_start_it_converges_and_its_band_covers_the_truth(kind, offset):
+    model = fitted(kind, ("second_rc", "diffusion"))
     frame = measured(model, drive())
     res = E.estimate_record(model, frame, SOC0 + offset, 0.0, SOC0)
     out = res.frame
