@@ -10,8 +10,8 @@ rule fixes from the record's opening (``FittedModel.initial_soc``). One flat row
 run, beside plain coulomb counting from the same guess with the same current.
 
 ``python -m avoa_pipeline.real.experiments.soc_estimation --models DIR --canonical DIR --out
-CSV`` runs it without Snakemake (DIR/<temperature>/model.json; the cycles of
-:data:`UNSEEN` unless ``--cycles`` names others).
+CSV`` runs it without Snakemake (DIR/<temperature>/model.json, the cycles of :data:`UNSEEN`;
+``--one-model M`` instead runs one model at every temperature, issue 28's joint model).
 """
 
 from __future__ import annotations
@@ -85,12 +85,17 @@ def main(argv=None) -> None:
     from ...report import estimate_figures
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--models", required=True, help="DIR/<temperature>/model.json")
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--models", help="DIR/<temperature>/model.json")
+    which.add_argument("--one-model", help="one model.json for every temperature (issue 28's)")
     p.add_argument("--canonical", required=True, help="the canonical records' folder")
     p.add_argument("--temperatures", nargs="+", default=list(UNSEEN))
     p.add_argument("--out", required=True, help="CSV; the figure goes beside it (.png, .pdf)")
     args = p.parse_args(argv)
-    models = {t: str(Path(args.models) / t / "model.json") for t in args.temperatures}
+    if args.one_model:
+        models = dict.fromkeys(args.temperatures, args.one_model)
+    else:
+        models = {t: str(Path(args.models) / t / "model.json") for t in args.temperatures}
     tests = {t: {c: str(Path(args.canonical) / f"panasonic_{t}_{c}.csv") for c in UNSEEN[t]}
              for t in args.temperatures}  # fmt: skip
     table = soc_estimation_table(models, tests)
