@@ -260,11 +260,24 @@ class Model:
 # the model file → the filter's model and noise
 
 
+SUPPORTED = frozenset({
+    "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
+    "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency", "r0_soc",
+    "r1_soc", "r0_charge", "bv_arrhenius",
+})  # fmt: skip
+"""The elements whose equations :class:`Model` has (each checked open loop against the compiled
+simulator in tests/unit/test_estimate.py). An element added to the registry later is refused
+until its equations are written here: stepping a model without them would be another model."""
 UNSUPPORTED = {"load": "the paper's load resistor makes the current follow the voltage"}
 
 
 def filter_model(fitted, source: str = "model.json") -> Model:
     """The filter's form of a ``FittedModel`` (refused, one line, for what it cannot step)."""
+    missing = [e for e in fitted.config.effects if e not in SUPPORTED]
+    if missing:
+        raise DataError(f"{source}: effects: estimate does not support "
+                        f"{', '.join(map(repr, missing))} (its equations are not in the filter's "
+                        "state-space form, avoa_pipeline.estimate)")  # fmt: skip
     if fitted.config.load_ohm is not None:
         raise DataError(f"{source}: load_ohm: estimate does not support a model with a load "
                         f"resistor ({UNSUPPORTED['load']})")  # fmt: skip

@@ -130,6 +130,19 @@ def test_the_layout_has_a_state_for_each_element_with_one():
     assert E.layout_of(()).names == ("soc", "v1", "bias", "verr")
 
 
+def test_every_registered_element_is_supported_and_an_unknown_one_refused():
+    from avoa_pipeline.model import elements
+
+    assert set(elements.NAMES) == E.SUPPORTED  # a new element: write its equations into Model
+    model = fitted("table", ("second_rc",))
+    model.config = ecm.Config.__new__(ecm.Config)  # an element this filter does not know
+    object.__setattr__(model.config, "effects", ("second_rc", "new_element"))
+    object.__setattr__(model.config, "table", None)
+    object.__setattr__(model.config, "load_ohm", None)
+    with pytest.raises(DataError, match=r"m\.json: effects: .* support 'new_element'"):
+        E.filter_model(model, "m.json")
+
+
 def test_a_model_with_the_papers_load_resistor_is_refused():
     model = fitted("rational", ())
     model.config = ecm.Config((), None, load_ohm=10.0)
