@@ -66,6 +66,7 @@ import pandas as pd
 from .errors import DataError
 from .model import ecm
 from .model.ecm import IDX, N_KNOTS
+from .model.elements.element import FARADAY, GAS_R
 
 LOGGER_NOISE_V = 1e-3
 """White voltage noise (V): a cell tester's noise and resolution. The Panasonic records' step
@@ -132,6 +133,12 @@ def layout_of(effects) -> Layout:
     return Layout((*names, "bias", "verr"))
 
 
+def _temperature_offset(dinv, rtf):
+    """T − Tref (K) from what a record carries: 2RT/F gives T, 1/T − 1/Tref gives Tref."""
+    tk = rtf * FARADAY / (2.0 * GAS_R)
+    return tk - 1.0 / (1.0 / tk - dinv)
+
+
 def _interp_rows(x: np.ndarray, lo: float, step: float, vals: np.ndarray) -> np.ndarray:
     """Per row, its knot values (rows of ``vals``, or one shared row) at ``x``, flat beyond the
     knots (ecm._loop's rule)."""
@@ -190,26 +197,37 @@ class Model:
         """The cell's current: what was read, the model's offset and the bias state."""
         return i_read + self.P[:, ecm.IOFF] + X[:, self.layout["bias"]]
 
-    def transition(self, X: np.ndarray, i_read: float, dt: float, dinv: float) -> np.ndarray:
+    def _later(self, name: str):
+        """A later element's physical column (issue 28 item 1's temperature laws), or None where
+        the library has no such parameter or every row has it at 0 (neutral)."""
+        col = ecm.IDX.get(name)
+        return None if col is None or not np.any(self.P[:, col]) else self.P[:, col]
+
+    def transition(self, X: np.ndarray, i_read: float, dt: float, dinv: float,
+                   rtf: float) -> np.ndarray:  # fmt: skip
         """The state after one sample of ``dt`` s (ecm's equations; rows of ``X`` stepped
         together, each with its parameter row, or all with row 0)."""
         P, L = self.P, self.layout
         s = X[:, L["soc"]]
         i = self.current(X, i_read)
         f1 = np.exp(P[:, ecm.TH1] * dinv)
+        thtau = self._later("thtau")  # thermal_tau: the time constants follow the temperature
+        ft = 1.0 if thtau is None else np.exp(thtau * dinv)
         gi = f1 * self._g(s) * i
         out = X.copy()
         for name, r, tau, extra in (("v1", ecm.R1, ecm.TAU1, self._soc_factor(s, ecm.L1)),
                                     ("v2", ecm.R2, ecm.TAU2, 1.0),
                                     ("v3", ecm.R3, ecm.TAU3, 1.0)):  # fmt: skip
             if L.has(name):
-                a = np.exp(-dt / P[:, tau])
+                a = np.exp(-dt / (P[:, tau] * ft))
                 out[:, L[name]] = a * X[:, L[name]] + P[:, r] * extra * (1.0 - a) * gi
         if L.has("delta"):
             ad = np.exp(-dt / P[:, ecm.TAUD])
             out[:, L["delta"]] = ad * X[:, L["delta"]] + (1.0 - ad) * P[:, ecm.KD] * i
         ie = np.where(i > 0.0, i, P[:, ecm.ETA] * i)
-        dq = ie * dt / (3600.0 * P[:, ecm.Q])
+        kq = self._later("kq")  # capacity_temperature: Q·(1 + κQ·(T − Tref))
+        qf = 1.0 if kq is None else 1.0 + kq * _temperature_offset(dinv, rtf)
+        dq = ie * dt / (3600.0 * P[:, ecm.Q] * qf)
         if L.has("h"):
             e = np.exp(-np.abs(dq * P[:, ecm.GAM]))
             h = X[:, L["h"]]
@@ -244,6 +262,9 @@ class Model:
         v = self.ocv(so)
         if L.has("h"):
             v = v + P[:, ecm.HM] * X[:, L["h"]]
+        dudt = self._later("dudt")  # entropic: OCV + dU/dT·(T − Tref)
+        if dudt is not None:
+            v = v + dudt * _temperature_offset(dinv, rtf)
         ro = np.exp(P[:, ecm.TH0] * dinv) * self._g(s) * P[:, ecm.R0] * self._soc_factor(s, ecm.L0)
         ro = np.where(i < 0.0, ro * np.exp(P[:, ecm.RHO]), ro)
         for name in ("v1", "v2", "v3"):
@@ -263,11 +284,13 @@ class Model:
 SUPPORTED = frozenset({
     "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
     "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency", "r0_soc",
-    "r1_soc", "r0_charge", "bv_arrhenius",
+    "r1_soc", "r0_charge", "bv_arrhenius", "thermal_tau", "entropic", "capacity_temperature",
 })  # fmt: skip
-"""The elements whose equations :class:`Model` has (each checked open loop against the compiled
-simulator in tests/unit/test_estimate.py). An element added to the registry later is refused
-until its equations are written here: stepping a model without them would be another model."""
+"""The elements whose equations :class:`Model` has (each registered one checked open loop against
+the compiled simulator in tests/unit/test_estimate.py; the last three, issue 28 item 1's
+temperature laws, are read by their parameter's name where the library has them). An element
+added to the registry later is refused until its equations are written here: stepping a model
+without them would be another model."""
 UNSUPPORTED = {"load": "the paper's load resistor makes the current follow the voltage"}
 
 
@@ -390,7 +413,7 @@ def open_loop(model: Model, inp: Inputs, soc0: float) -> np.ndarray:
     v = np.empty(inp.t.size)
     for k in range(inp.t.size):
         v[k] = model.measurement(X, inp.i[k], inp.dinv[k], inp.rtf[k])[0]
-        X = model.transition(X, inp.i[k], inp.dt[k], inp.dinv[k])
+        X = model.transition(X, inp.i[k], inp.dt[k], inp.dinv[k], inp.rtf[k])
     return v
 
 
@@ -440,8 +463,8 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
     nominal = model.rows(model.P[:1])
     ie, ib = L["verr"], L["bias"]
 
-    def fx(sig, dt, i_read, dinv):
-        out = nominal.transition(sig, i_read, dt, dinv)
+    def fx(sig, dt, i_read, dinv, rtf):
+        out = nominal.transition(sig, i_read, dt, dinv, rtf)
         out[:, ie] *= np.exp(-dt / tau_c_s)
         return out
 
@@ -470,13 +493,14 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
         q = np.zeros((n, n))
         if pert is not None:  # ... and through the state's step
             xb = np.repeat(ukf.x[None, :], pert.P.shape[0], axis=0)
-            d = pert.transition(xb, i_k, dt, dinv) - nominal.transition(xb[:1], i_k, dt, dinv)
+            d = pert.transition(xb, i_k, dt, dinv, rtf) - nominal.transition(xb[:1], i_k, dt,
+                                                                             dinv, rtf)  # fmt: skip
             q += d.T @ d
         q[ib, ib] += bias_sd**2 * dt / BIAS_DRIFT_TIME_S
         q[ie, ie] += noise.residual_sd_v**2 * (1.0 - np.exp(-2.0 * dt / tau_c_s))
         ukf.Q = q
         try:
-            ukf.predict(dt=dt, i_read=i_k, dinv=dinv)
+            ukf.predict(dt=dt, i_read=i_k, dinv=dinv, rtf=rtf)
         except np.linalg.LinAlgError:  # scipy's is numpy's
             raise DataError(f"{source}: the filter's covariance is no longer positive definite "
                             f"at sample {k + 1} (t = {inp.t[k]:g} s): the model's voltage "
