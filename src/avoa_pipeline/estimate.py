@@ -515,11 +515,13 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
 
 def reference_soc(rec: ecm.Record, model: Model, soc0: float) -> np.ndarray:
     """Coulomb counting with the record's own current from ``soc0`` against the model's
-    capacity (the charge counted with the model's coulombic efficiency, zero-order hold as the
-    simulator)."""
+    capacity (at the record's temperature where the model's capacity follows it; the charge
+    counted with the model's coulombic efficiency, zero-order hold as the simulator)."""
     P = model.P[0]
     ie = np.where(rec.i > 0.0, rec.i, P[ecm.ETA] * rec.i)
-    dq = ie[:-1] * rec.dt[:-1] / (3600.0 * P[ecm.Q])
+    kq = model.rows(model.P[:1])._later("kq")  # a capacity that follows the temperature
+    qf = 1.0 if kq is None else 1.0 + kq * _temperature_offset(rec.dinv_t, rec.two_rt_f)
+    dq = (ie / (3600.0 * P[ecm.Q] * qf))[:-1] * rec.dt[:-1]
     return soc0 - np.concatenate([[0.0], np.cumsum(dq)])
 
 

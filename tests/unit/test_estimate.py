@@ -323,3 +323,16 @@ def test_the_experiment_runs_the_protocols_four_runs_per_cycle():
     assert rows.loc[rows["run"] == "start_plus_20", "cc_rmse_after_window"].item() == pytest.approx(
         0.2
     )
+
+
+@pytest.mark.parametrize("effects", [("second_rc",), ("capacity_temperature",)])
+def test_the_reference_counts_the_charge_as_the_model_does(effects):
+    """The known start's coulomb count is the model's own SOC (with a capacity that follows the
+    temperature, where the registry has that element)."""
+    if not set(effects) <= set(elements.NAMES):
+        pytest.skip(f"{effects[0]} is not in this registry")
+    model = fitted("table", effects)
+    frame = drive(seconds=900)
+    _, tr = model.simulate(frame, soc0=SOC0, traces=True)
+    ref = E.reference_soc(model.record(frame), E.filter_model(model), SOC0)
+    assert np.allclose(ref, tr[0], atol=1e-9)
