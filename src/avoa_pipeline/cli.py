@@ -1,6 +1,7 @@
 """Command line: ``python -m avoa_pipeline COMMAND ...``, one function ``cmd_<command>`` each.
 
-Commands: fit, generate, recovery, convert, diagnose, simulate, export (``--help`` says more).
+Commands: fit, generate, recovery, convert, diagnose, simulate, export, estimate (``--help`` says
+more).
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -249,6 +250,40 @@ def build_parser() -> argparse.ArgumentParser:
     )
     x.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     x.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
+
+    e = sub.add_parser("estimate", help="SOC of a record by a Kalman filter over a model's states")
+    e.add_argument("model", help="model.json written by diagnose")
+    e.add_argument("data", help="CSV: time_s, current_a, voltage_v[, temperature_c]")
+    e.add_argument(
+        "--out",
+        required=True,
+        help="CSV: time_s, soc, soc_sd, model_v, innovation_v[, soc_reference, soc_error]; "
+        "its summary (.json) and figure (.png) go beside it",
+    )
+    e.add_argument(
+        "--soc0",
+        type=_float("soc0"),
+        default=None,
+        help="the start's guess (default: from the opening voltage, the library's rule); "
+        "may lie outside [0, 1] (a wrong guess)",
+    )
+    e.add_argument(
+        "--current-bias-a",
+        type=_float("current-bias-a"),
+        default=0.0,
+        metavar="B",
+        help="add B amperes to the current the filter reads (a sensor off by B; default 0)",
+    )
+    e.add_argument(
+        "--reference-soc0",
+        type=_float("reference-soc0"),
+        default=None,
+        metavar="S",
+        help="the known start: adds soc_reference (coulomb counting from S with the record's "
+        "current) and soc_error, and scores the filter against it",
+    )
+    e.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
+    e.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
     return p
 
 
@@ -693,6 +728,52 @@ def _export_pybamm(args) -> None:
     print(line)
 
 
+SOC0_GUESS_RANGE = (-0.5, 1.5)
+"""``estimate --soc0``: a guess may be wrong, even outside the cell's range (issue 29's +20 %
+start from a full cell is 1.2), but one beyond half the range past either end is not a guess."""
+
+
+def cmd_estimate(args) -> None:
+    import json
+
+    import numpy as np
+
+    from . import estimate, inputs
+    from .io import atomic_paths, check_output
+    from .report import estimate_figures
+
+    out, summary_path = _csv_and_sidecar(args.out, [args.model, args.data])
+    png = out.with_suffix(".png")
+    check_output(png, inputs=[args.model, args.data], what="--out's figure")
+    lo, hi = SOC0_GUESS_RANGE
+    if args.soc0 is not None and not (np.isfinite(args.soc0) and lo <= args.soc0 <= hi):
+        raise UserError(f"--soc0 must lie in [{lo:g}, {hi:g}] (a guess), got {args.soc0}")
+    ref = args.reference_soc0
+    if ref is not None and not (np.isfinite(ref) and 0.0 <= ref <= 1.0):
+        raise UserError(f"--reference-soc0 must lie in [0, 1], got {ref}")
+    if not np.isfinite(args.current_bias_a):
+        raise UserError(f"--current-bias-a must be finite, got {args.current_bias_a}")
+    # the model and record as simulate reads them (its --soc0 rule is for a start, not a guess)
+    model, rec = _model_and_record(argparse.Namespace(**{**vars(args), "soc0": None}), args.data)
+    result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
+                                      source=args.model)  # fmt: skip
+    summary = {"model": str(args.model), "record": str(args.data), **result.summary}
+    with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
+        result.frame.to_csv(csv_tmp, index=False)
+        js_tmp.write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+        estimate_figures.render(result.frame, summary, png_tmp, title=str(args.data))
+    inputs.warn(rec.warnings)
+    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
+            f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip
+    if ref is not None:
+        f = summary["filter"]
+        line += (f"; after 5 min RMSE {100 * f['rmse_after_window']:.2f} %, max "
+                 f"{100 * f['max_error_after_window']:.2f} %, ±2σ coverage "
+                 f"{100 * f['coverage_2sd']:.0f} %")  # fmt: skip
+    print(f"{line}; wrote {out}, {summary_path}, {png}")
+
+
 def main(argv=None) -> int:
     from .io import output_lock
 
@@ -707,6 +788,7 @@ def main(argv=None) -> int:
             "diagnose": cmd_diagnose,
             "simulate": cmd_simulate,
             "export": cmd_export,
+            "estimate": cmd_estimate,
         }
         # one run at a time per output: the lock is held from before the first check to the
         # last rename (io.output_lock); diagnose's --out is a folder, every other one a file
