@@ -18,6 +18,7 @@ import pytest
 from test_interop_pybamm import SOC0, fitted, measured, record, rms_mv, run_cli
 
 from avoa_pipeline.interop import table as T
+from avoa_pipeline.interop.pybamm import without
 from avoa_pipeline.model import ecm
 
 TOL_RMS_MV = 0.5
@@ -32,6 +33,10 @@ RESISTANCES = ("second_rc", "soc_resistance", "r0_soc", "r1_soc", "thermal", "r0
 # every state the sidecar's recursion carries, and Butler–Volmer's law from its scalars
 STATES = ("diffusion", "hysteresis", "current_offset", "coulombic_efficiency", "butler_volmer",
           "bv_arrhenius", "thermal")  # fmt: skip
+# the temperature laws of issue 28 (τ_j(T), the entropic OCV, Q(T)), with the states that count
+# the charge (hysteresis's rate, the coulombic efficiency) and a second branch
+LAWS = ("second_rc", "thermal", "thermal_tau", "entropic", "capacity_temperature", "hysteresis",
+        "coulombic_efficiency")  # fmt: skip
 
 
 def lookup(tab: pd.DataFrame, column: str, soc: float, temp_c: float) -> float:
@@ -56,7 +61,7 @@ def table_simulator(tab: pd.DataFrame, side: dict, frame: pd.DataFrame, soc0: fl
     t = frame["time_s"].to_numpy()
     i_meas = frame["current_a"].to_numpy()
     temps = frame["temperature_c"].to_numpy()
-    q = 3600.0 * sc["capacity_ah"]
+    capacity = "capacity_ah" in tab.columns  # capacity_temperature: Q by temperature
     s, delta, h, v_rc = soc0, 0.0, 0.0, np.zeros(len(branches))
     out = np.empty(t.size)
     for k in range(t.size):
@@ -77,6 +82,7 @@ def table_simulator(tab: pd.DataFrame, side: dict, frame: pd.DataFrame, soc0: fl
         ad = math.exp(-dt / sc["diffusion_tau_s"])
         delta = ad * delta + (1 - ad) * sc["diffusion_soc_per_a"] * i
         ie = i if i > 0 else sc["coulombic_efficiency"] * i
+        q = 3600.0 * (lookup(tab, "capacity_ah", s, temp) if capacity else sc["capacity_ah"])
         if i != 0:
             e = math.exp(-abs(sc["hysteresis_gamma"] * ie * dt / q))
             h = e * h - (1 - e) * math.copysign(1.0, i)
@@ -93,7 +99,8 @@ def write_table(tmp_path, capsys, model, *options):
     return pd.read_csv(out), json.loads((tmp_path / "cell.json").read_text()), stdout
 
 
-@pytest.mark.parametrize("effects", [RESISTANCES, STATES], ids=["resistances", "states"])
+@pytest.mark.parametrize("effects", [RESISTANCES, STATES, LAWS],
+                         ids=["resistances", "states", "temperature-laws"])  # fmt: skip
 def test_a_table_simulator_reproduces_ours(tmp_path, capsys, effects):
     extra = {"coulombic_efficiency": 0.9} if "coulombic_efficiency" in effects else {}
     model = fitted("table", effects, extra)
@@ -102,6 +109,9 @@ def test_a_table_simulator_reproduces_ours(tmp_path, capsys, effects):
     ours = model.simulate(frame, soc0=SOC0)
     # the record moves through what the table holds: SOC 0.6 ± 0.2, 24-29.3 °C
     assert rms_mv(ours, fitted("table", ()).simulate(frame, soc0=SOC0)) > 5.0
+    for law in {"thermal_tau", "entropic", "capacity_temperature"} & set(effects):
+        # each temperature law moves this record's voltage (else the check says nothing of it)
+        assert rms_mv(ours, without(model, [law]).simulate(frame, soc0=SOC0)) > 1.0
     theirs = table_simulator(tab, side, frame, SOC0)
     assert rms_mv(theirs, ours) <= TOL_RMS_MV
 

@@ -74,6 +74,17 @@ CASES = [
     ("table", ("hysteresis", "coulombic_efficiency"), ETA_LOW),
     ("table", ("second_rc", "diffusion", "hysteresis", "thermal", "butler_volmer",
                "current_offset", "coulombic_efficiency", "ocv_shape"), ETA_LOW),
+    # the temperature laws (issue 28), on the record's moving temperature: τ_j(T), OCV + ∂U/∂T·ΔT,
+    # Q(T) wherever the charge is counted (the SoC, hysteresis's rate, the interval-start SoC)
+    ("table", ("thermal", "thermal_tau"), {}),
+    ("table", ("second_rc", "thermal", "thermal_tau"), {}),
+    ("table", ("entropic",), {}),
+    ("rational", ("entropic", "hysteresis"), {}),
+    ("table", ("capacity_temperature",), {}),
+    ("table", ("capacity_temperature", "hysteresis", "coulombic_efficiency"), ETA_LOW),
+    ("table", ("capacity_temperature", "second_rc", "soc_resistance", "r1_soc"), R1_SOC_GENTLE),
+    ("table", ("second_rc", "diffusion", "hysteresis", "thermal", "thermal_tau", "entropic",
+               "capacity_temperature", "butler_volmer", "coulombic_efficiency"), ETA_LOW),
 ]  # fmt: skip
 CASE_IDS = ["+".join((k, *e)) + ("-r1=0" if "r1_ohm" in x else "") for k, e, x in CASES]
 

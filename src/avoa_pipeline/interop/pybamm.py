@@ -241,7 +241,7 @@ def get_parameter_values():
         "Nominal cell capacity [A.h]": CAPACITY_AH,
         "Initial SoC": INITIAL_SOC,
         "Open-circuit voltage [V]": ocv,
-        "Entropic change [V/K]": 0.0,
+        "Entropic change [V/K]": {entropic},
         "R0 [Ohm]": {r0_value},
 {rc_values}        "Current function [A]": CAPACITY_AH,
         "Upper voltage cut-off [V]": UPPER_CUTOFF_V,
@@ -261,6 +261,8 @@ def model():
     thevenin = pybamm.equivalent_circuit.Thevenin(options=OPTIONS, build=False)
     for slot, submodel in SUBMODELS.items():
         thevenin.submodels[slot] = submodel(thevenin.param, thevenin.options)
+    # the voltage reads what the others add to the OCV (entropic): built after them
+    thevenin.submodels["Voltage"] = thevenin.submodels.pop("Voltage")
     thevenin.build_model()
     # avoa-pipeline's model has no SoC bounds (its OCV holds its end values): Thevenin's events
     # at SoC 0 and 1 would stop a record that starts full (INITIAL_SOC 1) or charges beyond it
@@ -347,7 +349,7 @@ def _resistance_function(name: str, value: str, factors: list[str], terms: list[
                          doc: str, held_soc: bool = False) -> str:  # fmt: skip
     expr = " * ".join([value, *factors])
     expr = " + ".join([expr, *terms])
-    start = "    soc = soc_at_interval_start(soc, current)\n" if held_soc else ""
+    start = "    soc = soc_at_interval_start(soc, current, T_cell)\n" if held_soc else ""
     return f'\n\ndef {name}(T_cell, current, soc):\n    """{doc}"""\n{start}    return {expr}\n'
 
 
@@ -355,14 +357,15 @@ _SOC = re.compile(r"\bsoc\b")
 SINCE = "Time since the interval's start [s]"
 
 _INTERVAL_START = f'''
-def soc_at_interval_start(soc, current):
+def soc_at_interval_start(soc, current, T_cell):
     """The SoC at the start of the record's interval: avoa-pipeline holds an SOC-dependent
     resistance over each interval at its value there (zero-order hold; the RC branches' update
-    reads it). The current is held over the interval, so that SoC is the SoC now plus the charge
-    counted since; drive() gives the time since (a sawtooth, 0 at each sample). Its default, 0,
-    follows the SoC as it moves (a continuous-time model)."""
+    reads it). The current (and the temperature, so the capacity) is held over the interval, so
+    that SoC is the SoC now plus the charge counted since; drive() gives the time since (a
+    sawtooth, 0 at each sample). Its default, 0, follows the SoC as it moves (a continuous-time
+    model)."""
     since = pybamm.FunctionParameter("{SINCE}", {{"Time [s]": pybamm.t}})
-    return soc + counted(current) * since / (3600 * CAPACITY_AH)
+    return soc + counted(current, T_cell) * since / (3600 * CAPACITY_AH)
 
 
 def since_interval_start(time_s):
@@ -458,18 +461,25 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         )
         r0_value = "r0"
     rc_values = ""
+    # "TAU": factors of every branch's time constant (thermal_tau), written into C = τ·factor/R
+    tau_factors = of(factors, "TAU")
     for n, (j, r_name, tau_name) in enumerate(branches, start=1):
         f, t = of(factors, "RC", f"R{j}"), of(terms, "RC", f"R{j}")
+        r_val = r_name
         if f or t:
             text += _resistance_function(
                 f"r{n}", r_name, f, t, f"R{n} [Ohm] (RC branch {j} of the fitted model).", held_soc
             )
-            text += (f'\n\ndef c{n}(T_cell, current, soc):\n    """C{n} [F] = τ/R{n}: the '
-                     f'time constant stays fixed."""\n    return {tau_name} / '
-                     f"r{n}(T_cell, current, soc)\n")  # fmt: skip
-            r_val, c_val = f"r{n}", f"c{n}"
+            r_val = f"r{n}"
+        if f or t or tau_factors:
+            tau = " * ".join([tau_name, *tau_factors])
+            r_call = f"r{n}(T_cell, current, soc)" if r_val != r_name else r_name
+            law = "τ times its temperature law" if tau_factors else "the time constant stays fixed"
+            text += (f'\n\ndef c{n}(T_cell, current, soc):\n    """C{n} [F] = τ/R{n}: {law}.'
+                     f'"""\n    return {tau} / {r_call}\n')  # fmt: skip
+            c_val = f"c{n}"
         else:
-            r_val, c_val = r_name, f"{tau_name} / {r_name}"
+            c_val = f"{tau_name} / {r_name}"
         rc_values += (f'        "R{n} [Ohm]": {r_val},\n        "C{n} [F]": {c_val},\n'
                       f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
     states = {"SoC": "Initial SoC"} | {
@@ -479,6 +489,8 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     states |= {v: i for p in pieces.values() for v, i in p.states}
     submodels = {slot: cls for p in pieces.values() for slot, cls in p.submodels}
     extra_values = {name: expr for p in pieces.values() for name, expr in p.parameters}
+    # PyBaMM's own entropic change, which the header writes (0 without entropic)
+    entropic = extra_values.pop("Entropic change [V/K]", "0.0")
     current_terms = "".join(f" + {t}" for p in pieces.values() for t in p.current_terms)
     text += _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
@@ -487,7 +499,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         drive_extra=(f"    updates[{json.dumps(SINCE)}] = since_interval_start(t)\n"
                      if held_soc else ""),
         submodels=_dict(submodels), current_terms=current_terms,
-        extra_values=_entries(extra_values, indent=8),
+        extra_values=_entries(extra_values, indent=8), entropic=entropic,
     )  # fmt: skip
     return text
 

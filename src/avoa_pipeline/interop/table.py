@@ -8,8 +8,9 @@ on an SOC × temperature grid, for a simulator written in Simulink, C or a BMS's
   table-based battery block and of Plett's ESC tables, read as a 2-D table by any tool):
   ``temperature_c``, ``soc``, ``ocv_v``, ``r0_ohm`` (discharge, I > 0), ``r0_charge_ohm``
   (I < 0), ``r1_ohm``, ``tau1_s``, ``c1_f`` (= τ1/R1), the same three for branches 2 and 3 where
-  the model has them, and ``r_bv0_ohm`` with Butler–Volmer: every SOC and temperature law of the
-  model evaluated at the grid point (:func:`grid_values`).
+  the model has them, ``r_bv0_ohm`` with Butler–Volmer and ``capacity_ah`` with
+  capacity_temperature: every SOC and temperature law of the model evaluated at the grid point
+  (:func:`grid_values`; thermal_tau's in the ``tau`` columns, entropic's in ``ocv_v``).
 - ``cell.json`` (the sidecar, :func:`sidecar`): what each column means and its unit, the grids,
   the model's scalars (capacity, the surface-SOC lag κ and τ_d, hysteresis M and γ, the current
   offset, the coulombic efficiency, Butler–Volmer's i0 and its Arrhenius θ, the laws' own
@@ -54,12 +55,14 @@ near 25 °C, so a linear interpolation over 2 K is off by about 0.1 % of the res
 (h²/8 times the curvature)."""
 SOC_RANGE = (0.0, 1.0)
 """A grid SOC lies in [0, 1]: the state of charge a BMS table covers."""
-TEMPERATURE_DEPENDENT = ("thermal", "butler_volmer", "bv_arrhenius")
+TEMPERATURE_DEPENDENT = ("thermal", "butler_volmer", "bv_arrhenius", "thermal_tau", "entropic",
+                         "capacity_temperature")  # fmt: skip
 """Elements whose laws depend on the cell temperature (Butler–Volmer through RT/F)."""
 EXPRESSED = frozenset({
     "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
     "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency",
-    "r0_soc", "r1_soc", "r0_charge", "bv_arrhenius",
+    "r0_soc", "r1_soc", "r0_charge", "bv_arrhenius", "thermal_tau", "entropic",
+    "capacity_temperature",
 })  # fmt: skip
 """The elements whose laws :func:`grid_values` and :func:`scalars` write. A model with another
 element (one added to the library after this module) is refused in one line rather than
@@ -74,8 +77,10 @@ def _temperature_factor(theta_k: float, temp_k: np.ndarray, tref_k: float) -> np
 def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
     """Every column of the table at each (temperature, SOC) pair (temperature outer): the
     model's laws exactly as the simulator evaluates them (``ecm._loop``): R0·g(s)·exp(l0(s))·f0(T)
-    (·exp(ρ) on charge), R_j·g(s)·f1(T) (·exp(l1(s)) for branch 1), τ_j fixed, the OCV of the
-    SOC (with ocv_shape and the offset), and Butler–Volmer's slope at I = 0, RT/(F·i0(T))."""
+    (·exp(ρ) on charge), R_j·g(s)·f1(T) (·exp(l1(s)) for branch 1), τ_j·exp(θτ·(1/T − 1/T_ref))
+    (thermal_tau; fixed without it), the OCV of the SOC (with ocv_shape and the offset) plus
+    (∂U/∂T)·(T − T_ref) (entropic), Butler–Volmer's slope at I = 0, RT/(F·i0(T)), and the
+    capacity Q·(1 + κQ·(T − T_ref)) (capacity_temperature)."""
     P = ecm.to_physical(model.x)[0]
     s = np.asarray(soc, dtype=float)
     temps = np.asarray(temperature_c, dtype=float)
@@ -91,16 +96,19 @@ def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
     l1 = np.interp(S, knots, P[ecm.L1 : ecm.L1 + ecm.N_KNOTS])
     f0 = _temperature_factor(P[ecm.TH0], tk, model.tref_k)
     f1 = _temperature_factor(P[ecm.TH1], tk, model.tref_k)
+    ftau = _temperature_factor(P[ecm.THTAU], tk, model.tref_k)  # thermal_tau (1 without)
     r0 = P[ecm.R0] * g * np.exp(l0) * f0
-    out = {"temperature_c": T, "soc": S,
-           "ocv_v": ecm.ocv_values(P, S, model.knots, model.config.table),
+    ocv = ecm.ocv_values(P, S, model.knots, model.config.table) + P[ecm.DUDT] * (tk - model.tref_k)
+    out = {"temperature_c": T, "soc": S, "ocv_v": ocv,
            "r0_ohm": r0, "r0_charge_ohm": r0 * np.exp(P[ecm.RHO])}  # fmt: skip
     for j, r, tau in _branches(P):
         rj = P[r] * g * f1 * (np.exp(l1) if j == 1 else 1.0)
-        out |= {f"r{j}_ohm": rj, f"tau{j}_s": np.full_like(S, P[tau]), f"c{j}_f": P[tau] / rj}
+        out |= {f"r{j}_ohm": rj, f"tau{j}_s": P[tau] * ftau, f"c{j}_f": P[tau] * ftau / rj}
     if "butler_volmer" in model.config.effects:
         inv_i0 = P[ecm.BVG] * _temperature_factor(P[ecm.THBV], tk, model.tref_k)
         out["r_bv0_ohm"] = GAS_R * tk / FARADAY * inv_i0
+    if "capacity_temperature" in model.config.effects:
+        out["capacity_ah"] = P[ecm.Q] * (1.0 + P[ecm.KQ] * (tk - model.tref_k))
     return pd.DataFrame(out)
 
 
@@ -165,21 +173,25 @@ def check_grids(soc: np.ndarray, temperature_c: np.ndarray) -> None:
 
 _RC_COLUMNS = {
     "r{j}_ohm": ("Ω", "RC branch {j}: resistance"),
-    "tau{j}_s": ("s", "RC branch {j}: time constant (fixed: C{j} follows R{j})"),
+    "tau{j}_s": ("s", "RC branch {j}: time constant (fixed, C{j} following R{j}, unless "
+                 "thermal_tau: then τ{j}·exp(θτ·(1/T − 1/tref_k)))"),
     "c{j}_f": ("F", "RC branch {j}: capacitance τ{j}/R{j}"),
-}
+}  # fmt: skip
 COLUMNS = {
     "temperature_c": ("°C", "the cell temperature of this row (grid)"),
     "soc": ("1", "the state of charge of this row (grid): the bulk SOC, which counts charge"),
     "ocv_v": ("V", "open-circuit voltage at this SOC: the model's OCV source (measured table or "
-              "the paper's eq. 5) with ocv_shape and the fitted offset; with diffusion, read it "
-              "at the surface SOC s − δ (scalars)"),
+              "the paper's eq. 5) with ocv_shape and the fitted offset, plus entropic's "
+              "(∂U/∂T)·(T − tref_k) at this row's temperature; with diffusion, read it at the "
+              "surface SOC s − δ (scalars)"),
     "r0_ohm": ("Ω", "series resistance while discharging or at rest (I ≥ 0)"),
     "r0_charge_ohm": ("Ω", "series resistance while charging (I < 0): r0_ohm times "
                       "exp(r0_charge_log_ratio); equal to r0_ohm without r0_charge"),
     **{k.format(j=j): (u, m.format(j=j)) for j in (1, 2, 3) for k, (u, m) in _RC_COLUMNS.items()},
     "r_bv0_ohm": ("Ω", "Butler–Volmer: the slope of its overpotential at I = 0, RT/(F·i0(T)) "
                   "(see cannot)"),
+    "capacity_ah": ("A·h", "capacity_temperature: the capacity the SOC counts at this row's "
+                    "temperature, Q·(1 + κQ·(T − tref_k)) (the same at every SOC)"),
 }  # fmt: skip
 """Every column a table may have: (unit, meaning)."""
 
@@ -191,9 +203,10 @@ RECURSION = (
     "v_j ← a_j·v_j + (1 − a_j)·r_j_ohm·i, a_j = exp(−Δt/tau_j_s); "
     "δ ← a_d·δ + (1 − a_d)·diffusion_soc_per_a·i, a_d = exp(−Δt/diffusion_tau_s); "
     "ie = i if i > 0 else coulombic_efficiency·i; "
-    "h ← e·h − (1 − e)·sgn(i), e = exp(−|hysteresis_gamma·ie·Δt/(3600·capacity_ah)|); "
-    "s ← s − ie·Δt/(3600·capacity_ah). States start at v_j = δ = h = 0; the initial SOC is the "
-    "record's (avoa-pipeline reads it from the OCV at the first sample)."
+    "h ← e·h − (1 − e)·sgn(i), e = exp(−|hysteresis_gamma·ie·Δt/(3600·Q)|); "
+    "s ← s − ie·Δt/(3600·Q), Q = the capacity_ah column at T_k where the table has one "
+    "(capacity_temperature), else the scalar capacity_ah. States start at v_j = δ = h = 0; the "
+    "initial SOC is the record's (avoa-pipeline reads it from the OCV at the first sample)."
 )
 
 
@@ -208,7 +221,8 @@ def scalars(model: FittedModel) -> dict:
         return {"value": float(value), "unit": unit, "meaning": meaning}
 
     out = {
-        "capacity_ah": entry(p["capacity_ah"], "A·h", "the capacity the SOC counts"),
+        "capacity_ah": entry(p["capacity_ah"], "A·h", "the capacity the SOC counts (at tref_k "
+                             "with capacity_temperature: then the capacity_ah column)"),
         "tref_k": entry(model.tref_k, "K", "the reference temperature of the Arrhenius laws "
                         "(the training records' mean temperature)"),
         "diffusion_soc_per_a": entry(P[ecm.KD], "1/A", "diffusion: κ, the surface-SOC lag per A "
@@ -229,6 +243,17 @@ def scalars(model: FittedModel) -> dict:
         out["thermal_theta_r0_k"] = entry(P[ecm.TH0], "K", "Arrhenius θ of R0 (in the columns)")
         out["thermal_theta_rc_k"] = entry(P[ecm.TH1], "K", "Arrhenius θ of the RC resistances "
                                           "(in the columns)")  # fmt: skip
+    # the temperature laws of issue 28: in the columns, their parameters here for reference
+    if "thermal_tau" in effects:
+        out["thermal_theta_tau_k"] = entry(P[ecm.THTAU], "K", "Arrhenius θτ of the RC time "
+                                           "constants (in the tau columns)")  # fmt: skip
+    if "entropic" in effects:
+        out["entropic_dudt_v_per_k"] = entry(P[ecm.DUDT], "V/K", "∂U/∂T of the OCV (in the "
+                                             "ocv_v column)")  # fmt: skip
+    if "capacity_temperature" in effects:
+        out["capacity_temp_coeff_per_k"] = entry(P[ecm.KQ], "1/K", "κQ: the capacity is "
+                                                 "Q·(1 + κQ·(T − tref_k)) (in the capacity_ah "
+                                                 "column)")  # fmt: skip
     return out
 
 

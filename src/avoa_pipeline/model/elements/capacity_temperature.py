@@ -6,6 +6,7 @@ the records can identify. Offered only where the temperature moves."""
 
 from __future__ import annotations
 
+from .coulombic_efficiency import charge_piece
 from .element import Element, Export, Param
 
 ELEMENT = Element(
@@ -25,7 +26,11 @@ ELEMENT = Element(
     signature="none of its own: a wrong capacity shows as a residual drifting with charge, "
     "which the base's capacity and ocv_shape's signature read",
     pybamm=Export(
-        "PyBaMM's Thevenin model has one cell capacity, a number, not a function of temperature"
+        "PyBaMM's Thevenin capacity is a number: the export counts the charge itself, at "
+        "Q·(1 + κQ·(T − T_ref)) of the cell temperature, wherever it is counted (PyBaMM's OCV "
+        "element's SoC in a submodel in its slot, hysteresis's rate, the interval-start SoC of "
+        "SOC-dependent resistances; the module's counted())",
+        charge_piece,
     ),
     would_decide="full discharges at several temperatures",
     compiled="extras",

@@ -81,7 +81,8 @@ class Piece:
     expressions of ``sc`` (the SOC the OCV sees) added to the OCV; ``branches``: RC branches as
     (our branch number, R constant, τ constant); ``factors`` and ``terms``: (resistor,
     expression of ``T_cell`` (°C), ``current`` (A, discharge positive), ``soc``) multiplying or
-    added to a resistance; the resistor is "R0", "RC" (every RC branch) or "R1".."R3".
+    added to a resistance; the resistor is "R0", "RC" (every RC branch) or "R1".."R3"; a factor
+    of resistor "TAU" multiplies every RC branch's time constant (C_j = τ_j·factor/R_j).
 
     An element with a state of its own beyond Thevenin's (a surface-SOC lag, hysteresis) adds
     ``submodels``: (the Thevenin model's submodel slot it fills or adds, a ``pybamm.BaseSubModel``

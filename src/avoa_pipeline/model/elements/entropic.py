@@ -5,7 +5,35 @@ one table over the others. Offered only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Signature, View, slope_mv
+from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+
+_ENTROPIC = '''
+class EntropicOcv(pybamm.BaseSubModel):
+    """entropic: the OCV plus (∂U/∂T)·(T − T_REF_K), T the cell temperature. ∂U/∂T is PyBaMM's
+    own "Entropic change [V/K]" (which its Thevenin model puts into the reversible heat only);
+    built before the voltage (model() builds the voltage last), it adds the term to the OCV
+    the voltage reads."""
+
+    def __init__(self, param, options=None):
+        super().__init__(param)
+        self.model_options = options
+
+    def get_coupled_variables(self, variables):
+        ocv = variables["Open-circuit voltage [V]"]
+        T_cell = variables["Cell temperature [degC]"]
+        term = self.param.dUdT(ocv, T_cell) * (T_cell + 273.15 - T_REF_K)
+        variables.update({"Open-circuit voltage [V]": ocv + term, "Entropic term [V]": term})
+        return variables
+'''
+
+
+def _piece(p) -> Piece:
+    return Piece(
+        constants=(("ENTROPIC_DUDT_V_PER_K", p["dudt"], "entropic: ∂U/∂T, one for every SOC"),),
+        helpers=(_ENTROPIC,),
+        submodels=(("Entropic", "EntropicOcv"),),
+        parameters=(("Entropic change [V/K]", "ENTROPIC_DUDT_V_PER_K"),),
+    )  # fmt: skip
 
 
 def _read(v: View) -> dict:
@@ -32,8 +60,10 @@ ELEMENT = Element(
     starts=lambda row, imax: [dict(dudt=1e-4), dict(dudt=-1e-4)],
     signature=Signature("rest: residual follows T − mean T", _read),
     pybamm=Export(
-        "PyBaMM's Thevenin OCV is a function of SOC alone (its entropic change enters the heat "
-        "only): the export adds (∂U/∂T)·(T − T_ref) to the OCV only where it writes its own model"
+        "PyBaMM's Thevenin OCV is a function of SOC alone (its 'Entropic change [V/K]' enters "
+        "the reversible heat only): a submodel adds (∂U/∂T)·(T − T_ref) to the OCV, T the cell "
+        "temperature, ∂U/∂T PyBaMM's entropic change (so its heat has it too)",
+        _piece,
     ),
     would_decide="rests at several temperatures (an OCV measured at two temperatures)",
     compiled="extras",

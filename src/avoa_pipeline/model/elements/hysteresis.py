@@ -12,7 +12,7 @@ _HYSTERESIS = '''
 class Hysteresis(pybamm.BaseSubModel):
     """hysteresis (Plett 2004, eq. 13): a state h that goes to −1 while discharging and to +1
     while charging, at a rate γ per capacity of charge counted, and adds M·h to the voltage:
-    dh/dt = −γ·|Ic|·(h + sgn I)/(3600·Q) = −γ·(|Ic|·h + Ic)/(3600·Q), Ic = counted(I). For a
+    dh/dt = −γ·|Ic|·(h + sgn I)/(3600·Q) = −γ·(|Ic|·h + Ic)/(3600·Q), Ic = counted(I, T). For a
     current held over each interval this is exactly avoa-pipeline's h_k+1 = e·h_k − (1 − e)·sgn I_k,
     e = exp(−|γ·Ic_k·Δt/(3600·Q)|); at I = 0 h holds, as there."""
 
@@ -27,7 +27,7 @@ class Hysteresis(pybamm.BaseSubModel):
 
     def set_rhs(self, variables):
         h = variables["Hysteresis state"]
-        current = counted(variables["Current [A]"])
+        current = counted(variables["Current [A]"], variables["Cell temperature [degC]"])
         gamma = pybamm.Parameter("Hysteresis rate")
         rate = gamma / (3600 * self.param.cell_capacity)
         self.rhs = {h: -rate * (abs(current) * h + current)}

@@ -5,8 +5,18 @@ identify it (issue 28). Offered on top of ``thermal`` and only where the tempera
 
 from __future__ import annotations
 
-from .element import Element, Export, Param
+from .element import Element, Export, Param, Piece
 from .thermal import THETA_LIMITS
+
+
+def _piece(p) -> Piece:
+    # "TAU": a factor of every RC branch's time constant (interop/pybamm.py writes it into the
+    # branches' capacitances C_j = τ_j·factor/R_j); thermal's arrhenius() helper is in the module
+    return Piece(
+        constants=(("THERMAL_THETA_TAU_K", p["thtau"], "Arrhenius θτ of the RC time constants"),),
+        factors=(("TAU", "arrhenius(THERMAL_THETA_TAU_K, T_cell)"),),
+    )  # fmt: skip
+
 
 ELEMENT = Element(
     name="thermal_tau",
@@ -24,8 +34,9 @@ ELEMENT = Element(
     starts=lambda row, imax: [dict(thtau=3000.0)],
     signature="thermal's (the residual against I·ΔT) reads it",
     pybamm=Export(
-        "PyBaMM's Thevenin model takes C_j as a function of T; the export writes τ_j's law "
-        "into the branches' capacitances only where the export carries the cell temperature"
+        "every C_j = τ_j·exp(θτ·(1/T − 1/T_ref))/R_j as a function of PyBaMM's cell temperature "
+        "(R_j with thermal's factor): the time constant follows its own Arrhenius law",
+        _piece,
     ),
     would_decide="relaxations after pulses at several temperatures",
     compiled="extras",
