@@ -19,6 +19,7 @@ include: "workflow/rules/tables.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/real.smk"
 include: "workflow/rules/gap.smk"
+include: "workflow/rules/estimate.smk"
 
 
 rule all:

@@ -1,6 +1,7 @@
 """Command line: ``python -m avoa_pipeline COMMAND ...``, one function ``cmd_<command>`` each.
 
-Commands: fit, generate, recovery, convert, diagnose, simulate, export (``--help`` says more).
+Commands: fit, generate, recovery, convert, diagnose, simulate, export, estimate (``--help`` says
+more).
 
 Expected errors (bad arguments, config or data) print one line on stderr and exit 2 without a
 traceback, and write no output file.
@@ -167,12 +168,32 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("simulate", help="predict a record of the cell with a diagnosis's model")
     s.add_argument("model", help="model.json written by diagnose")
     s.add_argument("data", help="CSV: time_s, current_a, voltage_v[, temperature_c]")
-    s.add_argument("--out", required=True, help="CSV: time_s, voltage_v, model_v, error_mv")
+    s.add_argument(
+        "--out",
+        required=True,
+        help="CSV: time_s, voltage_v, model_v, error_mv, temperature_c_model (the cell "
+        "temperature the model ran on), temperature_source[, temperature_c: the measured one]",
+    )
     s.add_argument(
         "--soc0",
         type=_float("soc0"),
         default=None,
         help="initial SOC (default: from the first voltage, the library's rule)",
+    )
+    s.add_argument(
+        "--ambient-c",
+        type=_float("ambient-c"),
+        default=None,
+        metavar="T",
+        help="the ambient (°C) from which the model's heat block predicts the cell temperature "
+        "when the record has no temperature_c (or with --predict-temperature); default: the "
+        "CSV's sidecar's ambient_temperature_c",
+    )
+    s.add_argument(
+        "--predict-temperature",
+        action="store_true",
+        help="predict the cell temperature from the ambient even where the record measured it "
+        "(to check the prediction against the thermocouple)",
     )
     s.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     s.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
@@ -229,6 +250,40 @@ def build_parser() -> argparse.ArgumentParser:
     )
     x.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     x.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
+
+    e = sub.add_parser("estimate", help="SOC of a record by a Kalman filter over a model's states")
+    e.add_argument("model", help="model.json written by diagnose")
+    e.add_argument("data", help="CSV: time_s, current_a, voltage_v[, temperature_c]")
+    e.add_argument(
+        "--out",
+        required=True,
+        help="CSV: time_s, soc, soc_sd, model_v, innovation_v[, soc_reference, soc_error]; "
+        "its summary (.json) and figure (.png) go beside it",
+    )
+    e.add_argument(
+        "--soc0",
+        type=_float("soc0"),
+        default=None,
+        help="the start's guess (default: from the opening voltage, the library's rule); "
+        "may lie outside [0, 1] (a wrong guess)",
+    )
+    e.add_argument(
+        "--current-bias-a",
+        type=_float("current-bias-a"),
+        default=0.0,
+        metavar="B",
+        help="add B amperes to the current the filter reads (a sensor off by B; default 0)",
+    )
+    e.add_argument(
+        "--reference-soc0",
+        type=_float("reference-soc0"),
+        default=None,
+        metavar="S",
+        help="the known start: adds soc_reference (coulomb counting from S with the record's "
+        "current) and soc_error, and scores the filter against it",
+    )
+    e.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
+    e.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
     return p
 
 
@@ -375,6 +430,7 @@ def cmd_diagnose(args) -> None:
     from . import inputs
     from .gap import diagnose
     from .io import atomic_paths, check_output
+    from .model import heat
     from .report import gap_figures as figure
 
     out = Path(args.out)
@@ -385,6 +441,7 @@ def cmd_diagnose(args) -> None:
         check_output(out / name, inputs=given)
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
+    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
     report, arrays, model = diagnose.diagnose_records(read.train, args.capacity_ah, args.soc0,
                                                       ocv_table=read.ocv, validate=read.validate,
                                                       warnings=read.warnings)  # fmt: skip
@@ -394,11 +451,14 @@ def cmd_diagnose(args) -> None:
     names = ("diagnosis.png", "diagnosis.json", "model.json")
     with atomic_paths(*(out / n for n in names)) as (png, js, mj):
         figure.render(report, arrays, png)
+        heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
         js.write_text(text)
         mj.write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
     inputs.warn(read.warnings)  # once the command succeeded: an error stays one line
     inputs.warn(_flag_lines(out / "model.json", report.get("at_bounds", ()),
                             report.get("intervals")))  # fmt: skip
+    if model.heat is not None:
+        inputs.warn(f"{out / 'model.json'}: {flag}" for flag in heat.flags(model.heat))
     inputs.warn(
         f"{out / 'diagnosis.json'}: {u['effect']} selected, but {u['why']}: these records may "
         f"not identify it; would decide it: {u['would_decide']}"
@@ -408,8 +468,8 @@ def cmd_diagnose(args) -> None:
     print(
         f"{', '.join(args.data)}: verdict {v['effect']}"
         + (f" (held-out shrink {v['shrink']:.1%})" if v["effect"] != "none" else "")
-        + f"; selected {report['selected']['name']}; wrote {out / 'diagnosis.json'}, "
-        f"{out / 'diagnosis.png'}, {out / 'model.json'}"
+        + f"; selected {report['selected']['name']}; {heat_line}; wrote "
+        f"{out / 'diagnosis.json'}, {out / 'diagnosis.png'}, {out / 'model.json'}"
     )
 
 
@@ -426,10 +486,10 @@ def _flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:
                     if not flag.endswith("at a bound of its fit")]  # fmt: skip
 
 
-def _model_and_record(args, data):
+def _model_and_record(args, data, predicts: bool = False):
     """``simulate`` and ``export``: the model (``FittedModel.load``, its one refusal) and the
     record it runs on (or None), checked together: ``--soc0`` in [0, 1], a temperature for a
-    thermal model."""
+    thermal model (unless the caller ``predicts`` one: ``simulate``, :func:`_temperature`)."""
     import numpy as np
 
     from . import inputs
@@ -448,10 +508,67 @@ def _model_and_record(args, data):
     # the model's capacity tells the units the record alone cannot (minutes, mA)
     records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]))
     needs_t = {e for e in model.config.effects if elements.get(e).needs_temperature}
-    if needs_t and "temperature_c" not in rec.frame.columns:
+    if needs_t and "temperature_c" not in rec.frame.columns and not predicts:
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "
                         f"{', '.join(sorted(needs_t))})")  # fmt: skip
     return model, rec
+
+
+def _ambient(args, rec) -> tuple[float, str]:
+    """(ambient °C, where from) for ``simulate``'s prediction: ``--ambient-c``, else the CSV's
+    sidecar's ``ambient_temperature_c``; else a one-line refusal naming the missing field."""
+    from .io import read_sidecar, sidecar_of
+    from .model import heat
+
+    if args.ambient_c is not None:
+        lo, hi = heat.AMBIENT_RANGE_C
+        if not lo <= args.ambient_c <= hi:  # NaN fails too
+            raise UserError(f"--ambient-c must lie in {lo:g}..{hi:g} °C, got {args.ambient_c}")
+        return float(args.ambient_c), "--ambient-c"
+    meta = read_sidecar(args.data) if rec.origin.get("read_as") == "canonical CSV" else {}
+    side = sidecar_of(args.data)
+    if "ambient_temperature_c" not in meta:
+        what = f"{side}: field 'ambient_temperature_c': missing" if meta else f"no sidecar {side}"
+        raise UserError(f"{args.data}: no ambient to predict the cell temperature from ({what}); "
+                        "give --ambient-c")  # fmt: skip
+    where = f"{side}: field 'ambient_temperature_c'"
+    return heat.check_ambient(meta["ambient_temperature_c"], where), "the sidecar"
+
+
+def _temperature(args, model, rec):
+    """``simulate``'s cell temperature: (°C per sample or None, what it is, the prediction or
+    None). The record's measured ``temperature_c`` where it has one; predicted from the ambient
+    by the model's heat block (``model/heat.py``) where it has none and the model needs one, or
+    with ``--predict-temperature``; refused where neither is possible."""
+    from .model import elements, heat
+    from .model.ecm import T_DEFAULT_K
+
+    has_t = "temperature_c" in rec.frame.columns
+    needs_t = sorted(e for e in model.config.effects if elements.get(e).needs_temperature)
+    if has_t and not args.predict_temperature:
+        if args.ambient_c is not None:
+            raise UserError(
+                "--ambient-c: the record has temperature_c, which simulate uses; add "
+                "--predict-temperature to predict from the ambient instead"
+            )
+        return rec.frame["temperature_c"].to_numpy(), "measured (the record's temperature_c)", None
+    if not args.predict_temperature and not needs_t:
+        return (None, f"none (no temperature_c; the model has no temperature law: "
+                      f"{T_DEFAULT_K - heat.KELVIN:g} °C in its 2RT/F)", None)  # fmt: skip
+    if model.heat is None:
+        why = (
+            "--predict-temperature"
+            if args.predict_temperature
+            else f"{args.data} has no temperature_c and the model has {', '.join(needs_t)}"
+        )
+        raise UserError(f"{args.model}: field 'heat': missing ({why}; diagnose writes it when "
+                        "the model has thermal and its training records a moving measured "
+                        "temperature)")  # fmt: skip
+    ambient, where = _ambient(args, rec)
+    pred = heat.predict(model, model.heat, rec.frame, ambient, soc0=args.soc0)
+    what = (f"predicted from ambient {ambient:g} °C ({where}) by {args.model}'s heat block, "
+            f"{pred.passes} fixed-point passes")  # fmt: skip
+    return pred.temp_k - heat.KELVIN, what, pred
 
 
 def cmd_simulate(args) -> None:
@@ -460,28 +577,44 @@ def cmd_simulate(args) -> None:
 
     from . import inputs
     from .io import atomic_path, check_output
+    from .model import heat
 
     check_output(args.out, inputs=[args.model, args.data])
-    model, rec = _model_and_record(args, args.data)
+    model, rec = _model_and_record(args, args.data, predicts=True)
     frame = rec.frame
-    v = model.predict(frame, soc0=args.soc0, source=args.model)
+    temp_c, source, pred = _temperature(args, model, rec)
+    run = frame if temp_c is None else frame.assign(temperature_c=temp_c)
+    v = model.predict(run, soc0=args.soc0, source=args.model)
     out = pd.DataFrame(
         {
             "time_s": frame["time_s"],
             "voltage_v": frame["voltage_v"],
             "model_v": v,
             "error_mv": 1e3 * (v - frame["voltage_v"].to_numpy()),
+            "temperature_c_model": np.nan if temp_c is None else temp_c,
+            "temperature_source": source,
         }
     )
+    if "temperature_c" in frame.columns:
+        out["temperature_c"] = frame["temperature_c"]
     with atomic_path(args.out) as tmp:
         out.to_csv(tmp, index=False)
     rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
     inputs.warn(rec.warnings)
     inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
-    print(
-        f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV; "
-        f"wrote {args.out}"
-    )
+    if model.heat is not None:
+        inputs.warn(f"{args.model}: {flag}" for flag in heat.flags(model.heat))
+    if pred is not None and not pred.converged:
+        inputs.warn([f"{args.model}: the temperature's fixed point moved "
+                     f"{pred.last_change_k:.3g} K in its last of {pred.passes} passes "
+                     f"(converged: below {heat.FIXED_POINT_TOL_K:g} K)"])  # fmt: skip
+    print(f"{args.data}: temperature {source}", file=sys.stderr)
+    line = f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV"
+    if pred is not None and "temperature_c" in frame.columns:
+        dt = out["temperature_c_model"] - out["temperature_c"]
+        line += (f"; temperature {float(np.sqrt(np.mean(dt**2))):.2f} K RMS, "
+                 f"{float(dt.abs().max()):.2f} K at most against the measured one")  # fmt: skip
+    print(f"{line}; wrote {args.out}")
 
 
 EXPORT_TARGETS = ("pybamm", "table")
@@ -595,6 +728,52 @@ def _export_pybamm(args) -> None:
     print(line)
 
 
+SOC0_GUESS_RANGE = (-0.5, 1.5)
+"""``estimate --soc0``: a guess may be wrong, even outside the cell's range (issue 29's +20 %
+start from a full cell is 1.2), but one beyond half the range past either end is not a guess."""
+
+
+def cmd_estimate(args) -> None:
+    import json
+
+    import numpy as np
+
+    from . import estimate, inputs
+    from .io import atomic_paths, check_output
+    from .report import estimate_figures
+
+    out, summary_path = _csv_and_sidecar(args.out, [args.model, args.data])
+    png = out.with_suffix(".png")
+    check_output(png, inputs=[args.model, args.data], what="--out's figure")
+    lo, hi = SOC0_GUESS_RANGE
+    if args.soc0 is not None and not (np.isfinite(args.soc0) and lo <= args.soc0 <= hi):
+        raise UserError(f"--soc0 must lie in [{lo:g}, {hi:g}] (a guess), got {args.soc0}")
+    ref = args.reference_soc0
+    if ref is not None and not (np.isfinite(ref) and 0.0 <= ref <= 1.0):
+        raise UserError(f"--reference-soc0 must lie in [0, 1], got {ref}")
+    if not np.isfinite(args.current_bias_a):
+        raise UserError(f"--current-bias-a must be finite, got {args.current_bias_a}")
+    # the model and record as simulate reads them (its --soc0 rule is for a start, not a guess)
+    model, rec = _model_and_record(argparse.Namespace(**{**vars(args), "soc0": None}), args.data)
+    result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
+                                      source=args.model)  # fmt: skip
+    summary = {"model": str(args.model), "record": str(args.data), **result.summary}
+    with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
+        result.frame.to_csv(csv_tmp, index=False)
+        js_tmp.write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+        estimate_figures.render(result.frame, summary, png_tmp, title=str(args.data))
+    inputs.warn(rec.warnings)
+    inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
+            f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip
+    if ref is not None:
+        f = summary["filter"]
+        line += (f"; after 5 min RMSE {100 * f['rmse_after_window']:.2f} %, max "
+                 f"{100 * f['max_error_after_window']:.2f} %, ±2σ coverage "
+                 f"{100 * f['coverage_2sd']:.0f} %")  # fmt: skip
+    print(f"{line}; wrote {out}, {summary_path}, {png}")
+
+
 def main(argv=None) -> int:
     from .io import output_lock
 
@@ -609,6 +788,7 @@ def main(argv=None) -> int:
             "diagnose": cmd_diagnose,
             "simulate": cmd_simulate,
             "export": cmd_export,
+            "estimate": cmd_estimate,
         }
         # one run at a time per output: the lock is held from before the first check to the
         # last rename (io.output_lock); diagnose's --out is a folder, every other one a file

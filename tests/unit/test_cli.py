@@ -183,3 +183,114 @@ def test_recovery_reports_every_algorithm(tmp_path, capsys):
     assert len(runs) == 7 * 2
     assert {"err_vnom_pct", "err_r0_pct", "err_vdis_pct"} <= set(runs.columns)
     assert out.with_suffix(".md").read_text().count("\n") == 2 + 7
+
+
+# ------------------------------------------------------------------------------------------------
+# simulate's cell temperature: measured, or predicted from the ambient by the heat block
+
+
+@pytest.fixture(scope="module")
+def heat_files(tmp_path_factory):
+    """A thermal model with a heat block fitted on two synthetic records (test_heat's cell),
+    and a third record of the cell: with its temperature, without it (a sidecar naming the
+    ambient), and without either."""
+    from test_heat import AMBIENT_C, TRUE, cell, checked, drive, measured
+
+    from avoa_pipeline.model import heat
+
+    root = tmp_path_factory.mktemp("heat")
+    model = cell()
+    recs = [checked(measured(model, TRUE, drive(30 + k), 40 + k), k) for k in range(2)]
+    model.heat, _ = heat.fit_heat(model, recs)
+    model.save(root / "model.json")
+    bare = cell()
+    bare.save(root / "bare.json")
+    frame = measured(model, TRUE, drive(50), 60)
+    frame.to_csv(root / "with_t.csv", index=False)
+    frame.drop(columns="temperature_c").to_csv(root / "no_t.csv", index=False)
+    (root / "no_t.json").write_text(json.dumps({"ambient_temperature_c": AMBIENT_C}))
+    frame.drop(columns="temperature_c").to_csv(root / "alone.csv", index=False)
+    return root
+
+
+def _simulate(root, data, capsys, *extra, model="model.json"):
+    out = root / "out" / f"{model}-{data}{''.join(extra)}.csv"  # one per call
+    out.parent.mkdir(exist_ok=True)
+    code = main(["simulate", str(root / model), str(root / data), "--out", str(out),
+                 "--soc0", "0.95", *extra])  # fmt: skip
+    got = capsys.readouterr()
+    return code, got.out, got.err, out
+
+
+def test_simulate_uses_the_measured_temperature_where_the_record_has_one(heat_files, capsys):
+    import pandas as pd
+
+    code, _out, err, path = _simulate(heat_files, "with_t.csv", capsys)
+    assert code == 0, err
+    assert "temperature measured (the record's temperature_c)" in err
+    df = pd.read_csv(path)
+    assert (df["temperature_c_model"] == df["temperature_c"]).all()
+    assert set(df["temperature_source"]) == {"measured (the record's temperature_c)"}
+
+
+def test_simulate_predicts_the_temperature_from_the_sidecars_ambient(heat_files, capsys):
+    import numpy as np
+    import pandas as pd
+
+    code, out, err, path = _simulate(heat_files, "no_t.csv", capsys)
+    assert code == 0, err
+    assert "temperature predicted from ambient 10 °C (the sidecar)" in err
+    df = pd.read_csv(path)
+    truth = pd.read_csv(heat_files / "with_t.csv")["temperature_c"]
+    assert np.sqrt(np.mean((df["temperature_c_model"] - truth) ** 2)) < 0.2  # the 0.05 K noise
+    assert df["temperature_source"].iloc[0].startswith("predicted from ambient 10 °C")
+    assert np.sqrt(np.mean(df["error_mv"] ** 2)) < 1.0
+    # --ambient-c overrides the sidecar; --predict-temperature predicts beside the thermocouple
+    code, _, err, path = _simulate(heat_files, "no_t.csv", capsys, "--ambient-c", "12")
+    assert code == 0
+    assert "ambient 12 °C (--ambient-c)" in err
+    assert pd.read_csv(path)["temperature_c_model"].iloc[0] == pytest.approx(12.0)
+    code, out, err, path = _simulate(heat_files, "with_t.csv", capsys, "--predict-temperature",
+                                     "--ambient-c", "10")  # fmt: skip
+    assert code == 0, err
+    assert "K RMS" in out
+    assert "against the measured one" in out
+    assert {"temperature_c", "temperature_c_model"} <= set(pd.read_csv(path).columns)
+
+
+@pytest.mark.parametrize(
+    ("data", "model", "extra", "needle"),
+    [
+        ("no_t.csv", "bare.json", (), "bare.json: field 'heat': missing"),
+        ("with_t.csv", "bare.json", ("--predict-temperature",), "field 'heat': missing"),
+        ("alone.csv", "model.json", (), "no ambient to predict the cell temperature from (no "
+                                        "sidecar"),
+        ("no_t.csv", "model.json", ("--ambient-c", "400"), "--ambient-c must lie in"),
+        ("no_t.csv", "model.json", ("--ambient-c", "nan"), "--ambient-c must lie in"),
+        ("with_t.csv", "model.json", ("--ambient-c", "10"), "add --predict-temperature"),
+        ("with_t.csv", "model.json", ("--predict-temperature",), "with_t.json"),
+    ],
+    ids=["no-block", "no-block-forced", "no-ambient", "hot", "nan", "ambient-unused",
+         "forced-no-ambient"],
+)  # fmt: skip
+def test_simulate_refuses_in_one_line_when_it_has_no_temperature(heat_files, capsys, data, model,
+                                                                 extra, needle):  # fmt: skip
+    code, _out, err, path = _simulate(heat_files, data, capsys, *extra, model=model)
+    assert code == 2, err
+    assert err.count("\n") == 1, err
+    assert err.startswith("error: "), err
+    assert needle in err, err
+    assert not path.exists()
+
+
+def test_simulate_refuses_a_sidecar_ambient_that_is_no_temperature(heat_files, capsys, tmp_path):
+    import shutil
+
+    shutil.copy(heat_files / "no_t.csv", tmp_path / "r.csv")
+    (tmp_path / "r.json").write_text(json.dumps({"ambient_temperature_c": "warm"}))
+    shutil.copy(heat_files / "model.json", tmp_path / "model.json")
+    code, _, err, path = _simulate(tmp_path, "r.csv", capsys)
+    assert code == 2
+    assert err.count("\n") == 1, err
+    assert "r.json: field 'ambient_temperature_c': 'warm'" in err, err
+    assert not path.exists()

@@ -312,7 +312,9 @@ def test_simulate_predicts_from_model_json_and_refuses_a_tampered_one(second_rc_
     pred = tmp_path / "pred.csv"
     assert main(["simulate", str(out / "model.json"), str(data), "--out", str(pred)]) == 0
     got = pd.read_csv(pred)
-    assert list(got.columns) == ["time_s", "voltage_v", "model_v", "error_mv"]
+    assert list(got.columns) == ["time_s", "voltage_v", "model_v", "error_mv",
+                                 "temperature_c_model", "temperature_source",
+                                 "temperature_c"]  # fmt: skip
     assert len(got) == len(pd.read_csv(data))
     assert np.sqrt(np.mean(got["error_mv"] ** 2)) < 2.0  # the same cell: about the noise
     capsys.readouterr()

@@ -21,7 +21,7 @@ from test_ecm import ACTIVE, TRUTH
 
 from avoa_pipeline import cli
 from avoa_pipeline.errors import DataError
-from avoa_pipeline.model import ecm, fitting, intervals
+from avoa_pipeline.model import ecm, fitting, heat, intervals
 from avoa_pipeline.model.fitted import PROBE_C_RATE, FittedModel, probe_record
 
 CURRENT_SCALE_A = 2.0 * TRUTH["capacity_ah"]  # the 99th-percentile |I| of record() (its 2C legs)
@@ -46,6 +46,9 @@ FREE_TEXT = {
     ("ocv_table", "source"),
     ("ocv_table", "how"),
     ("intervals", "method"),
+    ("heat", "method"),
+    ("heat", "ambient_rule"),
+    ("heat", "records", 0, "record"),
 }
 """Strings written for readers: any other string is as valid."""
 
@@ -78,7 +81,31 @@ def make_model(kind: str, effects, extra=None) -> FittedModel:
     model = FittedModel(config, x, ecm.Knots(0.2, 0.12), 300.15, bounds, {"by": "test"},
                         CURRENT_SCALE_A)  # fmt: skip
     model.intervals = model_intervals(model)
+    if "thermal" in effects:
+        model.heat = heat_block()
     return model
+
+
+def heat_block() -> heat.Heat:
+    """A heat block as ``heat.fit_heat`` writes one, with dU/dT admitted (every entry there)
+    and the conductance's interval reaching its upper end's neighbourhood."""
+    entry = {"value": 40.0, "low95": 30.0, "high95": 55.0, "at_bound": False}
+    report = {
+        "method": "test", "ambient_rule": heat.AMBIENT_RULE,
+        "bounds": {"c_th_j_per_k": list(heat.C_TH_LIMITS_J_PER_K),
+                   "ha_w_per_k": list(heat.HA_LIMITS_W_PER_K),
+                   "dudt_v_per_k": list(heat.DUDT_LIMITS_V_PER_K)},
+        "intervals": {"c_th_j_per_k": entry,
+                      "ha_w_per_k": {**entry, "value": 0.1, "low95": 0.05, "high95": 0.2},
+                      "dudt_v_per_k": {**entry, "value": -2e-4, "low95": -3e-4,
+                                       "high95": -1e-4}},
+        "entropic_candidate": {**entry, "value": -2e-4, "low95": -3e-4, "high95": -1e-4},
+        "records": [{"record": "a.csv", "ambient_c": 25.0, "ambient_from": "sidecar",
+                     "rmse_k": 0.5, "max_err_k": 1.5, "passes": 3}],
+        "rmse_k": 0.5,
+        "fixed_point": {"tolerance_k": heat.FIXED_POINT_TOL_K, "max_passes": heat.MAX_PASSES},
+    }  # fmt: skip
+    return heat.Heat(40.0, 0.1, -2e-4, True, report)
 
 
 def model_intervals(model: FittedModel) -> dict:
@@ -187,7 +214,7 @@ def variants(text: str):
 
         if isinstance(key, int):  # a list entry removed: another field may notice first
             yield f"{label(path)} removed", edited(lambda p, k: p.pop(k)), None
-        elif path in (("current_scale_a",), ("intervals",)):
+        elif path in (("current_scale_a",), ("intervals",), ("heat",)):
             pass  # may be absent (files written before them): test_a_file_without_current_scale
         else:
             yield f"{label(path)} missing", edited(lambda p, k: p.pop(k)), label(path)
@@ -200,7 +227,7 @@ def variants(text: str):
                 continue  # the same value, or text as good as the original's
             if path == ("provenance",) and isinstance(value, dict):
                 continue  # any object: written for readers, never read
-            if path in (("current_scale_a",), ("intervals",)) and value is None:
+            if path in (("current_scale_a",), ("intervals",), ("heat",)) and value is None:
                 continue  # null: not known (a model made in Python without it), probed at 1C
             want = label(path)
             pair_edit = (name, len(path)) in (("list", 2), ("huge", 3), ("-huge", 3))

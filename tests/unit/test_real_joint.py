@@ -81,3 +81,56 @@ def test_job_reads_the_diagnoses_and_names_the_cycles_by_their_files(tmp_path):
     assert stem.with_suffix(".pdf").stat().st_size > 0
     assert df.loc[df["temperature_c"] == 0.0, "per_temperature_rmse_mv"].item() == 130.0
     assert "0 °C 30.0 / 130.0" in (tmp_path / "log").read_text()
+
+
+def test_job_predicts_each_unseen_cycles_temperature_from_its_ambient(tmp_path):
+    """With a heat block in the joint model.json: the temperature columns, the traces and
+    their figure; each cycle's temperature from its sidecar's ambient alone."""
+    from test_heat import AMBIENT_C, TRUE, cell, checked, drive, measured
+
+    from avoa_pipeline.model import heat
+
+    model = cell()
+    model.heat, _ = heat.fit_heat(model, [checked(measured(model, TRUE, drive(70), 71), 0)])
+    tests = {k: str(tmp_path / f"{k.replace('/', '_')}.csv") for k in JOINT}
+    for j, (k, path) in enumerate(tests.items()):
+        measured(model, TRUE, drive(80 + j), 90 + j).to_csv(path, index=False)
+        ambient = AMBIENT_C if k.startswith("0degC") else 25.0  # 25degC's: a wrong ambient
+        (tmp_path / f"{k.replace('/', '_')}.json").write_text(
+            json.dumps({"ambient_temperature_c": ambient}))  # fmt: skip
+    (tmp_path / "joint").mkdir()
+    rep = _report("thermal", {tests[k]: e for k, e in JOINT.items()})
+    (tmp_path / "joint" / "diagnosis.json").write_text(json.dumps(rep))
+    model.save(tmp_path / "joint" / "model.json")
+    out, traces = tmp_path / "t.csv", tmp_path / "heat.csv"
+    stem = tmp_path / "figures" / "heat"
+    joint_temperature_table(AMBIENT, tmp_path / "joint", {}, tests, out, tmp_path / "f" / "j",
+                            tmp_path / "log", traces, stem)  # fmt: skip
+    df = pd.read_csv(out).set_index("cycle")
+    assert set(jt.HEAT_COLUMNS) <= set(df.columns)
+    cold = df[df["temperature_c"] == 0.0].loc["us06"]
+    assert cold["temperature_rmse_k"] < 0.2  # the right ambient: the thermocouple's noise
+    assert cold["ambient_c"] == AMBIENT_C
+    warm = df[df["temperature_c"] == 25.0]
+    assert (warm["temperature_rmse_k"] > 5.0).all()  # 15 K off: the ambient is all it has
+    assert (warm["joint_rmse_predicted_t_mv"] > warm["joint_rmse_measured_t_mv"]).all()
+    assert cold["joint_rmse_measured_t_mv"] < 1.0  # the model's own records
+    tr = pd.read_csv(traces)
+    assert set(tr["key"]) == set(JOINT)
+    assert stem.with_suffix(".png").stat().st_size > 0
+    assert "self-heating from the ambient: C_th" in (tmp_path / "log").read_text()
+
+
+def test_job_leaves_the_temperature_columns_empty_without_a_heat_block(tmp_path):
+    tests = {k: str(tmp_path / f"{k.replace('/', '_')}.csv") for k in JOINT}
+    (tmp_path / "joint").mkdir()
+    rep = _report("thermal", {tests[k]: e for k, e in JOINT.items()})
+    (tmp_path / "joint" / "diagnosis.json").write_text(json.dumps(rep))
+    out, traces = tmp_path / "t.csv", tmp_path / "heat.csv"
+    joint_temperature_table(AMBIENT, tmp_path / "joint", {}, tests, out, tmp_path / "f" / "j",
+                            tmp_path / "log", traces, tmp_path / "f" / "h")  # fmt: skip
+    df = pd.read_csv(out)
+    assert df["temperature_rmse_k"].isna().all()
+    assert pd.read_csv(traces).empty
+    assert (tmp_path / "f" / "h.png").stat().st_size > 0
+    assert "no " in (tmp_path / "log").read_text().splitlines()[-1]

@@ -133,6 +133,8 @@ def real_targets():
         out += ["results/real/drive_cycle_rmse.csv", "results/real/figures/panasonic_drive_cycles.png"]
     if PAN_JOINT_ON:  # one model over temperature (issue 28)
         out.append("results/real/joint_temperature.csv")
+    if PAN_ESTIMATE_ON:  # SOC estimation with the selected models (issue 29; estimate.smk)
+        out.append("results/real/soc_estimation.csv")
     return out + plan.cell_targets(config)
 
 
@@ -150,6 +152,7 @@ PAN_EXP_TEMPS = real_dc.temperatures(config) if PANASONIC and PAN_EXP else []
 PAN_EXP_TEMP_RE = plan.regex(PAN_EXP_TEMPS)  # the ptemp wildcard of experiment 1's rules
 PAN_GAP = bool(PAN_EXP.get("gap", True))
 PAN_JOINT_ON = bool(PAN_EXP.get("joint", True)) and len(PAN_EXP_TEMPS) > 1  # rules in real.smk
+PAN_ESTIMATE_ON = bool(PAN_EXP.get("estimate", True)) and bool(PAN_EXP_TEMPS)  # estimate.smk
 
 
 def pan_sources(w):

@@ -222,7 +222,8 @@ if PAN_JOINT_ON:
         reference temperature, the mean of all; the thermal elements are candidates where the
         measured temperature moves), the 25 degC C/20 test as --ocv, every temperature's unseen
         cycles as validation records only: `python -m avoa_pipeline diagnose TRAIN... --ocv C20
-        --validate TESTS... --out DIR` without its figure."""
+        --validate TESTS... --out DIR` without its figure; model.json carries the heat block
+        the command fits where the selected model has thermal (model/heat.py)."""
         input:
             train=[pan_canon(f"{t}/{r}") for t in PAN_EXP_TEMPS for r in (PAN_EXP["train"][t], "hppc")],
             ocv=PAN_OCV_RECORD,
@@ -243,14 +244,21 @@ if PAN_JOINT_ON:
     rule panasonic_joint_table:
         """Per temperature and unseen cycle, the joint model's RMSE and largest error beside
         the temperature's own diagnosis (the `diagnosis_selected` rows of drive_cycle_rmse.csv,
-        read from the same diagnosis.json, so the table waits for no paper-model fit)."""
+        read from the same diagnosis.json, so the table waits for no paper-model fit); and the
+        cell temperature predicted from the ambient alone by the joint model.json's heat block
+        against the thermocouple, with the voltage on it (issue 28 item 2; traces and figure)."""
         input:
             joint=f"{PAN_JOINT}/diagnosis.json",
+            model=f"{PAN_JOINT}/model.json",
             own=[f"{d}/diagnosis.json" for d in pan_diagnoses()["diagnosis"].values()],
+            tests=list(PAN_JOINT_TESTS.values()),
         output:
             csv="results/real/joint_temperature.csv",
             png="results/real/figures/joint_temperature.png",
             pdf="results/real/figures/joint_temperature.pdf",
+            traces="results/real/joint_temperature_heat.csv",
+            heat_png="results/real/figures/joint_temperature_heat.png",
+            heat_pdf="results/real/figures/joint_temperature_heat.pdf",
         log:
             "logs/real/joint/table.log",
         params:

@@ -120,16 +120,35 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     from .. import inputs
     from ..gap import diagnose
     from ..io import write_json
+    from ..model import heat
 
     read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
+    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
     report, _, model = diagnose.diagnose_records(
         read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
+    heat_line = heat.attach(model, read.train)  # as the command does
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
     write_log(log, f"{', '.join(map(str, train_csvs))}: selected {report['selected']['name']}; "
+                   f"{heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
                    f"{report['wall_s']:.0f} s")  # fmt: skip
+
+
+def attach_heat(model_json, train_csvs, out_json, log=None) -> None:
+    """A model.json written by a diagnosis before the heat block existed, with the block the
+    diagnosis now writes (``heat.attach`` on the same training records, the electrical model
+    held, so the block is what :func:`diagnose_one` would add); written to ``out_json``."""
+    from .. import inputs
+    from ..model import heat
+    from ..model.fitted import FittedModel
+
+    model = FittedModel.load(model_json)
+    read = inputs.read_inputs(list(train_csvs), [], None)
+    line = heat.attach(model, read.train)
+    model.save(out_json)
+    write_log(log, f"{model_json}: {line}; wrote {out_json}")
 
 
 def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
@@ -148,11 +167,13 @@ def diagnosis_record(temp, prefix, out_dir, tests: dict) -> dict:
 
 
 def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, figure_stem,
-                            log=None) -> None:  # fmt: skip
+                            log=None, traces_csv=None, heat_stem=None) -> None:  # fmt: skip
     """``joint_temperature.csv``: the joint diagnosis in ``joint_dir`` (every temperature's
     training records) beside each temperature's own (``own_dirs``: temperature → folder), on
     the unseen cycles ``tests`` (``<temperature>/<cycle>`` → CSV); ``ambient``: temperature →
-    °C."""
+    °C. With ``traces_csv`` and ``heat_stem``, also the self-heating predicted from the ambient
+    alone by the joint model.json's heat block (``joint_temperature.heat_rows``: its columns,
+    the traces and their figure); empty columns, and the log says why, where it has none."""
     from ..io import atomic_path
     from ..real.experiments import joint_temperature as jt
     from ..report import real_figures
@@ -162,16 +183,53 @@ def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, 
     for temp, out_dir in own_dirs.items():
         here = {k.split("/", 1)[1]: p for k, p in tests.items() if k.split("/")[0] == temp}
         own[temp] = diagnosis_record(temp, "diagnosis", out_dir, here)
-    df = jt.table(joint, own, {t: float(a) for t, a in ambient.items()})
+    ambient = {t: float(a) for t, a in ambient.items()}
+    df = jt.table(joint, own, ambient)
+    heat_df, traces, heat_note = None, None, ""
+    if traces_csv is not None:
+        heat_df, traces, heat_note = _joint_heat(Path(joint_dir) / "model.json", tests)
+    df = jt.with_heat(df, heat_df, ambient)
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
     real_figures.joint_temperature_figure(df, figure_stem)
+    if traces_csv is not None:
+        with atomic_path(traces_csv) as tmp:
+            traces.to_csv(tmp, index=False)
+        real_figures.joint_heat_figure(traces, df, heat_stem)
     medians = ", ".join(
         f"{r.temperature_c:g} °C {r.joint_rmse_mv:.1f} / {r.per_temperature_rmse_mv:.1f}"
         for r in jt.medians(df).itertuples()
     )
+    heat_line = f"\nself-heating from the ambient: {heat_note}" if heat_note else ""
     write_log(log, f"wrote {out_csv}, {figure_stem}.png: joint {joint['selected']}; median unseen "
-                   f"RMSE joint / own [mV]: {medians}")  # fmt: skip
+                   f"RMSE joint / own [mV]: {medians}{heat_line}")  # fmt: skip
+
+
+def _joint_heat(model_json: Path, tests: dict):
+    """(heat rows, traces, one line) of the joint model's heat block on the unseen cycles
+    (``joint_temperature.heat_rows``), or (None, empty traces, why not)."""
+    import pandas as pd
+
+    from .. import inputs
+    from ..model.fitted import FittedModel
+    from ..real.experiments import joint_temperature as jt
+
+    empty = pd.DataFrame(columns=["key", "time_s", "temperature_c", "temperature_c_predicted"])
+    if not model_json.is_file():
+        return None, empty, f"no {model_json}: temperature columns left empty"
+    model = FittedModel.load(model_json)
+    if model.heat is None:
+        return None, empty, f"{model_json} has no heat block: temperature columns left empty"
+    recs = {k: inputs.read_record(p) for k, p in tests.items()}
+    heat_df, traces = jt.heat_rows(model, recs)
+    h = model.heat
+    line = (f"C_th {h.c_th:.4g} J/K, hA {h.ha:.4g} W/K, dU/dT {1e3 * h.dudt:.3g} mV/K "
+            f"(entropic {'admitted' if h.entropic else 'not admitted'}); per unseen cycle "
+            "temperature RMSE, voltage RMSE on the predicted / measured temperature: ")  # fmt: skip
+    each = "; ".join(f"{r.key} {r.temperature_rmse_k:.2f} K, {r.joint_rmse_predicted_t_mv:.1f} "
+                     f"/ {r.joint_rmse_measured_t_mv:.1f} mV"
+                     for r in heat_df.itertuples())  # fmt: skip
+    return heat_df, traces, line + each
 
 
 def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out_runs,

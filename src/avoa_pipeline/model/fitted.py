@@ -17,6 +17,11 @@ A model carries the 95 % intervals of its fit (``model/intervals.py``; ``fit_mod
 diagnosis compute them): read back with every consistency a file can be held to (each value is
 its parameter's, each flag what the bounds and the interval say), and their flags are warning
 lines wherever the model is used. A model.json written before them (no ``intervals``) loads.
+
+A model may carry a ``heat`` block (``model/heat.py``: the lumped thermal state that predicts
+the cell temperature from the ambient; ``diagnose`` writes it where its training records allow):
+checked like the rest (:func:`_heat_schema`, :func:`_check_heat`); a model.json without it
+loads, and then predicts no temperature.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ from .. import __version__
 from ..errors import DataError
 from ..records import VOLTAGE_RANGE_V, current_scale
 from . import ecm, elements
+from . import heat as heat_mod
 from . import ocv as ocv_mod
 from .ecm import IDX, Config, Knots, Record
 
@@ -65,6 +71,7 @@ class FittedModel:
     provenance: dict = field(default_factory=dict)
     current_scale_a: float | None = None  # the training's current (training_current_scale)
     intervals: dict | None = None  # model/intervals.py's report of the fit (read, not used)
+    heat: heat_mod.Heat | None = None  # the lumped thermal state (model/heat.py), if fitted
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -169,6 +176,7 @@ class FittedModel:
             "current_scale_a": self.current_scale_a,
             "intervals": self.intervals,
             "provenance": self.provenance,
+            **({} if self.heat is None else {"heat": self.heat.to_json()}),
         }
 
     def physical_bounds(self, name: str) -> list[float]:
@@ -249,6 +257,9 @@ class FittedModel:
                                 f"parameters give {want:.10g} (written for readers, never read:"
                                 " edit the parameters instead)")  # fmt: skip
         _check_intervals(model, params, source)
+        if d.get("heat") is not None:
+            _check_heat(d["heat"], source)
+            model.heat = heat_mod.Heat.from_json(d["heat"])
         return model
 
     @classmethod
@@ -463,7 +474,8 @@ def model_schema(config: Config) -> dict:
                                              exclusive=True)),
         "intervals": {**_intervals_schema(names), "type": ["null", "object"]},  # null: none
         "provenance": {"type": "object"},  # what made the model, for readers; never read
-    }, optional=("current_scale_a", "intervals"))  # fmt: skip
+        "heat": {**_heat_schema(), "type": ["null", "object"]},  # null or absent: none
+    }, optional=("current_scale_a", "intervals", "heat"))  # fmt: skip
 
 
 MAX_COUNT = 2**53
@@ -565,6 +577,129 @@ def _check_intervals(model: FittedModel, params: dict, source: str) -> None:
             f"{at}: not the entries' own flags ({len(own)}: "
             f"{'; '.join(own) or 'none'}: what the entries and pairs say)"
         )
+
+
+_HEAT_LIMITS = {"c_th_j_per_k": heat_mod.C_TH_LIMITS_J_PER_K,
+                "ha_w_per_k": heat_mod.HA_LIMITS_W_PER_K,
+                "dudt_v_per_k": heat_mod.DUDT_LIMITS_V_PER_K}  # fmt: skip
+
+
+def _heat_schema() -> dict:
+    """model/heat.py's block (``Heat.to_json``): its parameters within the library's limits
+    (``heat.C_TH_LIMITS_J_PER_K`` and beside it), their bounds and intervals, the records that
+    trained it with their errors, the ambient rule."""
+    lo_c, hi_c = heat_mod.AMBIENT_RANGE_C
+
+    def limited(key: str) -> dict:
+        lo, hi = _HEAT_LIMITS[key]
+        return _number(lo - LIMIT_RTOL * abs(lo), hi + LIMIT_RTOL * abs(hi),
+                       f"the library's range of heat.{key}")  # fmt: skip
+
+    entry = _object({"value": _number(), "low95": _nullable(_number()),
+                     "high95": _nullable(_number()), "at_bound": {"type": "boolean"}})  # fmt: skip
+    span = hi_c - lo_c  # no temperature error exceeds a cell's whole temperature range
+    kelvin = _number(0.0, span, "a cell's temperature span (K)")
+    record = _object({
+        "record": {"type": "string"},
+        "ambient_c": _number(lo_c, hi_c, "a cell's temperature range (°C)"),
+        "ambient_from": {"enum": ["sidecar", "first temperature sample"]},
+        "rmse_k": kelvin, "max_err_k": kelvin,
+        "passes": {"type": "integer", "minimum": 1, "maximum": MAX_COUNT},
+    })  # fmt: skip
+    keys = tuple(_HEAT_LIMITS)
+    return _object({
+        "method": {"type": "string"},
+        "ambient_rule": {"type": "string"},
+        "parameters": _object({k: limited(k) for k in keys}),
+        "entropic": {"type": "boolean"},
+        "bounds": _object({k: _list(limited(k), n=2) for k in keys}),
+        "intervals": _object({k: entry for k in keys}, optional=("dudt_v_per_k",)),
+        "entropic_candidate": entry,
+        "records": _list(record, at_least=1),
+        "rmse_k": kelvin,
+        "fixed_point": _object({"tolerance_k": _number(0.0, span, "a cell's temperature span "
+                                                        "(K)", True),
+                                "max_passes": {"type": "integer", "minimum": 1,
+                                               "maximum": MAX_COUNT}}),
+    })  # fmt: skip
+
+
+def _check_heat(h: dict, source: str) -> None:
+    """What the schema cannot say of a heat block: its bounds the library's (the fit searched
+    them; written for readers), each parameter inside them; dU/dT 0 unless the entropic term was
+    admitted, and an interval entry for it exactly then; each interval entry's value the
+    parameter's (the candidate's inside its bounds, and dU/dT itself where admitted), its
+    ``at_bound`` what the bounds say, its ends around the value and inside the bounds."""
+    where = f"{source}: field 'heat"
+    params, bounds = h["parameters"], h["bounds"]
+    for key in params:
+        lo, hi = _HEAT_LIMITS[key]
+        if list(bounds[key]) != [lo, hi]:
+            raise DataError(f"{where}.bounds.{key}': {json.dumps(bounds[key])}, but the fit "
+                            f"searched the library's range [{lo:g}, {hi:g}] (written for "
+                            "readers, never read)")  # fmt: skip
+    entry = "field 'heat.intervals.dudt_v_per_k'"
+    if h["entropic"] != ("dudt_v_per_k" in h["intervals"]):
+        raise DataError(f"{where}.entropic': {json.dumps(h['entropic'])}, but {entry} is "
+                        f"{'missing' if h['entropic'] else 'there'} (an entry exactly where "
+                        "dU/dT was admitted)")  # fmt: skip
+    if not h["entropic"] and params["dudt_v_per_k"] != 0.0:
+        raise DataError(f"{where}.parameters.dudt_v_per_k': {params['dudt_v_per_k']:g}, but "
+                        "entropic is false (dU/dT not admitted: 0)")  # fmt: skip
+    cand = h["entropic_candidate"]
+    want = {**params, "entropic_candidate": cand["value"]}
+    if h["entropic"]:
+        want["entropic_candidate"] = params["dudt_v_per_k"]
+    entries = {**h["intervals"], "entropic_candidate": cand}
+    for key, e in entries.items():
+        at = (f"{where}.intervals.{key}" if key != "entropic_candidate"
+              else f"{where}.entropic_candidate")  # fmt: skip
+        lo, hi = _HEAT_LIMITS.get(key, DUDT_LIMITS)
+        if not math.isclose(e["value"], want[key], rel_tol=DERIVED_RTOL, abs_tol=1e-15):
+            raise DataError(f"{at}.value': {e['value']:.10g}, but the parameter is "
+                            f"{want[key]:.10g}")  # fmt: skip
+        if not lo <= e["value"] <= hi:
+            raise DataError(f"{at}.value': {e['value']:.6g} outside the bounds it was fitted in "
+                            f"[{lo:g}, {hi:g}]")  # fmt: skip
+        _check_at_bound(e, (lo, hi), key, at)
+        _check_ends(e, at, lo, hi)
+
+
+DUDT_LIMITS = heat_mod.DUDT_LIMITS_V_PER_K
+
+
+def _check_at_bound(e: dict, bounds, key: str, at: str) -> None:
+    """``at_bound`` is what ``fitting.at_bound`` says of the value in the fit's coordinates
+    (log10 for C_th and hA, the value for dU/dT)."""
+    from . import fitting
+
+    f = math.log10 if key in ("c_th_j_per_k", "ha_w_per_k") else (lambda v: v)
+    bound = bool(fitting.at_bound(f(e["value"]), f(bounds[0]), f(bounds[1])))
+    if e["at_bound"] != bound:
+        raise DataError(f"{at}.at_bound': {json.dumps(e['at_bound'])}, but the value "
+                        f"{'is' if bound else 'is not'} at a bound of the fit")  # fmt: skip
+
+
+def _check_ends(e: dict, at: str, lo: float, hi: float) -> None:
+    """An interval entry's ends: both numbers or both null (null exactly at a bound), the low
+    end at most the value, the high end at least it, both inside the bounds [lo, hi]."""
+    has = not e["at_bound"]
+    for key in ("low95", "high95"):
+        if (e[key] is None) == has:
+            raise DataError(f"{at}.{key}': {json.dumps(e[key])}, but the parameter "
+                            f"{'has' if has else 'has no'} interval")  # fmt: skip
+    if not has:
+        return
+    tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
+    ptol = LIMIT_RTOL * max(abs(lo), abs(hi))
+    for key, ok in (("low95", e["low95"] <= e["value"] + tol),
+                    ("high95", e["high95"] >= e["value"] - tol)):  # fmt: skip
+        if not ok:
+            raise DataError(f"{at}.{key}': {e[key]:.6g}, on the wrong side of the value "
+                            f"{e['value']:.6g}")  # fmt: skip
+        if not lo - ptol <= e[key] <= hi + ptol:
+            raise DataError(f"{at}.{key}': {e[key]:.6g}, outside the bounds it was fitted in "
+                            f"[{lo:g}, {hi:g}]")  # fmt: skip
 
 
 def _derived_keys(config: Config) -> list[str]:

@@ -7,6 +7,8 @@
 - :func:`fade_figure`: experiment 3, capacity and resistance against the fade laws.
 - :func:`joint_temperature_figure`: issue 28, the unseen error against temperature, one model
   over every temperature beside each temperature's own.
+- :func:`joint_heat_figure`: issue 28, the cell temperature of each unseen cycle predicted from
+  the ambient alone against the thermocouple.
 
 Each writes ``<stem>.png`` and ``<stem>.pdf`` with :func:`.figures.save`.
 """
@@ -202,4 +204,41 @@ def joint_temperature_figure(df: pd.DataFrame, stem) -> None:
     ax.legend(fontsize=8)
     fig.suptitle("Panasonic NCR18650PF: unseen drive cycles, predicted with the measured "
                  "temperature", fontsize=9)  # fmt: skip
+    save(fig, stem)
+
+
+def joint_heat_figure(traces: pd.DataFrame, df: pd.DataFrame, stem) -> None:
+    """The cell temperature predicted from the ambient alone (the joint model's heat block)
+    against the thermocouple, one panel per unseen cycle (``joint_temperature_heat.csv``), its
+    RMSE from ``joint_temperature.csv`` in the panel's title; a note where the joint model has
+    no heat block (no traces)."""
+    keys = list(dict.fromkeys(traces["key"]))
+    cols = 2
+    rows = max(1, -(-len(keys) // cols))
+    fig = Figure(figsize=(7.2, 1.9 * rows + 0.6), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False).ravel())
+    rmse = {f"{r.temperature_c:g} °C {r.cycle}": r.temperature_rmse_k for r in df.itertuples()}
+    for ax, k in zip(axes, keys, strict=False):
+        tr = traces[traces["key"] == k]
+        minutes = (tr["time_s"] - tr["time_s"].iloc[0]) / 60.0
+        ax.plot(minutes, tr["temperature_c"], "-", color="0.2", lw=1.0, label="thermocouple")
+        ax.plot(minutes, tr["temperature_c_predicted"], "-", color="#d62728", lw=1.0,
+                label="predicted from the ambient")  # fmt: skip
+        temp, cycle = k.split("/", 1)
+        name = f"{float(temp.removesuffix('degC')):g} °C {cycle}"
+        ax.set_title(f"{name}: {rmse.get(name, np.nan):.2f} K RMS", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+        ax.set_ylabel("cell [°C]", fontsize=7)
+    for ax in axes[len(keys) :]:
+        ax.axis("off")
+    if keys:
+        axes[0].legend(fontsize=7)
+        for ax in axes[max(len(keys) - cols, 0) : len(keys)]:
+            ax.set_xlabel("time [min]", fontsize=7)
+    else:
+        axes[0].text(0.5, 0.5, "the joint model has no heat block", ha="center", va="center")
+    fig.suptitle("Panasonic NCR18650PF, unseen drive cycles: the cell temperature predicted "
+                 "from the ambient alone\n(one model of every temperature, its heat block)",
+                 fontsize=9)  # fmt: skip
     save(fig, stem)
