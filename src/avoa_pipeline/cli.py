@@ -768,7 +768,9 @@ def _export_pybamm(args) -> None:
         if check["rms_mv"] > to_pybamm.AGREEMENT_RMS_MV:
             notes.append(f"{out}: PyBaMM differs from our simulator by {check['rms_mv']:.3g} mV "
                          f"RMS on {args.record}, above {to_pybamm.AGREEMENT_RMS_MV:g} mV "
-                         "(docs/pybamm.md: the step and soc_resistance)")  # fmt: skip
+                         + ("(docs/pybamm.md: the thermal state, the temperature's hold)"
+                            if ambient is not None
+                            else "(docs/pybamm.md: the step and soc_resistance)"))  # fmt: skip
     inputs.warn(notes)
     print(line)
 
