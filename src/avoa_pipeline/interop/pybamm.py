@@ -27,9 +27,10 @@ A model.json's ``heat`` block (``model/heat.py``) becomes the module's thermal s
 item 4, :func:`thermal_block`): a submodel of its own, ``LumpedHeat``, not PyBaMM's cell-jig
 ``ThermalSubModel``, because q = I·(OCV − V) − I·T·dU/dT read from the model's own variables
 counts every overpotential (hysteresis, Butler–Volmer's I·η) as heat.py does, where PyBaMM's
-sums its elements' I²R-type heats and the diffusion overpotential only. The module's
-``simulate(..., ambient_c=...)`` predicts the temperature from the ambient; ``export --record``
-compares it with heat.py's prediction (:func:`thermal_agreement`).
+sums its elements' I²R-type heats and the diffusion overpotential only. It holds the
+temperature and the heat over each interval as our simulator and heat.py do (gated states).
+The module's ``simulate(..., ambient_c=...)`` predicts the temperature from the ambient;
+``export --record`` compares it with heat.py's prediction (:func:`thermal_agreement`).
 
 Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
 point of this module. PyBaMM is imported only by the functions that need it (optional extra).
@@ -352,14 +353,19 @@ def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}
         b = min(a + int(chunk), t.size - 1)  # this piece: samples a..b, b shared with the next
         part = slice(a, b + 1)
         updates, tt = drive(t[part], cur[part], None if temp is None else temp[part], ambient_c)
+        stops = tt
+        if predict:  # LumpedHeat samples as avoa-pipeline's records are (sampling_gates)
+            gates, stops = sampling_gates(tt)
+            updates.update(gates)
         values.update(updates)
         sim = pybamm.Simulation(model(predict), parameter_values=values, solver=solver)
-        solution = sim.solve(t_eval=tt, t_interp=tt)
-        voltage = solution["Voltage [V]"].entries
+        solution = sim.solve(t_eval=stops, t_interp=stops)
+        at = np.isin(stops, tt)[: solution.t.size]  # the samples among the stops
+        voltage = solution["Voltage [V]"].entries[at]
         if voltage.size != tt.size:
             raise RuntimeError(f"PyBaMM stopped at {{t[a] + solution.t[-1]:g}} s of "
                                f"{{t[-1]:g}} s ({{solution.termination}})")
-        cell_c = solution["Cell temperature [degC]"].entries if predict else voltage
+        cell_c = solution["Cell temperature [degC]"].entries[at] if predict else voltage
         if b == t.size - 1:
             pieces.append(voltage)
             temps.append(cell_c)
@@ -548,33 +554,48 @@ _LUMPED_HEAT = '''
 HEAT_C_TH_J_PER_K = {c_th!r}  # fitted: the cell's heat capacity
 HEAT_HA_W_PER_K = {ha!r}  # fitted: the conductance from the cell to the ambient
 HEAT_DUDT_V_PER_K = {dudt!r}  # the heat block's dU/dT (reversible heat only; 0: not identified)
+SAMPLING_FRACTION = 1.0e-3  # a sampling window's length, in the shortest interval
+SAMPLING_RATE_PER_WINDOW = 20.0  # a held value's rate while sampling: within e^-20 of its input
 
 
 class LumpedHeat(pybamm.BaseSubModel):
-    """The cell temperature as one state, fed by the heat q = I·(OCV − V) − I·T·dU/dT and cooled
+    """The cell temperature as a state, fed by the heat q = I·(OCV − V) − I·T·dU/dT and cooled
     through hA to the ambient ("Ambient temperature [K]"). It fills the slot of PyBaMM's
     cell-jig-ambient ThermalSubModel; the jig is the ambient (no jig state). dU/dT: PyBaMM's
     reversible heat (its "Entropic change [V/K]", the entropic element's where this cell has one)
     plus the heat block's own. The voltage is built after every other submodel (model()), so
-    reading it raises KeyError until then, and PyBaMM builds this submodel again afterwards."""
+    reading it raises KeyError until then, and PyBaMM builds this submodel again afterwards.
+
+    Sampled as avoa-pipeline's records are: its simulator holds the temperature over each
+    interval at its value at the sample, and its heat.py holds the heat. Two states do the same:
+    "Cell temperature [degC]" (what the resistances and the OCV read) follows the continuous
+    one only while the "Temperature sampling gate" is 1, and the "Held heat generation [W]"
+    that drives it follows q only while the "Heat sampling gate" is 1. simulate(..., ambient_c)
+    opens the first just before each sample and the second just after it (sampling_gates());
+    their default, 1, follows continuously (a continuous-time model)."""
 
     def __init__(self, param, options=None):
         super().__init__(param)
         self.model_options = options
 
     def get_fundamental_variables(self):
+        T_cont = pybamm.Variable("Cell temperature (continuous) [degC]")
         T_cell = pybamm.Variable("Cell temperature [degC]")
+        q_held = pybamm.Variable("Held heat generation [W]")
         T_amb = self.param.T_amb(pybamm.t)
         ha = pybamm.Parameter("Cell-ambient heat transfer coefficient [W/K]")
         return {{
+            "Cell temperature (continuous) [degC]": T_cont,
+            "Cell temperature (continuous) [K]": T_cont + 273.15,
             "Cell temperature [degC]": T_cell,
             "Cell temperature [K]": T_cell + 273.15,
+            "Held heat generation [W]": q_held,
             "Jig temperature [degC]": T_amb,
             "Jig temperature [K]": T_amb + 273.15,
             "Ambient temperature [degC]": T_amb,
             "Ambient temperature [K]": T_amb + 273.15,
-            "Heat transfer from cell to jig [W]": -ha * (T_cell - T_amb),
-            "Heat transfer from jig to ambient [W]": -ha * (T_cell - T_amb),
+            "Heat transfer from cell to jig [W]": -ha * (T_cont - T_amb),
+            "Heat transfer from jig to ambient [W]": -ha * (T_cont - T_amb),
         }}
 
     def get_coupled_variables(self, variables):
@@ -592,19 +613,57 @@ class LumpedHeat(pybamm.BaseSubModel):
         return variables
 
     def set_rhs(self, variables):
+        T_cont = variables["Cell temperature (continuous) [degC]"]
         T_cell = variables["Cell temperature [degC]"]
+        q_held = variables["Held heat generation [W]"]
         c_th = pybamm.Parameter("Cell heat capacity [J/K]")
+        rate = pybamm.Parameter("Sampling rate [1/s]")
+        time = {{"Time [s]": pybamm.t}}
+        gate_t = pybamm.FunctionParameter("Temperature sampling gate", time)
+        gate_q = pybamm.FunctionParameter("Heat sampling gate", time)
         q = variables["Total heat generation [W]"]
-        self.rhs = {{T_cell: (q + variables["Heat transfer from cell to jig [W]"]) / c_th}}
+        self.rhs = {{
+            T_cont: (q_held + variables["Heat transfer from cell to jig [W]"]) / c_th,
+            T_cell: gate_t * rate * (T_cont - T_cell),
+            q_held: gate_q * rate * (q - q_held),
+        }}
 
     def set_initial_conditions(self, variables):
-        T_cell = variables["Cell temperature [degC]"]
-        self.initial_conditions = {{T_cell: self.param.initial_T_cell}}
+        self.initial_conditions = {{
+            variables["Cell temperature (continuous) [degC]"]: self.param.initial_T_cell,
+            variables["Cell temperature [degC]"]: self.param.initial_T_cell,
+            variables["Held heat generation [W]"]: pybamm.Scalar(0.0),
+        }}
+
+
+def sampling_gates(time_s):
+    """(parameter updates, stops) that make LumpedHeat sample as avoa-pipeline does: the
+    temperature's gate open over [t_k − 2δ, t_k − δ] (so that the voltage at t_k reads the
+    temperature at t_k), the heat's over [t_k, t_k + δ] (the heat of row k's current), δ =
+    SAMPLING_FRACTION of the shortest interval. The stops (the solver's t_eval) lie inside each
+    window, where its gate is 1: an implicit step that ended where the gate is 0 would step
+    over the window unseen."""
+    t = np.asarray(time_s, dtype=float)
+    d = SAMPLING_FRACTION * float(np.min(np.diff(t)))
+    r = 0.1 * d  # each gate's ramps
+
+    def gate(starts):
+        x = np.column_stack([starts - r, starts, starts + d, starts + d + r]).ravel()
+        y = np.tile([0.0, 1.0, 1.0, 0.0], starts.size)
+        x = np.concatenate([[t[0] - 10 * d - 1.0], x, [t[-1] + 10 * d + 1.0]])
+        y = np.concatenate([[0.0], y, [0.0]])
+        return lambda time: pybamm.Interpolant(x, y, time, interpolator="linear")
+
+    t_starts = t[1:] - 2 * d
+    updates = {{"Temperature sampling gate": gate(t_starts), "Heat sampling gate": gate(t),
+                "Sampling rate [1/s]": SAMPLING_RATE_PER_WINDOW / d}}
+    inside = np.concatenate([t_starts + 0.5 * d, t_starts + d, t[:-1] + 0.5 * d, t[:-1] + d])
+    return updates, np.union1d(t, inside)
 
 
 # simulate(..., ambient_c=...): the submodel it adds, and the state it carries between pieces
 THERMAL_SUBMODELS = {{"Thermal": LumpedHeat}}
-THERMAL_STATES = {{"Cell temperature [K]": "Initial temperature [K]"}}
+THERMAL_STATES = {{"Cell temperature (continuous) [K]": "Initial temperature [K]"}}
 '''
 
 _NO_HEAT = """
@@ -626,13 +685,12 @@ def thermal_block(model: FittedModel) -> str:
     (Butler–Volmer) gives I²·R(I) where q counts I·η(I). ``LumpedHeat`` takes q from the
     model's own OCV and voltage, as ``model/heat.py`` does, so every element enters.
 
-    What it cannot match exactly: our simulator holds the temperature over each interval at its
-    sample's value and heat.py holds the heat; PyBaMM's state moves within the interval, and its
-    heat with it. On the Panasonic joint model (docs/pybamm.md, "The thermal state") the
-    temperatures agree within 0.02-0.03 K RMS, but the voltages by 0.11-0.83 mV RMS, above
-    :data:`AGREEMENT_RMS_MV`: a 0.02 K offset moves an Arrhenius resistance under 10-20 A by a
-    tenth of a millivolt, more at −10 °C. A sample-and-hold of both inside PyBaMM (two gated
-    states) was tried: IDAKLU steps over millisecond gates between its output times at rest."""
+    Sampled as ours: our simulator holds the temperature over each interval at its sample's
+    value and heat.py holds the heat; a continuous PyBaMM state differs from that by 0.11-0.83
+    mV RMS on the Panasonic joint model (0.02-0.03 K are tenths of a millivolt through its
+    Arrhenius resistances, docs/pybamm.md, "The thermal state"), so ``LumpedHeat`` holds both
+    by gated states that sample at each sample time (``sampling_gates`` in the module):
+    0.002-0.007 mV RMS there."""
     h = model.heat
     if h is None:
         return _NO_HEAT
@@ -646,7 +704,10 @@ def thermal_parameters(model: FittedModel) -> dict[str, str]:
         return {}
     return {"Cell heat capacity [J/K]": "HEAT_C_TH_J_PER_K",
             "Cell-ambient heat transfer coefficient [W/K]": "HEAT_HA_W_PER_K",
-            "Heat-only entropic change [V/K]": "HEAT_DUDT_V_PER_K"}  # fmt: skip
+            "Heat-only entropic change [V/K]": "HEAT_DUDT_V_PER_K",
+            # LumpedHeat's default: sampling always, so following continuously (0.1 ms)
+            "Temperature sampling gate": "1.0", "Heat sampling gate": "1.0",
+            "Sampling rate [1/s]": "1.0e4"}  # fmt: skip
 
 
 def thermal_agreement(module: types.ModuleType, model: FittedModel, frame: pd.DataFrame,
