@@ -248,6 +248,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="export without the elements PyBaMM's Thevenin model lacks, and write what that "
         "costs on --record (OUT with .dropped.csv)",
     )
+    x.add_argument(
+        "--predict-temperature",
+        action="store_true",
+        help="--to pybamm: compare on --record from its ambient alone (the model's heat block "
+        "predicts the cell temperature, in ours and in the module) even where it has "
+        "temperature_c; without it, so only where the record has none",
+    )
     x.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
     x.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)
 
@@ -622,11 +629,41 @@ EXPORT_TARGETS = ("pybamm", "table")
 
 
 def cmd_export(args) -> None:
+    if args.to == "table" and args.predict_temperature:
+        raise UserError("--predict-temperature applies to --to pybamm")
     if args.to == "table":
         return _export_table(args)
     if args.soc_grid is not None or args.temperatures is not None:
         raise UserError("--soc-grid and --temperatures apply to --to table")
     return _export_pybamm(args)
+
+
+def _export_ambient(args, model, rec) -> float | None:
+    """``export --to pybamm --record``'s temperature mode: the record's ambient (°C,
+    ``heat.ambient_of``) where the module's thermal state is compared (``--predict-temperature``,
+    or a record without temperature_c and a model with a heat block), else None (the measured
+    temperature, as ``simulate`` uses it); refused where a model needs a temperature and
+    neither is possible."""
+    from .model import elements, heat
+
+    if args.predict_temperature and rec is None:
+        raise UserError("--predict-temperature needs --record (where the comparison runs)")
+    if rec is None:
+        return None
+    has_t = "temperature_c" in rec.frame.columns
+    if has_t and not args.predict_temperature:
+        return None
+    if model.heat is None:
+        needs_t = sorted(e for e in model.config.effects if elements.get(e).needs_temperature)
+        if not args.predict_temperature and not needs_t:
+            return None
+        why = (
+            "--predict-temperature"
+            if args.predict_temperature
+            else (f"{args.record} has no temperature_c and the model has {', '.join(needs_t)}")
+        )
+        raise UserError(f"{args.model}: field 'heat': missing ({why})")
+    return heat.ambient_of(rec)[0]
 
 
 def _export_table(args) -> None:
@@ -682,7 +719,8 @@ def _export_pybamm(args) -> None:
     check_output(out, inputs=[args.model, args.record])
     check_output(out.with_suffix(".dropped.csv"), inputs=[args.model, args.record],
                  what="--out's cost file")  # fmt: skip
-    model, rec = _model_and_record(args, args.record)
+    model, rec = _model_and_record(args, args.record, predicts=True)
+    ambient = _export_ambient(args, model, rec)
     to_pybamm.check_exportable(model, args.model, args.drop_unsupported)
     frame = None if rec is None else rec.frame
     to_pybamm.require_pybamm()
@@ -692,7 +730,11 @@ def _export_pybamm(args) -> None:
     module = to_pybamm.load_source(ex.text)
     options, _ = to_pybamm.build(module)  # it loads before it is written
     # on a record, PyBaMM runs the module before it is written: its voltage against ours
-    check = None if frame is None else to_pybamm.agreement(module, ex.model, frame, ex.initial_soc)
+    check = None
+    if ambient is not None:  # the thermal state, from the record's ambient, against heat.py's
+        check = to_pybamm.thermal_agreement(module, ex.model, frame, ex.initial_soc, ambient)
+    elif frame is not None:
+        check = to_pybamm.agreement(module, ex.model, frame, ex.initial_soc)
     cost_path = out.with_suffix(".dropped.csv")
     with (
         atomic_path(out) as tmp,
@@ -720,10 +762,15 @@ def _export_pybamm(args) -> None:
         line += (f"; PyBaMM from {out.name} on {args.record}: {check['rms_mv']:.3g} mV RMS, "
                  f"{check['max_abs_mv']:.3g} mV at most from our simulator "
                  f"({check['seconds']:.1f} s)")  # fmt: skip
+        if "rms_k" in check:
+            line += (f"; temperature predicted from ambient {ambient:g} °C: "
+                     f"{check['rms_k']:.3g} K RMS, {check['max_abs_k']:.3g} K at most")  # fmt: skip
         if check["rms_mv"] > to_pybamm.AGREEMENT_RMS_MV:
             notes.append(f"{out}: PyBaMM differs from our simulator by {check['rms_mv']:.3g} mV "
                          f"RMS on {args.record}, above {to_pybamm.AGREEMENT_RMS_MV:g} mV "
-                         "(docs/pybamm.md: the step and soc_resistance)")  # fmt: skip
+                         + ("(docs/pybamm.md: the thermal state, the temperature's hold)"
+                            if ambient is not None
+                            else "(docs/pybamm.md: the step and soc_resistance)"))  # fmt: skip
     inputs.warn(notes)
     print(line)
 

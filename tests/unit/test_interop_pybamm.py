@@ -21,10 +21,11 @@ import numpy as np
 import pandas as pd
 import pytest
 from test_ecm import ACTIVE, TRUTH
+from test_model_json import heat_block
 
 from avoa_pipeline import cli
 from avoa_pipeline.interop import pybamm as X
-from avoa_pipeline.model import ecm, elements
+from avoa_pipeline.model import ecm, elements, heat
 from avoa_pipeline.model.elements.element import Export
 from avoa_pipeline.model.fitted import FittedModel
 
@@ -473,3 +474,105 @@ def test_the_command_line_does_not_import_pybamm():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, check=False)  # fmt: skip
     assert res.returncode == 0, res.stderr
+
+
+# ----------------------------------------------------------------------------------------------
+# the thermal state (issue 28 item 4): model.json's heat block as the module's LumpedHeat
+
+HEAT = heat_block()  # test_model_json's: an 18650 in a chamber, 40 J/K, 0.1 W/K, dU/dT admitted
+AMBIENT_C = 20.0
+THERMAL_TOL_K = 0.01
+"""The module's temperature (sampled as heat.py's: LumpedHeat's gates) against heat.py's: about
+0.0003 K RMS on this record, on which the cell heats by 9-11 K; 0.01 K is heat.py's own
+fixed-point tolerance (``heat.FIXED_POINT_TOL_K``) and 1/900 of the rise. Its voltage is held
+to the export's promise, TOL_RMS_MV (it measures 0.003-0.006 mV RMS)."""
+
+
+def with_heat(model: FittedModel, h: heat.Heat = HEAT) -> FittedModel:
+    return dataclasses.replace(model, heat=h)
+
+
+THERMAL_CASES = [("second_rc", "thermal"), ("thermal", "butler_volmer", "hysteresis", "diffusion")]
+
+
+@pytest.mark.parametrize("effects", THERMAL_CASES)
+def test_the_thermal_state_predicts_heat_pys_temperature_and_voltage(pybamm, effects):
+    """On a record without temperature, from the ambient alone: the module's temperature and
+    voltage against heat.py's fixed-point prediction (every overpotential in the heat: the
+    hysteresis and the surface-SoC lag too)."""
+    model = with_heat(fitted("table", effects))
+    frame = record(temperature=False)
+    module = X.loaded_module(model, SOC0)
+    got = X.thermal_agreement(module, model, frame, SOC0, AMBIENT_C)
+    ref = heat.predict(model, model.heat, frame, AMBIENT_C, soc0=SOC0)
+    rise = float(ref.temp_k.max()) - heat.KELVIN - AMBIENT_C
+    assert rise > 20 * THERMAL_TOL_K  # the cell heats: a state that stays at the ambient fails
+    assert got["rms_k"] <= THERMAL_TOL_K
+    assert got["rms_mv"] <= TOL_RMS_MV
+
+
+def test_the_thermal_state_heat_is_ours_not_pybamms_element_heat(pybamm):
+    """The heat PyBaMM integrates is q = I·(OCV − V) − I·T·dU/dT: with hysteresis (which PyBaMM's
+    ThermalSubModel does not count) the module's heat at the samples is heat.py's."""
+    model = with_heat(fitted("table", ("thermal", "hysteresis")))
+    frame = record(temperature=False)
+    module = X.loaded_module(model, SOC0)
+    v, temp_c = module.simulate(frame["time_s"], frame["current_a"], initial_soc=SOC0,
+                                ambient_c=AMBIENT_C)  # fmt: skip
+    q, _ = heat.heat_of(model, frame, np.asarray(temp_c) + heat.KELVIN, HEAT.dudt, SOC0)
+    i = frame["current_a"].to_numpy()
+    _, tr = model.simulate(frame.assign(temperature_c=temp_c), soc0=SOC0, traces=True)
+    ocv = ecm.ocv_values(ecm.to_physical(model.x)[0], tr[0], model.knots, model.config.table)
+    theirs = i * (ocv - v) - i * (np.asarray(temp_c) + heat.KELVIN) * HEAT.dudt
+    assert np.max(np.abs(q)) > 1.0  # watts: the record heats
+    np.testing.assert_allclose(theirs, q, atol=0.02 * np.max(np.abs(q)))
+
+
+def test_without_a_heat_block_ambient_c_is_refused(pybamm):
+    module = X.loaded_module(fitted("table", ("thermal",)), SOC0)
+    assert module.THERMAL_SUBMODELS == {}
+    frame = record(temperature=False)
+    with pytest.raises(ValueError, match="heat block"):
+        module.simulate(frame["time_s"], frame["current_a"], ambient_c=AMBIENT_C)
+
+
+def test_the_thermal_state_carries_over_the_pieces_of_a_record(pybamm):
+    """simulate() in pieces starts each where the last ended (THERMAL_STATES): its temperature
+    in small pieces is the one in a single piece."""
+    model = with_heat(fitted("table", ("second_rc", "thermal")))
+    frame = record(temperature=False)
+    module = X.loaded_module(model, SOC0)
+    args = (frame["time_s"], frame["current_a"])
+    v1, t1 = module.simulate(*args, initial_soc=SOC0, ambient_c=AMBIENT_C)
+    v2, t2 = module.simulate(*args, initial_soc=SOC0, ambient_c=AMBIENT_C, chunk=40)
+    assert float(np.ptp(t1)) > 1.0
+    np.testing.assert_allclose(t2, t1, atol=1e-3)
+    assert rms_mv(v2, v1) <= 0.01
+
+
+def test_export_compares_the_thermal_state_from_the_ambient(pybamm, tmp_path, capsys):
+    """--predict-temperature: the record's ambient (its first temperature sample, no sidecar)
+    drives both heat.py and the module; the line gives mV and K. Without a heat block it is
+    refused in one line, nothing written."""
+    model = with_heat(fitted("table", ("second_rc", "thermal")))
+    model.save(tmp_path / "model.json")
+    frame = record()
+    measured(model, frame).to_csv(tmp_path / "rec.csv", index=False)
+    out = tmp_path / "cell.py"
+    args = ["export", str(tmp_path / "model.json"), "--to", "pybamm", "--out", str(out),
+            "--record", str(tmp_path / "rec.csv"), "--predict-temperature"]  # fmt: skip
+    code, stdout, _ = run_cli(args, capsys)
+    assert code == 0
+    first = float(frame["temperature_c"].iloc[0])
+    assert f"temperature predicted from ambient {first:g} °C" in stdout
+    kelvin = float(stdout.split(" K RMS")[0].rsplit(" ", 1)[1])
+    assert 0.0 < kelvin <= THERMAL_TOL_K
+    assert "def model(predict_temperature=False)" in out.read_text()
+    fitted("table", ("second_rc", "thermal")).save(tmp_path / "plain.json")
+    out.unlink()
+    args[1] = str(tmp_path / "plain.json")
+    code, _, err = run_cli(args, capsys)
+    assert code == 2
+    assert err.strip().splitlines() == [f"error: {tmp_path / 'plain.json'}: field 'heat': missing "
+                                        "(--predict-temperature)"]  # fmt: skip
+    assert not out.exists()

@@ -23,6 +23,15 @@ updates exactly for a held current), and SOC-dependent resistances read the SoC 
 each interval of a record (``soc_at_interval_start``), as our simulator holds them.
 ``export --record`` runs the module on the record (:func:`agreement`) before it is written.
 
+A model.json's ``heat`` block (``model/heat.py``) becomes the module's thermal state (issue 28
+item 4, :func:`thermal_block`): a submodel of its own, ``LumpedHeat``, not PyBaMM's cell-jig
+``ThermalSubModel``, because q = I·(OCV − V) − I·T·dU/dT read from the model's own variables
+counts every overpotential (hysteresis, Butler–Volmer's I·η) as heat.py does, where PyBaMM's
+sums its elements' I²R-type heats and the diffusion overpotential only. It holds the
+temperature and the heat over each interval as our simulator and heat.py do (gated states).
+The module's ``simulate(..., ambient_c=...)`` predicts the temperature from the ambient;
+``export --record`` compares it with heat.py's prediction (:func:`thermal_agreement`).
+
 Hand-written: PyBaMM has no importer for a foreign equivalent-circuit model; the mapping is the
 point of this module. PyBaMM is imported only by the functions that need it (optional extra).
 """
@@ -229,7 +238,7 @@ CHUNK_SAMPLES = {chunk}  # simulate() solves a record in pieces of this many int
 STATES = {states}
 # Thevenin's submodels this cell replaces or adds (model()); empty: PyBaMM's Thevenin model
 SUBMODELS = {submodels}
-LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
+{thermal}LOWER_CUTOFF_V = {lower}  # not identified: wide, so that they never stop a record
 UPPER_CUTOFF_V = {upper}
 
 
@@ -255,11 +264,13 @@ def get_parameter_values():
 {extra_values}    }}
 
 
-def model():
+def model(predict_temperature=False):
     """PyBaMM's Thevenin model with OPTIONS, its submodels in the slots of SUBMODELS replaced
-    or added (the states this cell has beyond Thevenin's), without its SoC events."""
+    or added (the states this cell has beyond Thevenin's), without its SoC events; with
+    predict_temperature, THERMAL_SUBMODELS too (the cell's thermal state from the ambient)."""
     thevenin = pybamm.equivalent_circuit.Thevenin(options=OPTIONS, build=False)
-    for slot, submodel in SUBMODELS.items():
+    slots = {{**SUBMODELS, **(THERMAL_SUBMODELS if predict_temperature else {{}})}}
+    for slot, submodel in slots.items():
         thevenin.submodels[slot] = submodel(thevenin.param, thevenin.options)
     # the voltage reads what the others add to the OCV (entropic): built after them
     thevenin.submodels["Voltage"] = thevenin.submodels.pop("Voltage")
@@ -289,11 +300,12 @@ def held(time_s, values, lead_s=0.0):
     return lambda time: pybamm.Interpolant(x, y2, time, interpolator="linear")
 
 
-def drive(time_s, current_a, temperature_c=None):
+def drive(time_s, current_a, temperature_c=None, ambient_c=None):
     """(parameter updates, t_eval) that run a record: the current (A, positive = discharge) held
     over each interval; a measured temperature (°C) held too, as the ambient temperature that
     the cell follows, switched THERMAL_LEAD_S early so that the cell has reached it at each
-    sample time. Times count from the first sample."""
+    sample time; or an ambient (°C, one number) for the thermal state (model(True)) to
+    predict the cell temperature from. Times count from the first sample."""
     t = np.asarray(time_s, dtype=float)
     t = t - t[0]
     current = np.asarray(current_a, dtype=float){current_terms}
@@ -303,43 +315,66 @@ def drive(time_s, current_a, temperature_c=None):
         lead = min(THERMAL_LEAD_S, 0.1 * float(np.min(np.diff(t))))
         updates["Ambient temperature [K]"] = held(t, temp_k, lead)
         updates["Initial temperature [K]"] = float(temp_k[0])
+    if ambient_c is not None:
+        updates["Ambient temperature [K]"] = float(ambient_c) + 273.15
     return updates, t
 
 
 def simulate(time_s, current_a, temperature_c=None, initial_soc=None, rtol={tol}, atol={tol},
-             chunk=CHUNK_SAMPLES):
+             chunk=CHUNK_SAMPLES, ambient_c=None):
     """Terminal voltage (V) at each sample of a record, from PyBaMM's Thevenin model with these
     parameters (IDAKLU solver; the voltage at t_k is the one just after row k's current is
     applied, as avoa-pipeline computes it). Solved in pieces of ``chunk`` intervals, each
     starting from the state the one before ended in (STATES; the temperature is the
     record's): PyBaMM's time per step grows with the length of the held current, so one piece
-    for a whole long record costs time quadratic in its length."""
+    for a whole long record costs time quadratic in its length.
+
+    Two temperature modes: the measured ``temperature_c`` (or none: T_REF_K), which the cell
+    follows; or ``ambient_c`` (°C) alone, from which the cell's thermal state (THERMAL_SUBMODELS,
+    needs a heat block) predicts the temperature, starting at the ambient: then the result is
+    (voltage V, cell temperature °C), each at every sample."""
+    predict = ambient_c is not None
+    if predict and (temperature_c is not None or not THERMAL_SUBMODELS):
+        raise ValueError("simulate: ambient_c needs THERMAL_SUBMODELS (a model.json with a heat "
+                         "block) and no temperature_c")
+    states = {{**STATES, **(THERMAL_STATES if predict else {{}})}}
     t = np.asarray(time_s, dtype=float)
     cur = np.asarray(current_a, dtype=float)
     temp = None if temperature_c is None else np.asarray(temperature_c, dtype=float)
     values = pybamm.ParameterValues(get_parameter_values())
     if initial_soc is not None:
         values["Initial SoC"] = float(initial_soc)
+    if predict:
+        values["Initial temperature [K]"] = float(ambient_c) + 273.15
     solver = pybamm.IDAKLUSolver(rtol=rtol, atol=atol)
-    pieces = []
+    pieces, temps = [], []
     a = 0
     while True:
         b = min(a + int(chunk), t.size - 1)  # this piece: samples a..b, b shared with the next
         part = slice(a, b + 1)
-        updates, tt = drive(t[part], cur[part], None if temp is None else temp[part])
+        updates, tt = drive(t[part], cur[part], None if temp is None else temp[part], ambient_c)
+        stops = tt
+        if predict:  # LumpedHeat samples as avoa-pipeline's records are (sampling_gates)
+            gates, stops = sampling_gates(tt)
+            updates.update(gates)
         values.update(updates)
-        sim = pybamm.Simulation(model(), parameter_values=values, solver=solver)
-        solution = sim.solve(t_eval=tt, t_interp=tt)
-        voltage = solution["Voltage [V]"].entries
+        sim = pybamm.Simulation(model(predict), parameter_values=values, solver=solver)
+        solution = sim.solve(t_eval=stops, t_interp=stops)
+        at = np.isin(stops, tt)[: solution.t.size]  # the samples among the stops
+        voltage = solution["Voltage [V]"].entries[at]
         if voltage.size != tt.size:
             raise RuntimeError(f"PyBaMM stopped at {{t[a] + solution.t[-1]:g}} s of "
                                f"{{t[-1]:g}} s ({{solution.termination}})")
+        cell_c = solution["Cell temperature [degC]"].entries[at] if predict else voltage
         if b == t.size - 1:
             pieces.append(voltage)
-            return np.concatenate(pieces)
+            temps.append(cell_c)
+            v = np.concatenate(pieces)
+            return (v, np.concatenate(temps)) if predict else v
         pieces.append(voltage[:-1])
+        temps.append(cell_c[:-1])
         values = values.copy()
-        for state, initial in STATES.items():
+        for state, initial in states.items():
             values[initial] = float(solution[state].entries[-1])
         a = b
 '''
@@ -492,6 +527,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     # PyBaMM's own entropic change, which the header writes (0 without entropic)
     entropic = extra_values.pop("Entropic change [V/K]", "0.0")
     current_terms = "".join(f" + {t}" for p in pieces.values() for t in p.current_terms)
+    extra_values |= thermal_parameters(model)
     text += _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
         r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
@@ -500,8 +536,210 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
                      if held_soc else ""),
         submodels=_dict(submodels), current_terms=current_terms,
         extra_values=_entries(extra_values, indent=8), entropic=entropic,
+        thermal=thermal_block(model),
     )  # fmt: skip
     return text
+
+
+# ----------------------------------------------------------------------------------------------
+# the thermal state (issue 28 item 4): model.json's heat block as a submodel of the module
+
+_LUMPED_HEAT = '''
+# The cell's thermal state, from model.json's heat block (avoa-pipeline's model/heat.py):
+#     C_th·dT/dt = q − hA·(T − T_amb),   q = I·(OCV − V) − I·T·dU/dT
+# used by simulate(..., ambient_c=...) (model(predict_temperature=True)). The heat is read from
+# the model's own variables: I·(OCV − V) is every overpotential of this cell (R0 with its laws,
+# the RC branches, the surface-SoC lag, hysteresis), which PyBaMM's ThermalSubModel does not sum
+# (it adds each element's I²R-type heat and the diffusion overpotential only).
+HEAT_C_TH_J_PER_K = {c_th!r}  # fitted: the cell's heat capacity
+HEAT_HA_W_PER_K = {ha!r}  # fitted: the conductance from the cell to the ambient
+HEAT_DUDT_V_PER_K = {dudt!r}  # the heat block's dU/dT (reversible heat only; 0: not identified)
+SAMPLING_FRACTION = 1.0e-3  # a sampling window's length, in the shortest interval
+SAMPLING_RATE_PER_WINDOW = 20.0  # a held value's rate while sampling: within e^-20 of its input
+
+
+class LumpedHeat(pybamm.BaseSubModel):
+    """The cell temperature as a state, fed by the heat q = I·(OCV − V) − I·T·dU/dT and cooled
+    through hA to the ambient ("Ambient temperature [K]"). It fills the slot of PyBaMM's
+    cell-jig-ambient ThermalSubModel; the jig is the ambient (no jig state). dU/dT: PyBaMM's
+    reversible heat (its "Entropic change [V/K]", the entropic element's where this cell has one)
+    plus the heat block's own. The voltage is built after every other submodel (model()), so
+    reading it raises KeyError until then, and PyBaMM builds this submodel again afterwards.
+
+    Sampled as avoa-pipeline's records are: its simulator holds the temperature over each
+    interval at its value at the sample, and its heat.py holds the heat. Two states do the same:
+    "Cell temperature [degC]" (what the resistances and the OCV read) follows the continuous
+    one only while the "Temperature sampling gate" is 1, and the "Held heat generation [W]"
+    that drives it follows q only while the "Heat sampling gate" is 1. simulate(..., ambient_c)
+    opens the first just before each sample and the second just after it (sampling_gates());
+    their default, 1, follows continuously (a continuous-time model)."""
+
+    def __init__(self, param, options=None):
+        super().__init__(param)
+        self.model_options = options
+
+    def get_fundamental_variables(self):
+        T_cont = pybamm.Variable("Cell temperature (continuous) [degC]")
+        T_cell = pybamm.Variable("Cell temperature [degC]")
+        q_held = pybamm.Variable("Held heat generation [W]")
+        T_amb = self.param.T_amb(pybamm.t)
+        ha = pybamm.Parameter("Cell-ambient heat transfer coefficient [W/K]")
+        return {{
+            "Cell temperature (continuous) [degC]": T_cont,
+            "Cell temperature (continuous) [K]": T_cont + 273.15,
+            "Cell temperature [degC]": T_cell,
+            "Cell temperature [K]": T_cell + 273.15,
+            "Held heat generation [W]": q_held,
+            "Jig temperature [degC]": T_amb,
+            "Jig temperature [K]": T_amb + 273.15,
+            "Ambient temperature [degC]": T_amb,
+            "Ambient temperature [K]": T_amb + 273.15,
+            "Heat transfer from cell to jig [W]": -ha * (T_cont - T_amb),
+            "Heat transfer from jig to ambient [W]": -ha * (T_cont - T_amb),
+        }}
+
+    def get_coupled_variables(self, variables):
+        voltage = variables["Voltage [V]"]  # KeyError until the voltage is built: retried
+        current = variables["Current [A]"]
+        q_irr = current * (variables["Open-circuit voltage [V]"] - voltage)
+        dudt = pybamm.Parameter("Heat-only entropic change [V/K]")
+        q_rev = (variables["Reversible heat generation [W]"]
+                 - current * variables["Cell temperature [K]"] * dudt)
+        variables.update({{
+            "Irreversible heat generation [W]": q_irr,
+            "Reversible heat generation [W]": q_rev,
+            "Total heat generation [W]": q_irr + q_rev,
+        }})
+        return variables
+
+    def set_rhs(self, variables):
+        T_cont = variables["Cell temperature (continuous) [degC]"]
+        T_cell = variables["Cell temperature [degC]"]
+        q_held = variables["Held heat generation [W]"]
+        c_th = pybamm.Parameter("Cell heat capacity [J/K]")
+        rate = pybamm.Parameter("Sampling rate [1/s]")
+        time = {{"Time [s]": pybamm.t}}
+        gate_t = pybamm.FunctionParameter("Temperature sampling gate", time)
+        gate_q = pybamm.FunctionParameter("Heat sampling gate", time)
+        q = variables["Total heat generation [W]"]
+        self.rhs = {{
+            T_cont: (q_held + variables["Heat transfer from cell to jig [W]"]) / c_th,
+            T_cell: gate_t * rate * (T_cont - T_cell),
+            q_held: gate_q * rate * (q - q_held),
+        }}
+
+    def set_initial_conditions(self, variables):
+        self.initial_conditions = {{
+            variables["Cell temperature (continuous) [degC]"]: self.param.initial_T_cell,
+            variables["Cell temperature [degC]"]: self.param.initial_T_cell,
+            variables["Held heat generation [W]"]: pybamm.Scalar(0.0),
+        }}
+
+
+def sampling_gates(time_s):
+    """(parameter updates, stops) that make LumpedHeat sample as avoa-pipeline does: the
+    temperature's gate open over [t_k − 2δ, t_k − δ] (so that the voltage at t_k reads the
+    temperature at t_k), the heat's over [t_k, t_k + δ] (the heat of row k's current), δ =
+    SAMPLING_FRACTION of the shortest interval. The stops (the solver's t_eval) lie inside each
+    window, where its gate is 1: an implicit step that ended where the gate is 0 would step
+    over the window unseen."""
+    t = np.asarray(time_s, dtype=float)
+    d = SAMPLING_FRACTION * float(np.min(np.diff(t)))
+    r = 0.1 * d  # each gate's ramps
+
+    def gate(starts):
+        x = np.column_stack([starts - r, starts, starts + d, starts + d + r]).ravel()
+        y = np.tile([0.0, 1.0, 1.0, 0.0], starts.size)
+        x = np.concatenate([[t[0] - 10 * d - 1.0], x, [t[-1] + 10 * d + 1.0]])
+        y = np.concatenate([[0.0], y, [0.0]])
+        return lambda time: pybamm.Interpolant(x, y, time, interpolator="linear")
+
+    t_starts = t[1:] - 2 * d
+    updates = {{"Temperature sampling gate": gate(t_starts), "Heat sampling gate": gate(t),
+                "Sampling rate [1/s]": SAMPLING_RATE_PER_WINDOW / d}}
+    inside = np.concatenate([t_starts + 0.5 * d, t_starts + d, t[:-1] + 0.5 * d, t[:-1] + d])
+    return updates, np.union1d(t, inside)
+
+
+# simulate(..., ambient_c=...): the submodel it adds, and the state it carries between pieces
+THERMAL_SUBMODELS = {{"Thermal": LumpedHeat}}
+THERMAL_STATES = {{"Cell temperature (continuous) [K]": "Initial temperature [K]"}}
+'''
+
+_NO_HEAT = """
+# model.json has no heat block: no thermal state (simulate() needs a measured temperature or
+# none; ambient_c is refused)
+THERMAL_SUBMODELS = {}
+THERMAL_STATES = {}
+"""
+
+
+def thermal_block(model: FittedModel) -> str:
+    """The module's thermal section: the heat block's constants, the ``LumpedHeat`` submodel
+    and ``THERMAL_SUBMODELS``/``THERMAL_STATES`` where ``model.heat`` is fitted, else empty ones.
+
+    Why a submodel of our own and not PyBaMM's ``ThermalSubModel`` (cell + jig): mapped as the
+    cell-jig coefficient = hA and a jig held at the ambient, it would equal our lumped state
+    in its dynamics, but its heat sums each element's "irreversible heat generation" and the
+    diffusion overpotential only: hysteresis is missing and a resistance with a current law
+    (Butler–Volmer) gives I²·R(I) where q counts I·η(I). ``LumpedHeat`` takes q from the
+    model's own OCV and voltage, as ``model/heat.py`` does, so every element enters.
+
+    Sampled as ours: our simulator holds the temperature over each interval at its sample's
+    value and heat.py holds the heat; a continuous PyBaMM state differs from that by 0.11-0.83
+    mV RMS on the Panasonic joint model (0.02-0.03 K are tenths of a millivolt through its
+    Arrhenius resistances, docs/pybamm.md, "The thermal state"), so ``LumpedHeat`` holds both
+    by gated states that sample at each sample time (``sampling_gates`` in the module):
+    0.002-0.007 mV RMS there."""
+    h = model.heat
+    if h is None:
+        return _NO_HEAT
+    return _LUMPED_HEAT.format(c_th=float(h.c_th), ha=float(h.ha), dudt=float(h.dudt))
+
+
+def thermal_parameters(model: FittedModel) -> dict[str, str]:
+    """The parameters ``LumpedHeat`` reads (entries of ``get_parameter_values``; none without
+    a heat block)."""
+    if model.heat is None:
+        return {}
+    return {"Cell heat capacity [J/K]": "HEAT_C_TH_J_PER_K",
+            "Cell-ambient heat transfer coefficient [W/K]": "HEAT_HA_W_PER_K",
+            "Heat-only entropic change [V/K]": "HEAT_DUDT_V_PER_K",
+            # LumpedHeat's default: sampling always, so following continuously (0.1 ms)
+            "Temperature sampling gate": "1.0", "Heat sampling gate": "1.0",
+            "Sampling rate [1/s]": "1.0e4"}  # fmt: skip
+
+
+def thermal_agreement(module: types.ModuleType, model: FittedModel, frame: pd.DataFrame,
+                      soc0: float, ambient_c: float) -> dict:  # fmt: skip
+    """Ambient-only mode: PyBaMM's voltage and cell temperature from a loaded module (its
+    ``simulate(..., ambient_c=...)``) against ``model/heat.py``'s prediction (its fixed point,
+    to :data:`REFERENCE_TOL_K`) on ``frame``, both from ``soc0`` and the ambient: RMS and
+    largest |difference| in mV and K, PyBaMM's seconds; ``error`` when PyBaMM fails."""
+    import time
+
+    from ..model import heat
+
+    pybamm = require_pybamm()
+    ref = heat.predict(model, model.heat, frame, ambient_c, soc0=soc0, tol_k=REFERENCE_TOL_K)
+    run = frame.drop(columns=["temperature_c"], errors="ignore")
+    start = time.perf_counter()
+    try:
+        v, temp_c = module.simulate(run["time_s"].to_numpy(), run["current_a"].to_numpy(),
+                                    initial_soc=soc0, ambient_c=ambient_c)  # fmt: skip
+    except (RuntimeError, pybamm.SolverError) as exc:
+        return {"error": " ".join(str(exc).split())}
+    d = 1e3 * np.abs(np.asarray(v) - ref.voltage_v)
+    k = np.abs(np.asarray(temp_c) + heat.KELVIN - ref.temp_k)
+    return {"rms_mv": float(np.sqrt(np.mean(d**2))), "max_abs_mv": float(d.max()),
+            "rms_k": float(np.sqrt(np.mean(k**2))), "max_abs_k": float(k.max()),
+            "seconds": time.perf_counter() - start, "passes": ref.passes}  # fmt: skip
+
+
+REFERENCE_TOL_K = 1e-5
+"""The reference's fixed point (``heat.predict``) is solved to 10⁻⁵ K here, not to its 0.01 K:
+0.01 K of its own residue would move an Arrhenius resistance by up to 0.2 % (``heat``'s
+FIXED_POINT_TOL_K), a part of the 0.1 mV this comparison resolves."""
 
 
 # ----------------------------------------------------------------------------------------------
