@@ -9,6 +9,11 @@ The records are the canonical CSVs ``snakemake -j2 real`` writes (results/real/c
 
     nice -n 19 .venv/bin/python benchmarks/bench_joint.py
     ... --validate    # also every temperature's unseen cycles (rule panasonic_joint does)
+    ... --temperatures 25degC,0degC    # a smaller instance (two temperatures' records)
+
+Also printed: the cores this process may use (the selection's threads, ``selection.THREADS``).
+Measured: docs/real-data.md, "Time of the joint fit" (before the speed-ups, commit ce0cda2,
+1,802 s wall).
 """
 
 from __future__ import annotations
@@ -48,9 +53,12 @@ def main() -> None:
     ap.add_argument("--config", default="config/config.yaml")
     ap.add_argument("--canonical", default="results/real/canonical")
     ap.add_argument("--validate", action="store_true")
+    ap.add_argument("--temperatures", help="comma-separated, e.g. 25degC,0degC (default: all)")
     args = ap.parse_args()
 
     cfg = yaml.safe_load(Path(args.config).read_text())
+    if args.temperatures:
+        cfg["real"]["panasonic"]["experiment"]["temperatures"] = args.temperatures.split(",")
     train, unseen, ocv = records(cfg, Path(args.canonical))
     missing = [str(p) for p in (*train, *unseen, ocv) if not p.is_file()]
     if missing:
@@ -72,7 +80,8 @@ def main() -> None:
           f"{' + ' + str(len(unseen)) + ' unseen' if args.validate else ''}: "
           f"wall {wall:.1f} s, CPU {usage.ru_utime + usage.ru_stime:.1f} s, "
           f"peak RSS {usage.ru_maxrss / 1024:.0f} MB; load {load0:.2f} -> "
-          f"{os.getloadavg()[0]:.2f}; selected {report['selected']['name']}; "
+          f"{os.getloadavg()[0]:.2f} ({len(os.sched_getaffinity(0))} cores); "
+          f"selected {report['selected']['name']}; "
           f"diagnosis.json wall_s {report['wall_s']:.1f} (goal: <= 300 s)")  # fmt: skip
 
 
