@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -53,6 +54,7 @@ def main() -> None:
     ap.add_argument("--config", default="config/config.yaml")
     ap.add_argument("--canonical", default="results/real/canonical")
     ap.add_argument("--validate", action="store_true")
+    ap.add_argument("--keep", help="a folder to copy diagnosis.json and model.json into")
     ap.add_argument("--temperatures", help="comma-separated, e.g. 25degC,0degC (default: all)")
     args = ap.parse_args()
 
@@ -76,6 +78,10 @@ def main() -> None:
         if os.waitstatus_to_exitcode(status) != 0:
             sys.exit(f"error: diagnose exited with {os.waitstatus_to_exitcode(status)}")
         report = json.loads((Path(out) / "diagnosis.json").read_text())
+        if args.keep:  # to compare a run with another
+            Path(args.keep).mkdir(parents=True, exist_ok=True)
+            for name in ("diagnosis.json", "model.json"):
+                shutil.copy(Path(out) / name, Path(args.keep) / name)
     print(f"joint diagnosis of {len(train)} records ({report['n_samples']:,} samples)"
           f"{' + ' + str(len(unseen)) + ' unseen' if args.validate else ''}: "
           f"wall {wall:.1f} s, CPU {usage.ru_utime + usage.ru_stime:.1f} s, "
