@@ -33,7 +33,11 @@ first rung's held-out fits, the held-out parts of a model held out alone, and th
 order that does not pay is taken, as the one-at-a-time loop would). The compiled simulator and
 LAPACK release the GIL, and each fit computes the same numbers whichever thread runs it, so the
 selection is the same, bit for bit, with any number of threads
-(``tests/unit/test_selection_threads.py``).
+(``tests/unit/test_selection_threads.py``). Measured (``benchmarks/bench_joint.py``,
+docs/real-data.md "Time of the joint fit"): 1,802 s before (commit ce0cda2), 1,420 s with this,
+one BLAS thread (``diagnose.BLAS_THREADS``) and the rests' held temperature
+(``ecm.Record.rest_held``), on a loaded machine; the goal (300 s) is not met: the simulator's
+passes in the held-out fits remain.
 """
 
 from __future__ import annotations

@@ -79,7 +79,8 @@ def test_a_rest_holds_its_temperature_and_every_voltage_is_the_same(effects):
     held_dinv, held_rtf = rec.rest_held
     assert np.mean(np.diff(rec.dinv_t)[rest[1:]] != 0) > 0.5  # the flicker the shortcut skips
     tail = rest & np.concatenate([[False], rest[:-1]])
-    assert (np.diff(held_dinv)[tail[1:]] == 0).all() and (np.diff(held_rtf)[tail[1:]] == 0).all()
+    assert (np.diff(held_dinv)[tail[1:]] == 0).all()
+    assert (np.diff(held_rtf)[tail[1:]] == 0).all()
     assert (held_dinv[~tail] == rec.dinv_t[~tail]).all()
     X = _rows(effects)
     knots = ecm.Knots(0.5, 0.1)

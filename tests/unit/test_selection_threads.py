@@ -67,10 +67,12 @@ def test_a_ladder_is_the_same_on_one_thread_and_on_two(monkeypatch):
         lad = selection.ladder(ctx, selection.fit_base(ctx), EFFECTS)
         out[threads] = ctx.fits, lad
     (fits1, one), (fits2, two) = out[1], out[2]
-    assert one.rungs and one.final is not None  # the climb and the pruning ran
+    assert one.rungs  # the climb and the pruning ran
+    assert one.final is not None
     assert fits1 == fits2
     assert (one.rows, one.rungs, one.pruned) == (two.rows, two.rungs, two.pruned)
-    assert (one.final.X == two.final.X).all() and (one.final.ho == two.final.ho).all()
+    assert (one.final.X == two.final.X).all()
+    assert (one.final.ho == two.final.ho).all()
     for e, c in one.candidates.items():
         assert (c.X == two.candidates[e].X).all()
 
@@ -136,4 +138,5 @@ def test_a_diagnosis_runs_with_one_blas_thread(monkeypatch):
 
     monkeypatch.setattr(diagnose, "_diagnose_records", body)
     assert diagnose.diagnose_records(None) == "report"
-    assert seen and set(seen) == {diagnose.BLAS_THREADS}
+    assert seen
+    assert set(seen) == {diagnose.BLAS_THREADS}
