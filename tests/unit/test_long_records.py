@@ -157,3 +157,19 @@ def test_a_quick_diagnosis_is_silent(capsys, monkeypatch):
     monkeypatch.setattr(diagnose, "PROGRESS_AFTER_S", 1e9)
     diagnose.diagnose(_small_frame())
     assert capsys.readouterr().err == ""
+
+
+def test_an_element_that_reads_the_temperature_at_rest_keeps_the_measured_one(monkeypatch):
+    """Only the elements of REST_BLIND act through the current alone; another that reads the
+    temperature (here thermal, as if it acted at rest) turns the held rest temperature off
+    wherever it is not neutral."""
+    P = ecm.to_physical(_rows(("thermal",)))
+    assert not ecm.temperature_acts_at_rest(P)  # every temperature element today is blind
+    cols = np.array([ecm.IDX[n] for n in ecm.element_params("thermal")])
+    monkeypatch.setattr(ecm, "_REST_ACTING", cols)
+    assert ecm.temperature_acts_at_rest(P)
+    assert not ecm.temperature_acts_at_rest(ecm.to_physical(_rows(("second_rc",))))
+    rec = _flickering_record(n=3000)
+    measured, _ = ecm.simulate_rows(rec, _rows(("thermal",)), ecm.Knots(0.5, 0.1), traces=True)
+    np.testing.assert_array_equal(ecm.simulate_rows(rec, _rows(("thermal",)), ecm.Knots(0.5, 0.1)),
+                                  measured)  # fmt: skip

@@ -190,6 +190,33 @@ def to_physical(X: np.ndarray) -> np.ndarray:
     return P
 
 
+REST_BLIND = frozenset({"thermal", "butler_volmer", "bv_arrhenius"})
+"""Elements whose every temperature term multiplies the current (R0's and the RC resistances'
+Arrhenius factors, the Butler–Volmer overpotential and its exchange current): at zero current
+they make the temperature irrelevant, which :attr:`Record.rest_held` relies on. Any other element
+that reads the temperature (a law acting at rest, such as an entropic OCV term or temperature-
+dependent time constants) turns the held rest temperature off wherever it is not neutral
+(:func:`temperature_acts_at_rest`); a new one belongs here only if it too acts through the
+current alone, with a case in ``tests/unit/test_long_records.py``."""
+
+
+_REST_ACTING = np.array([IDX[n] for n, p in PARAMS.items()
+                         if p.element in elements.REGISTRY and p.element not in REST_BLIND
+                         and elements.get(p.element).needs_temperature], dtype=int)  # fmt: skip
+
+
+def temperature_acts_at_rest(P: np.ndarray) -> bool:
+    """Whether any physical row of ``P`` has an element that reads the temperature at zero
+    current (one not in REST_BLIND, not neutral; a vector parameter is not checked, so assumed
+    to act)."""
+    if _REST_ACTING.size == 0:
+        return False
+    if _REST_ACTING.max() >= N_SCALAR:
+        return True
+    neutral = to_physical(NEUTRAL)[0, _REST_ACTING]
+    return bool(np.any(P[:, _REST_ACTING] != neutral))
+
+
 def physical(x: np.ndarray, knots: Knots) -> Physical:
     """The physical values of internal vector ``x`` by name (an element's report and export)."""
     P = to_physical(x)[0]
@@ -742,12 +769,14 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
 
     ``idx``: return only these samples (sorted), shape (idx.size, m); the whole record is
     simulated all the same. Where no row carries a current offset (so that no current flows at
-    the record's zero-current samples), no load and no traces: the temperature held through
-    each rest (:attr:`Record.rest_held`; the same voltages, faster).
+    the record's zero-current samples), no element reads the temperature at rest
+    (:func:`temperature_acts_at_rest`), no load and no traces: the temperature held through each
+    rest (:attr:`Record.rest_held`; the same voltages, faster).
     """
     P = np.ascontiguousarray(np.atleast_2d(P), dtype=float)
     dinv_t, two_rt_f = rec.dinv_t, rec.two_rt_f
-    if load_ohm is None and not traces and not np.any(P[:, IOFF] != 0.0):
+    at_rest = load_ohm is None and not traces and not np.any(P[:, IOFF] != 0.0)
+    if at_rest and not temperature_acts_at_rest(P):
         dinv_t, two_rt_f = rec.rest_held
     if idx is None:
         sel = np.arange(rec.n)
