@@ -70,8 +70,10 @@ BLAS_THREADS = 1
 few products per iteration, far too small to share between threads. With OpenBLAS's default (one
 thread per core) the threads wait for each other and spin, taking the cores from the compiled
 simulator: on this 2-core machine under load, an SVD of a 20,000 × 25 Jacobian took 240 ms with 2
-threads and 29 ms with one, and the first rung of a two-temperature Panasonic diagnosis fell
-from 52 s to 9.6 s (``benchmarks/bench_joint.py``, docs/real-data.md "Time of the joint fit").
+threads and 29 ms with one, and the first rung of a two-temperature Panasonic diagnosis (up to
+its base held out, selection on one thread) fell from 58.7 s to 7.1 s, its SVDs from 11.2 s to
+0.26 s (``benchmarks/bench_joint.py --until ... --profile``, docs/real-data.md "Time of the joint
+fit"; the whole joint fit: 1,802 s before, 1,420 s after, with the selection's threads).
 One thread also makes the diagnosis's numbers independent of the machine's core count: a
 threaded BLAS splits its sums by the number of threads, which changes their last bits."""
 
