@@ -24,10 +24,27 @@ it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
    against the model without it (backward pruning, :func:`prune`).
 
 Only training records enter: a record passed for validation is never seen here.
+
+Time (issue 28: all four Panasonic temperatures, 8 records, 393,711 samples, ≤ 5 min on 2
+cores): the fits that do not depend on each other run on ``THREADS`` threads (:func:`each`):
+the candidates of a rung (each one's fit and, where it can pay, its held-out fits), the
+first rung's held-out fits, the held-out parts of a model held out alone, and the pruning's trials
+(each element of the final model removed in turn, all tried at once; the first in the sequential
+order that does not pay is taken, as the one-at-a-time loop would). The compiled simulator and
+LAPACK release the GIL, and each fit computes the same numbers whichever thread runs it, so the
+selection is the same, bit for bit, with any number of threads
+(``tests/unit/test_selection_threads.py``). Measured (``benchmarks/bench_joint.py``,
+docs/real-data.md "Time of the joint fit"): 1,802 s before (commit ce0cda2), 1,420 s with this,
+one BLAS thread (``diagnose.BLAS_THREADS``) and the rests' held temperature
+(``ecm.Record.rest_held``), on a loaded machine; the goal (300 s) is not met: the simulator's
+passes in the held-out fits remain.
 """
 
 from __future__ import annotations
 
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -59,6 +76,35 @@ MIN_SHRINK = 0.05
 is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 % passed the tests).
 A true effect whose base residual is r (in noise RMS units) can remove up to r²/(1 + r²): 5 % bites
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
+
+
+THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+               else (os.cpu_count() or 1))  # fmt: skip
+"""Threads for independent fits: the cores this process may use. The heavy parts of a fit (the
+compiled simulator, ``nogil``; LAPACK's SVD, one BLAS thread each, ``diagnose.BLAS_THREADS``)
+release the GIL, so fits on two cores take about half as long; more threads than cores would only
+take turns. Any value gives the same results."""
+
+_WORKER = threading.local()
+
+
+def each(fn, items) -> list:
+    """``[fn(x) for x in items]``, on up to ``THREADS`` threads, in the items' order. Inside a
+    task it runs them one by one (the tasks are as coarse as the caller could make them; a
+    pool inside a pool could wait for itself). An exception in a task is raised here."""
+    items = list(items)
+    if THREADS <= 1 or len(items) <= 1 or getattr(_WORKER, "busy", False):
+        return [fn(x) for x in items]
+
+    def task(x):
+        _WORKER.busy = True
+        try:
+            return fn(x)
+        finally:
+            _WORKER.busy = False
+
+    with ThreadPoolExecutor(min(THREADS, len(items))) as pool:
+        return list(pool.map(task, items))
 
 
 @dataclass
@@ -177,11 +223,18 @@ class Context:
         # each sample weighs n/(R·n_r): every record's mean squared error counts once
         self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
+        self._lock = threading.Lock()  # fits are counted from several threads (:func:`each`)
         self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
 
     def say(self, what: str) -> None:
         if self.progress is not None:
-            self.progress(what)
+            with self._lock:
+                self.progress(what)
+
+    def count(self, fits: int) -> None:
+        """Add to the fits the selection made (reported in ``diagnosis.json``)."""
+        with self._lock:
+            self.fits += fits
 
     def structure(self, effects, knots: Knots, recs=None) -> fitting.Structure:
         return fitting.structure(self.recs if recs is None else recs,
@@ -204,7 +257,7 @@ class Context:
         return Candidate(st, np.array(X), v, self.sse(v))
 
     def fit(self, st, starts) -> Candidate:
-        self.fits += len(starts)
+        self.count(len(starts))
         return self.evaluate(st, fitting.best_of(self.recs, st, starts).X)
 
     def cross_validate(self, cand: Candidate) -> Candidate:
@@ -212,45 +265,49 @@ class Context:
         full fit (the optimum of the training objective is what is scored; starting nearby only
         saves iterations): whole records with two or more, interleaved blocks with one."""
         ho = np.empty(self.n)
-        cand.fold_X = []
-        for r, f in enumerate(self.layout.folds):
-            if self.layout.by_record:
-                keep = [j for j in range(len(self.recs)) if j != r]
-                recs = [self.recs[j] for j in keep]
-                st = self.structure(cand.effects, cand.st.knots, recs)
-                if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
-                    st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
-                res = fitting.fit_structure(recs, st, cand.X[keep],
-                                            fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
-                                            max_nfev=100)  # fmt: skip
-                X = np.array(cand.X)
-                X[:, st.shared_idx] = res.X[0, st.shared_idx]
-                X = fitting.complete(st, self.recs, X)  # the held-out record starts by the rule
-                rec = self.recs[r]
-                ho[f] = ecm.simulate_rows(rec, X[r], st.knots, st.config.table,
-                                          st.config.load_ohm)[:, 0]  # fmt: skip
-            else:
-                held = self.layout.split(f)
-                masks = []
-                for rec, h in zip(self.recs, held, strict=True):
-                    m = np.ones(rec.n, dtype=bool)
-                    m[h] = False
-                    masks.append(m)
-                idxs = fitting.indices(self.recs, masks, fitting.MAX_FIT_POINTS)
-                st = cand.st
-                if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
-                    st = replace(st, knots=fitting.knots_for(self.recs, cand.X, masks))
-                X = fitting.fit_structure(self.recs, st, cand.X, idxs, max_nfev=100).X
-                # the voltage at the held-out samples only (the state still runs through all)
-                ho[f] = np.concatenate([
-                    ecm.simulate_rows(rec, X[r], st.knots, st.config.table, st.config.load_ohm,
-                                      idx=h)[:, 0]
-                    for r, (rec, h) in enumerate(zip(self.recs, held, strict=True))
-                ])  # fmt: skip
-            self.fits += 1
-            cand.fold_X.append(X)
+        cand.fold_X = each(lambda r: self._held_out(cand, r, ho), range(len(self.layout.folds)))
+        self.count(len(self.layout.folds))
         cand.ho = ho
         return cand
+
+    def _held_out(self, cand: Candidate, r: int, ho: np.ndarray) -> np.ndarray:
+        """Fold (or held-out record) ``r`` of :meth:`cross_validate`: its fit's rows; its
+        held-out voltage written into ``ho``."""
+        f = self.layout.folds[r]
+        if self.layout.by_record:
+            keep = [j for j in range(len(self.recs)) if j != r]
+            recs = [self.recs[j] for j in keep]
+            st = self.structure(cand.effects, cand.st.knots, recs)
+            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
+                st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
+            res = fitting.fit_structure(recs, st, cand.X[keep],
+                                        fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
+                                        max_nfev=100)  # fmt: skip
+            X = np.array(cand.X)
+            X[:, st.shared_idx] = res.X[0, st.shared_idx]
+            X = fitting.complete(st, self.recs, X)  # the held-out record starts by the rule
+            rec = self.recs[r]
+            ho[f] = ecm.simulate_rows(rec, X[r], st.knots, st.config.table,
+                                      st.config.load_ohm)[:, 0]  # fmt: skip
+        else:
+            held = self.layout.split(f)
+            masks = []
+            for rec, h in zip(self.recs, held, strict=True):
+                m = np.ones(rec.n, dtype=bool)
+                m[h] = False
+                masks.append(m)
+            idxs = fitting.indices(self.recs, masks, fitting.MAX_FIT_POINTS)
+            st = cand.st
+            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
+                st = replace(st, knots=fitting.knots_for(self.recs, cand.X, masks))
+            X = fitting.fit_structure(self.recs, st, cand.X, idxs, max_nfev=100).X
+            # the voltage at the held-out samples only (the state still runs through all)
+            ho[f] = np.concatenate([
+                ecm.simulate_rows(rec, X[r], st.knots, st.config.table, st.config.load_ohm,
+                                  idx=h)[:, 0]
+                for r, (rec, h) in enumerate(zip(self.recs, held, strict=True))
+            ])  # fmt: skip
+        return X
 
     def ho_loss(self, cand: Candidate) -> np.ndarray:
         """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
@@ -289,19 +346,23 @@ def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> t
 def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
                 rung: int = 1) -> dict[str, Candidate]:  # fmt: skip
     """Fit ref + each remaining element; with ``cv``, cross-validate those that can pay (a fit
-    with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error)."""
-    cands = {}
-    for j, e in enumerate(remaining):
+    with ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error). The candidates are
+    fitted side by side (:func:`each`)."""
+    done = []
+
+    def one(e: str) -> Candidate:
         st = ctx.structure((*ref.effects, e), ref.st.knots)
         c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
         if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
             c = ctx.evaluate(st, fitting.neutralise(ref.X, (e,)))
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
-        cands[e] = c
+        done.append(e)
         ctx.say(f"rung {rung}: {e} fitted{', held out' if c.ho is not None else ''} "
-                f"({j + 1}/{len(remaining)})")  # fmt: skip
-    return cands
+                f"({len(done)}/{len(remaining)})")  # fmt: skip
+        return c
+
+    return dict(zip(remaining, each(one, remaining), strict=True))
 
 
 def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dict]:
@@ -460,25 +521,37 @@ def prune(ctx: Context, final: Candidate) -> tuple[Candidate, list[dict]]:
     starts again from the smaller model. Returns the pruned model and one row per drop."""
     dropped = []
     while final.effects:
-        for e in reversed(final.effects):
-            rest = tuple(x for x in final.effects if x != e)
-            if any(ecm.REQUIRES.get(x) == e for x in rest):
-                continue  # another element needs it
-            st = ctx.structure(rest, final.st.knots)
-            start = fitting.neutralise(final.X, (e,))
-            idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
-            reduced = ctx.evaluate(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
-            ctx.fits += 1
-            ctx.cross_validate(reduced)
-            (row,) = judge(ctx, reduced, {e: final})
+        order = [e for e in reversed(final.effects)
+                 if not any(ecm.REQUIRES.get(x) == e for x in final.effects if x != e)]  # fmt: skip
+        # every element's trial at once (:func:`each`); taken in the sequential order, up to
+        # the first drop, as the one-at-a-time loop would
+        trials = each(lambda e, f=final: _without(ctx, f, e), order)
+        drop = next((k for k, (_, _, row) in enumerate(trials) if not row["pays"]), None)
+        needed = trials if drop is None else trials[: drop + 1]
+        for e, _, row in needed:
             ctx.say(f"pruning: {e} {'stays' if row['pays'] else 'dropped'}")
-            if not row["pays"]:
-                dropped.append({**row, "from": list(final.effects)})
-                final = reduced
-                break
-        else:
+        # the fits counted are those the one-at-a-time rule makes (a reduced model's fit, then
+        # one per held-out part, per trial up to the first drop), not those tried ahead
+        ctx.count(-(len(trials) - len(needed)) * (1 + len(ctx.layout.folds)))
+        if drop is None:
             break
+        _, reduced, row = trials[drop]
+        dropped.append({**row, "from": list(final.effects)})
+        final = reduced
     return final, dropped
+
+
+def _without(ctx: Context, final: Candidate, e: str) -> tuple[str, Candidate, dict]:
+    """One trial of :func:`prune`: ``final`` refitted with ``e`` neutral, held out, and judged
+    against ``final``."""
+    st = ctx.structure(tuple(x for x in final.effects if x != e), final.st.knots)
+    start = fitting.neutralise(final.X, (e,))
+    idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
+    reduced = ctx.evaluate(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
+    ctx.count(1)
+    ctx.cross_validate(reduced)
+    (row,) = judge(ctx, reduced, {e: final})
+    return e, reduced, row
 
 
 def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
@@ -495,15 +568,18 @@ def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
         if rb.rss < base.rss * (1 - 1e-9):
             idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
             base = ctx.evaluate(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
-    ctx.cross_validate(base)
-    ctx.say("rung 1: base held out")
     # only a candidate whose full fit can pay is held out (as on the later rungs): one whose
     # ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error (against a re-polished,
     # better base its ΔBIC only rises), so holding it out would change no verdict
-    for e, c in cands.items():
-        if bic(c.rss, ctx.n, c.k) - bic(base.rss, ctx.n, base.k) < BIC_MAX:
-            ctx.cross_validate(c)
-            ctx.say(f"rung 1: {e} held out")
+    held = {"base": base}
+    held.update((e, c) for e, c in cands.items()
+                if bic(c.rss, ctx.n, c.k) - bic(base.rss, ctx.n, base.k) < BIC_MAX)  # fmt: skip
+
+    def hold_out(e: str) -> None:
+        ctx.cross_validate(held[e])
+        ctx.say(f"rung 1: {e} held out")
+
+    each(hold_out, held)
     rows = judge(ctx, base, cands)
     winner = choose(ctx, rows, cands)
     ctx.say(f"rung 1: {len(cands)} candidates, {winner or 'none'} wins")

@@ -55,6 +55,44 @@ def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature):
         np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx])
 
 
+def _flickering_record(n=20000, seed=1) -> ecm.Record:
+    """Rests and holds at 1 Hz, a measured temperature that moves by a hundredth of a kelvin at
+    most samples (as the Panasonic thermocouple does) and drifts by kelvins."""
+    rng = np.random.default_rng(seed)
+    cur = np.concatenate([np.full(int(rng.uniform(5, 600)), rng.choice([0, 0, 1.5, -1, 3.0]))
+                          for _ in range(n // 100)])[:n]  # fmt: skip
+    t = np.arange(cur.size, dtype=float)
+    temp = 25.0 + 5.0 * np.sin(t / 4000.0) + 0.01 * rng.integers(-1, 2, t.size)
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
+    return ecm.Record.from_frame(frame, tref_k=298.15)
+
+
+@pytest.mark.parametrize("effects", [("thermal",), ("thermal", "hysteresis", "diffusion"),
+                                     ("butler_volmer", "bv_arrhenius", "second_rc"),
+                                     ("thermal", "r0_charge", "r1_soc", "soc_resistance"),
+                                     ("thermal", "current_offset")])  # fmt: skip
+def test_a_rest_holds_its_temperature_and_every_voltage_is_the_same(effects):
+    """At zero current the temperature acts on nothing: the simulator is given each rest's
+    first temperature through the rest (``Record.rest_held``, so that a rest is one hold) and
+    returns, bit for bit, the voltages of the measured temperature (the traced pass, which
+    always reads the measured one). With a current offset a current flows at rest: the
+    measured temperature is kept."""
+    rec = _flickering_record()
+    rest = rec.i == 0.0
+    held_dinv, held_rtf = rec.rest_held
+    assert np.mean(np.diff(rec.dinv_t)[rest[1:]] != 0) > 0.5  # the flicker the shortcut skips
+    tail = rest & np.concatenate([[False], rest[:-1]])
+    assert (np.diff(held_dinv)[tail[1:]] == 0).all()
+    assert (np.diff(held_rtf)[tail[1:]] == 0).all()
+    assert (held_dinv[~tail] == rec.dinv_t[~tail]).all()
+    X = _rows(effects)
+    knots = ecm.Knots(0.5, 0.1)
+    measured, _ = ecm.simulate_rows(rec, X, knots, traces=True)
+    np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots), measured)
+    idx = np.arange(5, rec.n, 37)
+    np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), measured[idx])
+
+
 def test_thinned_output_under_a_load_is_the_full_pass():
     """Under the paper's load the current follows the voltage: no shortcut may skip it."""
     rec = _held_record(n=5000)
@@ -122,3 +160,19 @@ def test_a_quick_diagnosis_is_silent(capsys, monkeypatch):
     monkeypatch.setattr(diagnose, "PROGRESS_AFTER_S", 1e9)
     diagnose.diagnose(_small_frame())
     assert capsys.readouterr().err == ""
+
+
+def test_an_element_that_reads_the_temperature_at_rest_keeps_the_measured_one(monkeypatch):
+    """Only the elements of REST_BLIND act through the current alone; another that reads the
+    temperature (here thermal, as if it acted at rest) turns the held rest temperature off
+    wherever it is not neutral."""
+    P = ecm.to_physical(_rows(("thermal",)))
+    assert not ecm.temperature_acts_at_rest(P)  # every temperature element today is blind
+    cols = np.array([ecm.IDX[n] for n in ecm.element_params("thermal")])
+    monkeypatch.setattr(ecm, "_REST_ACTING", cols)
+    assert ecm.temperature_acts_at_rest(P)
+    assert not ecm.temperature_acts_at_rest(ecm.to_physical(_rows(("second_rc",))))
+    rec = _flickering_record(n=3000)
+    measured, _ = ecm.simulate_rows(rec, _rows(("thermal",)), ecm.Knots(0.5, 0.1), traces=True)
+    np.testing.assert_array_equal(ecm.simulate_rows(rec, _rows(("thermal",)), ecm.Knots(0.5, 0.1)),
+                                  measured)  # fmt: skip

@@ -40,6 +40,7 @@ import time
 import numpy as np
 import pandas as pd
 from scipy import stats
+from threadpoolctl import threadpool_limits
 
 from .. import __version__, records, selection
 from ..errors import DataError, UserError
@@ -62,6 +63,19 @@ PROGRESS_AFTER_S = 10.0
 """A diagnosis says where it is on stderr once it has run this long, never before: a quick one
 (the tests' and the withheld-effect grid's records, seconds each) stays silent, and a long record
 (10⁶ samples take minutes) is not silent for minutes. stdout keeps its one line."""
+
+BLAS_THREADS = 1
+"""BLAS threads during a diagnosis (issue 28's time goal). Its linear algebra is scipy's
+``least_squares`` on tall, thin Jacobians (≤ 20,000 residuals × ≤ 30 parameters): an SVD and a
+few products per iteration, far too small to share between threads. With OpenBLAS's default (one
+thread per core) the threads wait for each other and spin, taking the cores from the compiled
+simulator: on this 2-core machine under load, an SVD of a 20,000 × 25 Jacobian took 240 ms with 2
+threads and 29 ms with one, and the first rung of a two-temperature Panasonic diagnosis (up to
+its base held out, selection on one thread) fell from 58.7 s to 7.1 s, its SVDs from 11.2 s to
+0.26 s (``benchmarks/bench_joint.py --until ... --profile``, docs/real-data.md "Time of the joint
+fit"; the whole joint fit: 1,802 s before, 1,420 s after, with the selection's threads).
+One thread also makes the diagnosis's numbers independent of the machine's core count: a
+threaded BLAS splits its sums by the number of threads, which changes their last bits."""
 
 # trimmed standard deviation of a normal (1 % per tail) relative to the untrimmed one
 _Z_TRIM = stats.norm.ppf(0.99)
@@ -337,8 +351,15 @@ def diagnose_records(train, capacity_ah=None, soc0=None, source="<data>", ocv_ta
     curve. ``validate``: checked records never used for any choice. ``warnings``: what the input
     layer found odd, carried into the report. Every option is checked before the first fit.
     ``progress``: where a long diagnosis says where it is (True: stderr; None or False: nowhere;
-    or a text stream).
+    or a text stream). Runs with ``BLAS_THREADS`` BLAS threads (why: its docstring).
     """
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        return _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, warnings,
+                                 progress)  # fmt: skip
+
+
+def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, warnings, progress):
+    """The body of :func:`diagnose_records`."""
     t_start = time.perf_counter()
     train = _checked(train, source)
     validate = _checked(validate, "<validate>") if validate is not None and len(validate) else []
