@@ -543,28 +543,13 @@ def _check_intervals(model: FittedModel, params: dict, source: str) -> None:
         if e["at_bound"] != bound:
             raise DataError(f"{at}.at_bound': {json.dumps(e['at_bound'])}, but the value "
                             f"{'is' if bound else 'is not'} at a bound of the fit")  # fmt: skip
-        ends = {"low95": e["low95"], "high95": e["high95"]}
         has = not (held or bound)
-        for key, end in ends.items():
-            if (end is None) == has:
-                raise DataError(f"{at}.{key}': {json.dumps(end)}, but the parameter "
-                                f"{'has' if has else 'has no'} interval")  # fmt: skip
+        _check_ends(e, at, *model.physical_bounds(n), has=has)
         if not has:
             if e["identified"]:
                 raise DataError(f"{at}.identified': true, but the parameter has no interval")
             continue
-        tol = DERIVED_RTOL * max(1.0, abs(e["value"]))
-        plo, phi = model.physical_bounds(n)
-        ptol = LIMIT_RTOL * max(abs(plo), abs(phi))
-        for key, ok in (("low95", ends["low95"] <= e["value"] + tol),
-                        ("high95", ends["high95"] >= e["value"] - tol)):  # fmt: skip
-            if not ok:
-                raise DataError(f"{at}.{key}': {ends[key]:.6g}, on the wrong side of the value "
-                                f"{e['value']:.6g}")  # fmt: skip
-            if not plo - ptol <= ends[key] <= phi + ptol:  # intervals end inside the fit's bounds
-                raise DataError(f"{at}.{key}': {ends[key]:.6g}, outside the bounds it was "
-                                f"fitted in [{plo:.6g}, {phi:.6g}]")  # fmt: skip
-        width = abs(np.diff([ecm.internal_value(rep, ends[k])[1] for k in ends])[0])
+        width = abs(np.diff([ecm.internal_value(rep, e[k])[1] for k in ("low95", "high95")])[0])
         if e["identified"] != intervals.identified(width, lo, hi):
             raise DataError(f"{at}.identified': {json.dumps(e['identified'])}, but its interval "
                             f"spans {width / (hi - lo):.3g} of its range (identified at most "
@@ -680,10 +665,11 @@ def _check_at_bound(e: dict, bounds, key: str, at: str) -> None:
                         f"{'is' if bound else 'is not'} at a bound of the fit")  # fmt: skip
 
 
-def _check_ends(e: dict, at: str, lo: float, hi: float) -> None:
-    """An interval entry's ends: both numbers or both null (null exactly at a bound), the low
-    end at most the value, the high end at least it, both inside the bounds [lo, hi]."""
-    has = not e["at_bound"]
+def _check_ends(e: dict, at: str, lo: float, hi: float, has: bool | None = None) -> None:
+    """An interval entry's ends: both numbers or both null (null exactly where it ``has`` no
+    interval: by default at a bound), the low end at most the value, the high end at least it,
+    both inside the bounds [lo, hi]. The one check of the fit's intervals and the heat block's."""
+    has = not e["at_bound"] if has is None else has
     for key in ("low95", "high95"):
         if (e[key] is None) == has:
             raise DataError(f"{at}.{key}': {json.dumps(e[key])}, but the parameter "
