@@ -31,7 +31,7 @@ import pandas as pd
 
 from .. import __version__, records
 from ..errors import UserError
-from ..model import ecm
+from ..model import ecm, elements
 from ..model.elements.element import FARADAY, GAS_R
 from ..model.fitted import FittedModel
 
@@ -55,9 +55,11 @@ near 25 °C, so a linear interpolation over 2 K is off by about 0.1 % of the res
 (h²/8 times the curvature)."""
 SOC_RANGE = (0.0, 1.0)
 """A grid SOC lies in [0, 1]: the state of charge a BMS table covers."""
-TEMPERATURE_DEPENDENT = ("thermal", "butler_volmer", "bv_arrhenius", "thermal_tau", "entropic",
-                         "capacity_temperature")  # fmt: skip
-"""Elements whose laws depend on the cell temperature (Butler–Volmer through RT/F)."""
+TEMPERATURE_DEPENDENT = frozenset(
+    {e.name for e in elements.REGISTRY.values() if e.needs_temperature} | {"butler_volmer"}
+)
+"""Elements whose laws depend on the cell temperature: those the registry says need one, and
+Butler–Volmer (through RT/F, at 25 °C without a temperature)."""
 EXPRESSED = frozenset({
     "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
     "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency",
@@ -132,7 +134,7 @@ def default_temperatures(model: FittedModel) -> np.ndarray:
     """T_ref alone for a model whose laws do not depend on temperature; else T_ref ±
     TEMPERATURE_SPAN_K in TEMPERATURE_STEP_K (°C, rounded to 0.01 K)."""
     tref_c = model.tref_k - 273.15
-    if not set(TEMPERATURE_DEPENDENT) & set(model.config.effects):
+    if not TEMPERATURE_DEPENDENT & set(model.config.effects):
         return np.array([round(tref_c, 2)])
     n = round(2 * TEMPERATURE_SPAN_K / TEMPERATURE_STEP_K)
     return np.round(tref_c - TEMPERATURE_SPAN_K + TEMPERATURE_STEP_K * np.arange(n + 1), 2)
