@@ -109,6 +109,14 @@ SAMSUNG_JOINT_TABLE = "results/real/samsung_joint_temperature.csv"
 unseen temperature (rules ``real_samsung_diagnose``, ``real_samsung_joint_table``)."""
 
 
+def samsung_joint_fits(cfg: Mapping) -> dict[str, list[str]]:
+    """Issue 28 on the Samsung 30Q: each diagnosis's training temperatures, the joint fit of
+    ``real.samsung.joint.train`` and each of them alone (empty without that section)."""
+    joint = ((cfg.get("real") or {}).get("samsung") or {}).get("joint") or {}
+    train = list(joint.get("train") or [])
+    return {"joint": train, **{t: [t] for t in train}} if train else {}
+
+
 def cell_targets(cfg: Mapping) -> list[str]:
     """The final outputs of experiments 2 and 3 for the sections the config has."""
     real = cfg.get("real") or {}

@@ -53,3 +53,10 @@ def test_the_table_is_a_target_only_with_the_joint_section():
     assert plan.SAMSUNG_JOINT_TABLE not in plan.cell_targets(cfg)
     cfg["real"]["samsung"]["joint"] = {"train": ["20degC", "40degC"], "unseen": "30degC"}
     assert plan.SAMSUNG_JOINT_TABLE in plan.cell_targets(cfg)
+
+
+def test_the_joint_fit_and_each_training_temperature_alone():
+    assert plan.samsung_joint_fits({"real": {"samsung": {"hppc": {}}}}) == {}
+    cfg = {"real": {"samsung": {"joint": {"train": ["20degC", "40degC"], "unseen": "30degC"}}}}
+    assert plan.samsung_joint_fits(cfg) == {"joint": ["20degC", "40degC"], "20degC": ["20degC"],
+                                            "40degC": ["40degC"]}  # fmt: skip

@@ -163,6 +163,14 @@ def pan_canon(name):
     return f"{REAL_CANON}/{plan.canonical_name(name)}.csv"
 
 
+SAMSUNG_JOINT = SAMSUNG_CFG.get("joint") or {}
+SAMSUNG_FITS = plan.samsung_joint_fits(config)  # issue 28's Samsung diagnoses (rules in real.smk)
+
+
+def samsung_canon(temp):
+    return f"{REAL_CANON}/samsung_hppc_{temp}.csv"
+
+
 def pan_train(w):
     return pan_canon(f"{w.ptemp}/{PAN_EXP['train'][w.ptemp]}")
 

@@ -316,13 +316,7 @@ if SAMSUNG_CFG:
             "../scripts/real_samsung_arrhenius.py"
 
 
-if SAMSUNG_CFG.get("joint"):
-    SAMSUNG_JOINT = SAMSUNG_CFG["joint"]
-    SAMSUNG_FITS = {"joint": list(SAMSUNG_JOINT["train"]),
-                    **{t: [t] for t in SAMSUNG_JOINT["train"]}}  # the joint fit and each alone
-
-    def samsung_canon(temp):
-        return f"{REAL_CANON}/samsung_hppc_{temp}.csv"
+if SAMSUNG_FITS:
 
     rule real_samsung_diagnose:
         """Issue 28 on the Samsung 30Q (docs/real-data.md, its rule): the diagnosis of the training
