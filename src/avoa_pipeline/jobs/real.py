@@ -336,6 +336,12 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
 
     import pandas as pd
 
+    from ..io import atomic_path
+    from ..model import ecm, elements
+
+    # the temperature laws: every parameter of an element that needs a temperature
+    laws_of = {e.name for e in elements.REGISTRY.values() if e.needs_temperature}
+    law_names = {p.report for p in ecm.PARAMS.values() if p.element in laws_of}
     target, rows = Path(unseen_csv).resolve(), []
     for label, path in diagnoses.items():
         report = json.loads(Path(path).read_text())
@@ -344,8 +350,7 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
                if v["model"] == name and Path(v["record"]).resolve() == target]  # fmt: skip
         if len(hit) != 1:
             raise ValueError(f"{path}: no one validation entry of {name} on {unseen_csv}")
-        laws = {k: v for k, v in report["selected"]["parameters"].items()
-                if k.startswith(("thermal_", "bv_theta", "entropic", "capacity_temp"))}  # fmt: skip
+        laws = {k: v for k, v in report["selected"]["parameters"].items() if k in law_names}
         trained = "+".join(Path(r["source"]).stem for r in report["records"])
         rows.append({"fit": label, "trained_on": trained, "selected": name,
                      "rmse_mv": hit[0]["rmse_mv"], "max_err_mv": hit[0]["max_err_mv"],
@@ -353,7 +358,8 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
                      "laws": json.dumps(laws, sort_keys=True)})  # fmt: skip
     df = pd.DataFrame(rows)
     Path(out_csv).parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(out_csv, index=False)
+    with atomic_path(out_csv) as tmp:
+        df.to_csv(tmp, index=False)
     write_log(log, f"wrote {out_csv}: " + "; ".join(
         f"{r.fit} {r.selected} {r.rmse_mv:.1f} mV" for r in df.itertuples()))  # fmt: skip
 
