@@ -10,7 +10,7 @@ import pytest
 from optim_helpers import runner
 
 from avoa_pipeline.optimizers import Budget
-from avoa_pipeline.optimizers.avoa import levy_sigma, update_best_two
+from avoa_pipeline.optimizers.avoa import BestTwo, levy_sigma
 from avoa_pipeline.optimizers.base import Tracker
 from avoa_pipeline.optimizers.testfunctions import sphere
 
@@ -24,18 +24,21 @@ def test_levy_sigma_is_the_reference_one():
 
 def test_best_two_memory_follows_the_reference_update():
     X = np.arange(5.0)[:, None] * np.ones((1, 2))
-    best1, best2 = [np.inf, None], [np.inf, None]
-    update_best_two(np.array([5.0, 3.0, 4.0, 1.0, 2.0]), X, best1, best2)
-    assert best1[0] == 1.0
-    assert np.array_equal(best1[1], X[3])
-    assert best2[0] == 2.0
-    assert np.array_equal(best2[1], X[4])
+    # two runs at once: each keeps its own memories
+    best = BestTwo(2, 2)
+    f = np.array([[5.0, 3.0, 4.0, 1.0, 2.0], [3.0, 2.0, 1.0, 1.0, np.inf]])
+    best.update(f, np.stack([X, X]))
+    assert best.f1[0] == 1.0
+    assert np.array_equal(best.x1[0], X[3])
+    assert best.f2[0] == 2.0
+    assert np.array_equal(best.x2[0], X[4])
     # an old best is not demoted to second best (the code's quirk); a tie is neither
-    best1, best2 = [np.inf, None], [np.inf, None]
-    update_best_two(np.array([3.0, 2.0, 1.0, 1.0]), X, best1, best2)
-    assert best1[0] == 1.0
-    assert np.array_equal(best1[1], X[2])
-    assert best2 == [np.inf, None]
+    assert best.f1[1] == 1.0
+    assert np.array_equal(best.x1[1], X[2])
+    assert best.f2[1] == np.inf
+    assert not best.set2[1]
+    assert best.set1.all()
+    assert best.set2[0]
 
 
 def test_horizon_under_an_evaluation_budget():

@@ -31,7 +31,9 @@ from avoa_pipeline.optimizers import (
     REGISTRY,
     Budget,
     OptimResult,
+    Runs,
     Tracker,
+    drive,
     step_together,
 )
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
@@ -204,6 +206,27 @@ class StrictTracker(Tracker):
         return super().ask_one(x)
 
 
+class StrictRuns(Runs):
+    """:class:`StrictTracker` for the algorithms written over runs (``batched``)."""
+
+    def ask(self, X, live=None):
+        asking = np.ones(self.n, dtype=bool) if live is None else live
+        assert not (self.done & asking).any(), "ask() called after the budget was exhausted"
+        return super().ask(X, live)
+
+
+def strict_result(name, rec, lb, ub, budget, rng) -> OptimResult:
+    """One run of ``name`` whose every ask is checked against the budget."""
+    fn = REGISTRY[name]
+    if fn.batched:
+        runs = StrictRuns(rec, lb, ub, budget, 1)
+        drive(runs, fn(runs, [rng], budget.pop_size))
+        return runs.result(0)
+    tracker = StrictTracker(rec, lb, ub, budget)
+    step_together([(tracker, fn(tracker, rng, budget.pop_size))], rec)
+    return tracker.result()
+
+
 def checked_run(name, f, lb, ub, budget, seed=0, **settings) -> tuple[OptimResult, Recorder]:
     """``minimize``, then check that every evaluated point was finite and inside the box."""
     rec = Recorder(f)
@@ -277,9 +300,7 @@ def test_evaluation_budget_is_respected_exactly(name):
     for max_nfe in MAX_NFE:
         rec = Recorder(sphere)
         budget = Budget(pop_size=P, iterations=None, max_nfe=max_nfe)
-        tracker = StrictTracker(rec, lb, ub, budget)
-        step_together([(tracker, REGISTRY[name](tracker, np.random.default_rng(0), P))], rec)
-        res = tracker.result()
+        res = strict_result(name, rec, lb, ub, budget, np.random.default_rng(0))
         assert res.nfe == max_nfe
         assert rec.all.shape[0] == max_nfe  # rows past the budget never reach the objective
         assert res.history_nfe[-1] == max_nfe  # a partial last iteration is recorded

@@ -96,7 +96,7 @@ import math
 
 import numpy as np
 
-from .base import Steps, Tracker, register
+from .base import Runs, Steps, register
 
 LEVY_BETA = 1.5
 """Levy-flight exponent (fixed at 3/2 in the reference code; Fahmy's delta)."""
@@ -109,24 +109,38 @@ def levy_sigma(beta: float = LEVY_BETA) -> float:
     return (num / den) ** (1.0 / beta)
 
 
-def update_best_two(f, X, best1, best2):
-    """Reference update of the best-two memories, vulture by vulture in index order.
+class BestTwo:
+    """The reference's best-two memories B1, B2 of every run (arrays over runs): ``f1``, ``x1``,
+    ``f2``, ``x2``; a run's ``x`` is NaN until set."""
 
-    ``best1``/``best2`` are ``[f, x]`` lists, updated in place: B1 takes any strictly better value;
-    B2 takes a value strictly between B1 (as updated so far) and B2. An old B1 is not demoted.
-    """
-    for k in range(len(f)):
-        fk = f[k]
-        if fk < best1[0]:
-            best1[0], best1[1] = fk, X[k].copy()
-        if best1[0] < fk < best2[0]:
-            best2[0], best2[1] = fk, X[k].copy()
+    def __init__(self, n: int, dim: int):
+        self.f1 = np.full(n, np.inf)
+        self.f2 = np.full(n, np.inf)
+        self.x1 = np.full((n, dim), np.nan)
+        self.x2 = np.full((n, dim), np.nan)
+        self.set1 = np.zeros(n, dtype=bool)
+        self.set2 = np.zeros(n, dtype=bool)
+
+    def update(self, f: np.ndarray, X: np.ndarray) -> None:
+        """The reference update, vulture by vulture in index order (every run at once):
+        B1 takes any strictly better value; B2 takes a value strictly between B1 (as updated so
+        far) and B2. An old B1 is not demoted."""
+        for k in range(f.shape[1]):
+            fk = f[:, k]
+            m = fk < self.f1
+            if m.any():
+                self.f1[m], self.x1[m] = fk[m], X[m, k]
+                self.set1 |= m
+            m = (self.f1 < fk) & (fk < self.f2)
+            if m.any():
+                self.f2[m], self.x2[m] = fk[m], X[m, k]
+                self.set2 |= m
 
 
-@register("avoa")
+@register("avoa", batched=True)
 def avoa(
-    tracker: Tracker,
-    rng: np.random.Generator,
+    runs: Runs,
+    rngs: list[np.random.Generator],
     pop_size: int,
     p1: float = 0.6,
     p2: float = 0.4,
@@ -135,7 +149,15 @@ def avoa(
     beta: float = 0.2,
     gamma: float = 2.5,
 ) -> Steps:
-    """AVOA as in the authors' MATLAB code (see the module docstring for every deviation)."""
+    """AVOA as in the authors' MATLAB code (see the module docstring for every deviation), every
+    run of ``runs`` moved as one array operation, each from its own generator in ``rngs``.
+
+    Each run draws, per iteration and in this order, what the one-run code drew with one call
+    each: the U(-2, 2) of g, the rand of P1, then per vulture the hunger sign, the guide choice,
+    the branch draw, r1, r2 (together ``rng.random(2 + 5 P)``: consecutive doubles of one stream
+    are the same whether drawn one call at a time or in one call, and ``uniform(-2, 2)`` is
+    ``-2 + 4 d`` of the same double), then the Lévy flight's two normal arrays (one
+    ``standard_normal`` call)."""
     for name, value in (("p1", p1), ("p2", p2), ("p3", p3), ("alpha", alpha), ("beta", beta)):
         if not 0.0 <= value <= 1.0:
             raise ValueError(f"{name} must be in [0, 1], got {value}")
@@ -144,44 +166,47 @@ def avoa(
     if gamma <= 0:
         raise ValueError(f"gamma must be positive, got {gamma}")
 
-    P, D = pop_size, tracker.dim
-    lb, ub = tracker.lb, tracker.ub
+    S, P, D = runs.n, pop_size, runs.dim
+    lb, ub = runs.lb, runs.ub
     sigma = levy_sigma()
 
-    X = tracker.random_uniform(rng, P)
-    best1: list = [np.inf, None]
-    best2: list = [np.inf, None]
-    update_best_two((yield from tracker.ask(X)), X, best1, best2)
-    tracker.end_iteration()
-    T = tracker.planned_iterations(P)
+    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    best = BestTwo(S, D)
+    best.update((yield from runs.ask(X)), X)
+    runs.end_iteration()
+    T = runs.planned_iterations(P)
+    draws = np.empty((S, 2 + 5 * P))
+    normals = np.empty((S, 2, P, D))
 
-    while not tracker.done:
-        t = tracker.iteration  # the reference's current_iter (0..T-1)
-        b1 = best1[1] if best1[1] is not None else X[0]  # only if every value was NaN/inf
-        b2 = best2[1] if best2[1] is not None else b1
+    while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
+        t = int(runs.iteration[0])  # the reference's current_iter (0..T-1)
+        b1 = np.where(best.set1[:, None], best.x1, X[:, 0])  # X[0]: only if all was NaN/inf
+        b2 = np.where(best.set2[:, None], best.x2, b1)
         frac = t / T
-        g = rng.uniform(-2.0, 2.0) * (
+        for s, rng in enumerate(rngs):
+            rng.random(out=draws[s])
+            normals[s] = rng.standard_normal((2, P, D))
+        g = (-2.0 + 4.0 * draws[:, 0]) * (
             math.sin(math.pi / 2.0 * frac) ** gamma + math.cos(math.pi / 2.0 * frac) - 1.0
         )
-        P1 = (2.0 * rng.random() + 1.0) * (1.0 - frac) + g
+        P1 = (2.0 * draws[:, 1] + 1.0) * (1.0 - frac) + g
 
         # per-vulture draws (one scalar each, as the MATLAB rand() calls), Levy per dimension
-        F = (P1 * (2.0 * rng.random(P) - 1.0))[:, None]
-        R = np.where((rng.random(P) <= alpha)[:, None], b1, b2)
-        u = rng.random(P)  # the branch draw: rand < p1 / p3 / p2
-        r1 = rng.random((P, 1))
-        r2 = rng.random((P, 1))
-        levy = (
-            rng.standard_normal((P, D))
-            * sigma
-            / np.abs(rng.standard_normal((P, D))) ** (1.0 / LEVY_BETA)
-        )
+        per = draws[:, 2:].reshape(S, 5, P)
+        F = (P1[:, None] * (2.0 * per[:, 0] - 1.0))[:, :, None]  # (S, P, 1)
+        R = np.where((per[:, 1] <= alpha)[:, :, None], b1[:, None, :], b2[:, None, :])
+        u = per[:, 2]  # the branch draw: rand < p1 / p3 / p2
+        r1 = per[:, 3, :, None]
+        r2 = per[:, 4, :, None]
+        levy = normals[:, 0] * sigma / np.abs(normals[:, 1]) ** (1.0 / LEVY_BETA)
 
-        absF = np.abs(F[:, 0])
+        absF = np.abs(F[:, :, 0])
         explore = absF >= 1.0
         late = absF < 0.5
         medium = ~explore & ~late
         new = np.empty_like(X)
+        B1 = np.broadcast_to(b1[:, None, :], X.shape)
+        B2 = np.broadcast_to(b2[:, None, :], X.shape)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             m = explore & (u < p1)  # eq. 19a with D = |C R - X|, C = 2 rand
             new[m] = R[m] - np.abs(2.0 * r1[m] * R[m] - X[m]) * F[m]
@@ -194,12 +219,12 @@ def avoa(
             s2 = R[m] * (r2[m] * X[m] / (2.0 * np.pi)) * np.sin(X[m])
             new[m] = R[m] - (s1 + s2)
             m = late & (u < p2)  # aggregation, eqs. 26-28
-            a1 = b1 - (b1 * X[m]) / (b1 - X[m] ** 2) * F[m]
-            a2 = b2 - (b2 * X[m]) / (b2 - X[m] ** 2) * F[m]
+            a1 = B1[m] - (B1[m] * X[m]) / (B1[m] - X[m] ** 2) * F[m]
+            a2 = B2[m] - (B2[m] * X[m]) / (B2[m] - X[m] ** 2) * F[m]
             new[m] = (a1 + a2) / 2.0
             m = late & ~(u < p2)  # attack with Levy flight, eq. 29
             new[m] = R[m] - np.abs(R[m] - X[m]) * F[m] * levy[m]
-        X = tracker.clip(np.where(np.isnan(new), X, new))
+        X = runs.clip(np.where(np.isnan(new), X, new))
 
-        update_best_two((yield from tracker.ask(X)), X, best1, best2)
-        tracker.end_iteration()
+        best.update((yield from runs.ask(X)), X)
+        runs.end_iteration()

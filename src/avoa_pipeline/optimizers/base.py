@@ -60,14 +60,19 @@ objective values (shape ``(k,)``)."""
 REGISTRY: dict[str, Callable[..., Steps]] = {}
 
 
-def register(name: str):
-    """Register an optimizer under ``name`` (the one name used in config, CLI and file names)."""
+def register(name: str, *, batched: bool = False):
+    """Register an optimizer under ``name`` (the one name used in config, CLI and file names).
+
+    ``batched``: the function is ``fn(runs, rngs, pop_size, **settings)`` over a :class:`Runs`
+    (every seed's moves as array operations, one generator for all), not one run's
+    ``fn(tracker, rng, pop_size, **settings)``."""
 
     def deco(fn):
         if name in REGISTRY:
             raise ValueError(f"optimizer {name!r} registered twice")
         REGISTRY[name] = fn
         fn.optimizer_name = name
+        fn.batched = batched
         return fn
 
     return deco
@@ -304,6 +309,191 @@ class Tracker:
         )
 
 
+class Runs:
+    """The accounts of ``n`` runs of one algorithm stepped as one (a fit block's seeds), as arrays
+    over the runs: what :class:`Tracker` keeps for one run, for all of them at once, so an
+    algorithm written over arrays shaped runs × population × dimension (``register(...,
+    batched=True)``) moves every seed in one numpy operation and asks for all their rows in one
+    ask. Each run's numbers are those a :class:`Tracker` would keep for it alone: the same budget
+    cut, the same NaN rule, the same strict "better" (tested against the references of the
+    one-seed-at-a-time code, ``tests/unit/test_lockstep.py``).
+
+    Time: each run's clock is charged an equal share of the algorithm's own time between two asks
+    (every unfinished run moved in it) and its share of each evaluation in proportion to its rows,
+    as :func:`step_together` charges per run."""
+
+    def __init__(
+        self,
+        objective: Objective,
+        lb,
+        ub,
+        budget: Budget,
+        n: int,
+        objective_one: ObjectiveOne | None = None,
+    ):
+        probe = Tracker(objective, lb, ub, budget, objective_one)  # the one check of the box
+        self.objective, self.objective_one = objective, objective_one
+        self.lb, self.ub, self.dim, self.budget = probe.lb, probe.ub, probe.dim, budget
+        if n < 1:
+            raise ValueError(f"need at least one run, got {n}")
+        self.n = n
+        self.nfe = np.zeros(n, dtype=np.int64)
+        self.iteration = np.zeros(n, dtype=np.int64)
+        self.best_f = np.full(n, np.inf)
+        self.best_x = np.full((n, self.dim), np.nan)
+        self._seen = np.zeros(n, dtype=bool)  # best_x set (Tracker: best_x is not None)
+        self._hist_best: list[list[float]] = [[] for _ in range(n)]
+        self._hist_nfe: list[list[int]] = [[] for _ in range(n)]
+        self._hist_time: list[list[float]] = [[] for _ in range(n)]
+        self.elapsed = np.zeros(n)
+        self._rows = np.zeros(n, dtype=np.int64)  # rows each run asked in the pending ask
+
+    # --- budget -----------------------------------------------------------------------------
+    @property
+    def nfe_left(self) -> np.ndarray:
+        """Evaluations left per run (float; ``inf`` without an evaluation budget)."""
+        if self.budget.max_nfe is None:
+            return np.full(self.n, np.inf)
+        return (self.budget.max_nfe - self.nfe).astype(float)
+
+    @property
+    def done(self) -> np.ndarray:
+        """Per run: the budget is spent (:attr:`Tracker.done`)."""
+        out = np.zeros(self.n, dtype=bool)
+        if self.budget.max_nfe is not None:
+            out |= self.nfe >= self.budget.max_nfe
+        if self.budget.iterations is not None:
+            out |= self.iteration >= self.budget.iterations
+        return out
+
+    def planned_iterations(self, evals_per_iteration: float) -> int:
+        """:meth:`Tracker.planned_iterations` (it depends on the budget alone)."""
+        return Tracker.planned_iterations(self, evals_per_iteration)
+
+    def progress(self, *, count_initial: bool = False) -> np.ndarray:
+        """:meth:`Tracker.progress` of each run."""
+        out = np.zeros(self.n)
+        T, N = self.budget.iterations, self.budget.max_nfe
+        for s in range(self.n):
+            frac = 0.0
+            if T is not None:
+                t = int(self.iteration[s]) + 1
+                frac = (t + 1) / (T + 1) if count_initial else t / T
+            if N is not None:
+                hist = self._hist_nfe[s]
+                last = hist[-1] - hist[-2] if len(hist) > 1 else (hist[-1] if hist else 0)
+                frac = max(frac, min(1.0, (int(self.nfe[s]) + last) / N))
+            out[s] = frac
+        return out
+
+    # --- ask / tell ---------------------------------------------------------------------------
+    def ask(
+        self, X: np.ndarray, live: np.ndarray | None = None
+    ) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
+        """``F = yield from runs.ask(X)``: the objective of every row of ``X`` (shape ``(n, k,
+        D)``, run × row × dimension), shape ``(n, k)``.
+
+        Per run, :meth:`Tracker.ask`: the rows that fit into its budget are evaluated (all runs'
+        rows in one yield, run by run), the others and NaN get ``+inf``; runs not ``live`` (a
+        boolean mask) ask nothing and get ``+inf``."""
+        n, k = X.shape[0], X.shape[1]
+        take = np.minimum(k, self.nfe_left)
+        if live is not None:
+            take = np.where(live, take, 0)
+        take = take.astype(np.int64)
+        f = np.full((n, k), np.inf)
+        self._rows = take
+        if not take.any():
+            return f
+        if (take == k).all():
+            fk = yield X.reshape(n * k, X.shape[2])
+            f[:] = fk.reshape(n, k)
+        else:
+            mask = np.arange(k)[None, :] < take[:, None]
+            fk = yield X[mask]
+            f[mask] = fk
+        f[np.isnan(f)] = np.inf
+        self.nfe += take
+        i = np.argmin(f, axis=1)
+        fi = f[np.arange(n), i]
+        better = fi < self.best_f
+        if better.any():
+            self.best_f[better] = fi[better]
+            self.best_x[better] = X[better, i[better]]
+            self._seen |= better
+        return f
+
+    def end_iteration(self, which: np.ndarray | None = None) -> None:
+        """:meth:`Tracker.end_iteration` of every run, or of the runs in the mask ``which``."""
+        for s in range(self.n) if which is None else np.flatnonzero(which):
+            self._close(s)
+
+    def _close(self, s: int) -> None:
+        self._hist_best[s].append(float(self.best_f[s]))
+        self._hist_nfe[s].append(int(self.nfe[s]))
+        self._hist_time[s].append(float(self.elapsed[s]))
+        if len(self._hist_best[s]) > 1:
+            self.iteration[s] += 1
+
+    # --- moves' helpers -----------------------------------------------------------------------
+    def clip(self, X: np.ndarray) -> np.ndarray:
+        return np.clip(X, self.lb, self.ub)
+
+    def random_uniform(self, rngs: Sequence[np.random.Generator], k: int) -> np.ndarray:
+        """:meth:`Tracker.random_uniform` of each run from its own generator, shape (n, k, D)."""
+        return np.stack([self.lb + rng.random((k, self.dim)) * (self.ub - self.lb) for rng in rngs])
+
+    # --- clocks and results -------------------------------------------------------------------
+    def charge_moves(self, seconds: float, runs: np.ndarray) -> None:
+        """Split the algorithm's time of one step equally over the runs it moved."""
+        if runs.any():
+            self.elapsed[runs] += seconds / runs.sum()
+
+    def charge_rows(self, seconds: float) -> None:
+        """Split an evaluation's time over the runs in proportion to the rows each asked."""
+        total = self._rows.sum()
+        if total:
+            self.elapsed += seconds * self._rows / total
+
+    def result(self, s: int) -> OptimResult:
+        """Run ``s``'s result, as :meth:`Tracker.result` gives it."""
+        hb, hn, ht = self._hist_best[s], self._hist_nfe[s], self._hist_time[s]
+        if not hb or hn[-1] != self.nfe[s]:
+            hb.append(float(self.best_f[s]))
+            hn.append(int(self.nfe[s]))
+            ht.append(float(self.elapsed[s]))
+        if not self._seen[s]:
+            raise RuntimeError("the run evaluated no point")
+        return OptimResult(
+            best_x=self.best_x[s].copy(),
+            best_f=float(self.best_f[s]),
+            nfe=int(self.nfe[s]),
+            iterations=len(hb) - 1,
+            wall_s=float(ht[-1]),
+            history_best=np.asarray(hb),
+            history_nfe=np.asarray(hn, dtype=np.int64),
+            history_time=np.asarray(ht),
+        )
+
+
+def drive(runs: Runs, steps: Steps) -> None:
+    """Run a batched algorithm's ``steps`` over ``runs`` to its end: each ask's rows (all runs')
+    in one objective call, the clocks charged as :class:`Runs` says."""
+    values = None
+    while True:
+        moving = ~runs.done
+        t0 = time.perf_counter()
+        try:
+            rows = steps.send(values)
+        except StopIteration:
+            runs.charge_moves(time.perf_counter() - t0, moving)
+            return
+        runs.charge_moves(time.perf_counter() - t0, moving)
+        t0 = time.perf_counter()
+        values = _values(runs.objective, runs.objective_one, rows)
+        runs.charge_rows(time.perf_counter() - t0)
+
+
 def _answer(steps: Generator, tracker: Tracker):
     """Drive a single ask of ``tracker`` to its value with the tracker's own objective."""
     try:
@@ -401,6 +591,14 @@ def minimize_together(
     (:func:`step_together`); each result equals :func:`minimize` with that generator alone."""
     if name not in REGISTRY:
         raise KeyError(f"unknown algorithm {name!r}; known: {', '.join(sorted(REGISTRY))}")
+    fn = REGISTRY[name]
+    if fn.batched:
+        block = Runs(objective, lb, ub, budget, len(rngs), objective_one)
+        drive(block, fn(block, list(rngs), budget.pop_size, **settings))
+        try:
+            return [block.result(s) for s in range(block.n)]
+        except RuntimeError:
+            raise RuntimeError(f"{name} evaluated no point") from None
     trackers = [Tracker(objective, lb, ub, budget, objective_one) for _ in rngs]
     runs = [
         (t, REGISTRY[name](t, rng, budget.pop_size, **settings))
