@@ -20,6 +20,15 @@ strategies vectorised over seeds):
   ``i`` of a population objective depends on row ``i`` alone (the model kernel scores every
   candidate by its own recursion, bit for bit whatever the other rows; tested).
 
+Issue 30 moved the optimizers' own work across seeds: an algorithm registered with
+``batched=True`` is one generator ``fn(runs, rngs, pop_size, **settings)`` over a :class:`Runs`
+(the accounts of every seed as arrays) that moves all seeds in array operations shaped seeds ×
+population × dimension (the way evosax or EvoTorch step many populations as one) and asks for
+all their rows at once (:func:`drive`). Each seed still draws from its own generator, in the
+order its one-seed code drew, so every record is what that code gave, bit for bit
+(``tests/unit/test_lockstep.py``); one seed alone is a block of one. :func:`minimize_together`
+picks the driver from the registration.
+
 A search whose loop belongs to a library that calls the objective itself (scipy's Nelder–Mead and
 L-BFGS-B) runs inside a greenlet (:func:`search_steps`): each objective call suspends it and
 becomes an ask, so the local searches step together too, with scipy's code unchanged.
