@@ -41,6 +41,34 @@ def test_best_two_memory_follows_the_reference_update():
     assert best.set2[0]
 
 
+def test_best_two_memory_equals_the_references_vulture_by_vulture_loop():
+    # the reference's loop, written out; values from a few integers make ties and infs common
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        n, P = 3, 6
+        f = rng.integers(0, 5, (n, P)).astype(float)
+        f[rng.random((n, P)) < 0.2] = np.inf
+        X = rng.random((n, P, 2))
+        best = BestTwo(n, 2)
+        best.f1[:] = rng.choice([np.inf, 1.0, 3.0], n)  # memories from an earlier iteration
+        best.f2[:] = np.maximum(best.f1, rng.choice([np.inf, 2.0, 4.0], n))
+        expect = []
+        for s in range(n):
+            f1, f2, k1, k2 = best.f1[s], best.f2[s], None, None
+            for k in range(P):
+                if f[s, k] < f1:
+                    f1, k1 = f[s, k], k
+                if f1 < f[s, k] < f2:
+                    f2, k2 = f[s, k], k
+            expect.append((f1, f2, k1, k2))
+        x1, x2 = best.x1.copy(), best.x2.copy()
+        best.update(f, X)
+        for s, (f1, f2, k1, k2) in enumerate(expect):
+            assert (best.f1[s], best.f2[s]) == (f1, f2)
+            np.testing.assert_array_equal(best.x1[s], x1[s] if k1 is None else X[s, k1])
+            np.testing.assert_array_equal(best.x2[s], x2[s] if k2 is None else X[s, k2])
+
+
 def test_horizon_under_an_evaluation_budget():
     t = Tracker(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=None, max_nfe=10020))
     assert t.planned_iterations(20) == 500

@@ -122,19 +122,31 @@ class BestTwo:
         self.set2 = np.zeros(n, dtype=bool)
 
     def update(self, f: np.ndarray, X: np.ndarray) -> None:
-        """The reference update, vulture by vulture in index order (every run at once):
+        """The reference update, vulture by vulture in index order, for every run at once:
         B1 takes any strictly better value; B2 takes a value strictly between B1 (as updated so
-        far) and B2. An old B1 is not demoted."""
-        for k in range(f.shape[1]):
-            fk = f[:, k]
-            m = fk < self.f1
-            if m.any():
-                self.f1[m], self.x1[m] = fk[m], X[m, k]
-                self.set1 |= m
-            m = (self.f1 < fk) & (fk < self.f2)
-            if m.any():
-                self.f2[m], self.x2[m] = fk[m], X[m, k]
-                self.set2 |= m
+        far) and B2. An old B1 is not demoted.
+
+        Without the loop over vultures: B1 ends at the first smallest value if it beats B1.
+        Vulture k can enter B2 only if its value exceeds B1 as it stands after k (the running
+        minimum), and then does iff it is below B2 as it stands; so B2 ends at the first
+        smallest of those eligible values if it beats B2. Ties keep the earlier vulture, as the
+        strict comparisons do."""
+        n = f.shape[0]
+        rows = np.arange(n)
+        running = np.minimum.accumulate(np.concatenate([self.f1[:, None], f], axis=1), axis=1)
+        eligible = np.where(running[:, 1:] < f, f, np.inf)
+        k2 = np.argmin(eligible, axis=1)
+        v2 = eligible[rows, k2]
+        m = v2 < self.f2
+        if m.any():
+            self.f2[m], self.x2[m] = v2[m], X[m, k2[m]]
+            self.set2 |= m
+        k1 = np.argmin(f, axis=1)
+        v1 = f[rows, k1]
+        m = v1 < self.f1
+        if m.any():
+            self.f1[m], self.x1[m] = v1[m], X[m, k1[m]]
+            self.set1 |= m
 
 
 @register("avoa", batched=True)
