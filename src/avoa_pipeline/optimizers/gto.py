@@ -40,8 +40,9 @@ are replaced). A fixed-evaluation budget is checked between the two evaluations.
 
 Seeds in one array. The runs of a fit block (its seeds) move together, as arrays shaped runs x
 gorillas x dimension (they share the budget, so they are always at the same iteration and phase):
-every move above is one array operation over all runs, and the two sequential loops are loops
-over the gorillas, each step an operation over the runs. C and L are drawn per run, so whether a
+every move above is one array operation over all runs, and the two sequential loops are
+compiled loops (numba) over the runs and gorillas, because as numpy operations over the runs, one
+per gorilla, they cost more than all the array moves. C and L are drawn per run, so whether a
 run follows the silverback or competes (C >= w) is a mask over the runs. Each run draws from its
 own generator exactly what the one-run algorithm drew, in the same order, per iteration: C's and
 L's uniforms, u_unknown, u_known, r and Z in one ``rng.random`` call (consecutive doubles of one
@@ -90,6 +91,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from .base import Runs, Steps, register
@@ -120,6 +122,44 @@ class _Troop:
             self.silverback_cost[m] = best[m]
 
 
+@nb.njit(cache=True, nogil=True)
+def _move_to_others(GX, old, X, idx, others, L, r) -> None:
+    """The "other gorillas" move of every run, in place, gorilla by gorilla as the reference's
+    loop: row ``i`` of a run that makes this move reads the candidates ``GX_r1``, ``GX_r2``
+    (``idx[:, i, 1:]``) as already regenerated if they come before ``i``, else from ``old``."""
+    n, P, D = GX.shape
+    for s in range(n):
+        for i in range(P):
+            if not others[s, i]:
+                continue
+            j1, j2 = idx[s, i, 1], idx[s, i, 2]
+            for d in range(D):
+                g1 = GX[s, j1, d] if j1 < i else old[s, j1, d]
+                g2 = GX[s, j2, d] if j2 < i else old[s, j2, d]
+                x = X[s, i, d]
+                GX[s, i, d] = x - L[s] * (L[s] * (x - g1) + r[s, i] * (x - g2))
+
+
+@nb.njit(cache=True, nogil=True)
+def _follow_silverback(GX, X, silverback, L, follow) -> None:
+    """The follow-the-silverback move of every run in ``follow``, in place, gorilla by gorilla as
+    the reference's loop: row ``i`` uses M = |mean of GX's rows| with the rows before ``i``
+    already replaced. The mean adds the rows in order and divides by their number, as numpy's
+    ``mean(axis=0)`` of a population of two or more dimensions does (of one dimension numpy
+    sums pairwise, which may round a last bit differently)."""
+    n, P, D = GX.shape
+    for s in range(n):
+        if not follow[s]:
+            continue
+        for i in range(P):
+            for d in range(D):  # M's coordinate d depends on column d alone
+                total = GX[s, 0, d]
+                for j in range(1, P):
+                    total += GX[s, j, d]
+                M = abs(total / P)
+                GX[s, i, d] = L[s] * M * (X[s, i, d] - silverback[s, d]) + X[s, i, d]
+
+
 @register("gto", batched=True)
 def gto(
     runs: Runs,
@@ -136,7 +176,7 @@ def gto(
 
     S, P, D = runs.n, pop_size, runs.dim
     lb, ub = runs.lb, runs.ub
-    which = np.arange(S)  # each run's own row in fancy indexing
+    which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
 
     X = runs.random_uniform(rngs, P)  # (S, P, D)
     troop = _Troop(X, (yield from runs.ask(X)))
@@ -177,19 +217,9 @@ def gto(
         GX = np.where(
             unknown[:, :, None],
             (ub - lb) * r[:, :, None] + lb,
-            (r[:, :, None] - Cb) * X[which[:, None], idx[:, :, 0]] + Lb * Z * X,
+            (r[:, :, None] - Cb) * X[which, idx[:, :, 0]] + Lb * Z * X,
         )
-        for i in range(P):
-            m = others[:, i]
-            if not m.any():
-                continue
-            # rows before i were regenerated already in the reference loop, the others not yet
-            j1, j2 = idx[:, i, 1], idx[:, i, 2]
-            g1 = np.where((j1 < i)[:, None], GX[which, j1], old[which, j1])
-            g2 = np.where((j2 < i)[:, None], GX[which, j2], old[which, j2])
-            Xi = X[:, i]
-            new = Xi - L[:, None] * (L[:, None] * (Xi - g1) + r[:, i, None] * (Xi - g2))
-            GX[m, i] = new[m]
+        _move_to_others(GX, old, X, idx, others, L, r)
         GX = runs.clip(GX)
         troop.group_formation(GX, (yield from runs.ask(GX)))
         if runs.done.all():
@@ -204,6 +234,9 @@ def gto(
             rng.random(out=choice[s])
             rng.standard_normal(out=normals[s])
             rng.random(out=q[s])
+        new = GX
+        if follow.any():  # follow the silverback; the mean of GX changes as its rows are replaced
+            _follow_silverback(GX, X, sb, L, follow)
         if compete.any():  # competition for adult females
             E = np.where(
                 (choice >= 0.5)[:, :, None],
@@ -211,16 +244,8 @@ def gto(
                 normals[:, P * D :, None],
             )
             Q = 2.0 * q[:, :, None] - 1.0
-            new = sb[:, None] - (sb[:, None] * Q - X * Q) * (beta * E)
-        if follow.any():  # follow the silverback; the mean of GX changes as its rows are replaced
-            G, Xf, sbf, Lf = GX[follow], X[follow], sb[follow], L[follow, None]
-            for i in range(P):
-                M = np.abs(G.mean(axis=1))
-                G[:, i] = Lf * M * (Xf[:, i] - sbf) + Xf[:, i]
-            if compete.any():
-                new[follow] = G
-            else:
-                new = G
+            competed = sb[:, None] - (sb[:, None] * Q - X * Q) * (beta * E)
+            new = np.where(follow[:, None, None], GX, competed)
         GX = runs.clip(new)
         troop.group_formation(GX, (yield from runs.ask(GX)))
         runs.end_iteration()
