@@ -104,18 +104,17 @@ class _Troop:
     def __init__(self, X: np.ndarray, cost: np.ndarray):
         self.X = X  # (runs, P, D)
         self.cost = cost  # (runs, P)
-        runs = np.arange(X.shape[0])
+        each = np.arange(X.shape[0])
         k = np.argmin(cost, axis=1)
-        self.silverback = X[runs, k]  # (runs, D)
-        self.silverback_cost = cost[runs, k]
+        self.silverback = X[each, k]  # (runs, D)
+        self.silverback_cost = cost[each, k]
 
     def group_formation(self, GX: np.ndarray, cost: np.ndarray) -> None:
         better = cost < self.cost
         self.X[better] = GX[better]
         self.cost[better] = cost[better]
-        runs = np.arange(GX.shape[0])
         k = np.argmin(cost, axis=1)
-        best = cost[runs, k]
+        best = cost[np.arange(GX.shape[0]), k]
         m = best < self.silverback_cost
         if m.any():
             self.silverback[m] = GX[m, k[m]]
