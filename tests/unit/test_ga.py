@@ -11,7 +11,7 @@ import pytest
 from optim_helpers import Recorder, assert_seed_determines_result, shifted
 
 from avoa_pipeline.optimizers import Budget, minimize
-from avoa_pipeline.optimizers.ga import _rank_expectation, _stochastic_uniform
+from avoa_pipeline.optimizers.ga import rank_expectation, stochastic_uniform
 from avoa_pipeline.optimizers.testfunctions import rastrigin, sphere
 
 LB = np.array([-5.0, 0.0, 2.0, -1.0, 10.0])
@@ -70,18 +70,27 @@ def test_best_improves_substantially():
 
 
 def test_rank_scaling_and_stochastic_uniform_selection():
-    score = np.array([3.0, 1.0, 2.0, 10.0])
-    e, order = _rank_expectation(score, 8)
-    assert list(order) == [1, 2, 0, 3]
+    # two runs at once, the second with the scores in reverse order: each ranks its own
+    score = np.array([[3.0, 1.0, 2.0, 10.0], [10.0, 2.0, 1.0, 3.0]])
+    e, order = rank_expectation(score, 8)
+    assert order.tolist() == [[1, 2, 0, 3], [2, 1, 3, 0]]
+    np.testing.assert_allclose(e[1], e[0, ::-1], rtol=1e-15)
+    e = e[0]
     assert e.sum() == pytest.approx(8.0)
     assert e[1] / e[2] == pytest.approx(np.sqrt(2.0))
     assert e[1] / e[3] == pytest.approx(2.0)
-    picks = _stochastic_uniform(np.random.default_rng(0), e, 8)
-    counts = np.bincount(picks, minlength=4)
-    # stochastic uniform sampling: each count is floor or ceil of its expectation
-    assert np.all(counts >= np.floor(e))
-    assert np.all(counts <= np.ceil(e))
-    assert counts.sum() == 8
+    offsets = np.random.default_rng(0).random(50)
+    picks = stochastic_uniform(offsets, np.tile(e, (50, 1)), 8)
+    # numpy's own roulette lookup (searchsorted) on one run's wheel
+    wheel = np.cumsum(e) / e.sum()
+    for offset, got in zip(offsets, picks, strict=True):
+        want = np.searchsorted(wheel, offset / 8 + np.arange(8) / 8, side="left")
+        np.testing.assert_array_equal(got, np.minimum(want, 3))
+    for counts in (np.bincount(p, minlength=4) for p in picks):
+        # stochastic uniform sampling: each count is floor or ceil of its expectation
+        assert np.all(counts >= np.floor(e))
+        assert np.all(counts <= np.ceil(e))
+        assert counts.sum() == 8
 
 
 def test_invalid_settings_rejected():

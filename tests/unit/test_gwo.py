@@ -11,7 +11,7 @@ import pytest
 from optim_helpers import Recorder, shifted
 
 from avoa_pipeline.optimizers import Budget, Tracker, minimize
-from avoa_pipeline.optimizers.gwo import _update_leaders
+from avoa_pipeline.optimizers.gwo import update_leaders
 from avoa_pipeline.optimizers.testfunctions import sphere
 
 LB = np.array([-5.0, 0.0, 10.0, -1.0])
@@ -35,13 +35,18 @@ def test_schedule_length():
 
 
 def test_leader_update_is_the_reference_rule():
-    # the reference does not demote alpha to beta when a better alpha arrives
-    pos, score = np.zeros((3, 1)), np.full(3, np.inf)
+    # the reference does not demote alpha to beta when a better alpha arrives; two runs at once,
+    # each with its own leaders (the second sees the values in reverse order)
+    pos, score = np.zeros((2, 3, 1)), np.full((2, 3), np.inf)
     X = np.array([[5.0], [4.0], [3.0], [6.0], [3.5], [7.0], [3.0]])
-    _update_leaders(X, X[:, 0], pos, score)
+    both = np.stack([X, X[::-1]])
+    update_leaders(both[:, :, 0], both, pos, score)
     # 5 -> alpha; 4 -> alpha; 3 -> alpha; 6 -> beta; 3.5 -> beta; 7 -> delta; 3 (tie) ignored
-    np.testing.assert_array_equal(score, [3.0, 3.5, 7.0])
-    np.testing.assert_array_equal(pos[:, 0], [3.0, 3.5, 7.0])
+    np.testing.assert_array_equal(score[0], [3.0, 3.5, 7.0])
+    np.testing.assert_array_equal(pos[0, :, 0], [3.0, 3.5, 7.0])
+    # 3 -> alpha; 7 -> beta; 3.5 -> beta; 6 -> delta; 3 (tie) ignored; 4 -> delta; 5 ignored
+    np.testing.assert_array_equal(score[1], [3.0, 3.5, 4.0])
+    np.testing.assert_array_equal(pos[1, :, 0], [3.0, 3.5, 4.0])
 
 
 def test_a_schedule_reaches_a_shifted_optimum():

@@ -33,6 +33,16 @@ Evaluations per generation: P − n_e (19 for P = 20). The children are evaluate
 evaluation budget that ends inside a batch evaluates the rows that fit (the rest get +inf) and that
 partial generation is not closed as an iteration.
 
+Seeds in one array. The runs of a fit block (its seeds) move together, as arrays shaped runs ×
+individuals × dimension: ranking, selection, crossover, mutation and the elite bookkeeping are
+each one array operation over every run (they share the budget, so they are always in the same
+generation; each keeps its own step size Δ). Each run draws from its own generator exactly what
+the one-run algorithm drew, in the same order, per generation: the selection's offset
+(``rng.random()``), the parents' shuffle (``rng.permutation``), then the crossover masks' and the
+adaptfeasible directions' uniforms in one ``rng.random`` call (consecutive doubles of one stream
+are the same whether drawn in one call or two, and ``uniform(-1, 1)`` is ``-1 + 2 d`` of the same
+double), or the crossover masks' uniforms and the Gaussian mutation's normals.
+
 Differences between (a) MATLAB ``ga`` as documented, (b) the Fahmy et al. paper and (c) mealpy
 3.0.2 ``BaseGA``, and the choice made here
 -----------------------------------------------------------------------------------------------
@@ -72,48 +82,56 @@ import math
 
 import numpy as np
 
-from .base import Steps, Tracker, register
+from .base import Runs, Steps, register
 
 _SQRT_EPS = math.sqrt(np.finfo(float).eps)
 
 
-def _rank_expectation(score: np.ndarray, n_parents: int) -> tuple[np.ndarray, np.ndarray]:
-    """``fitscalingrank``: expectation ∝ 1/sqrt(rank), summing to ``n_parents``; also the order."""
-    order = np.argsort(score, kind="stable")
-    rank = np.empty(score.size)
-    rank[order] = np.arange(1, score.size + 1)
+def rank_expectation(score: np.ndarray, n_parents: int) -> tuple[np.ndarray, np.ndarray]:
+    """``fitscalingrank`` of every run (rows of ``score``): expectation ∝ 1/sqrt(rank), summing to
+    ``n_parents``; also each run's order (best first, ties in index order)."""
+    order = np.argsort(score, axis=1, kind="stable")
+    rank = np.empty(score.shape)
+    np.put_along_axis(rank, order, np.arange(1.0, score.shape[1] + 1.0), axis=1)
     e = 1.0 / np.sqrt(rank)
-    return e * (n_parents / e.sum()), order
+    return e * (n_parents / e.sum(axis=1, keepdims=True)), order
 
 
-def _stochastic_uniform(rng: np.random.Generator, expectation: np.ndarray, n: int) -> np.ndarray:
-    """``selectionstochunif``: n equally spaced pointers with one random offset over the wheel."""
-    wheel = np.cumsum(expectation) / expectation.sum()
+def stochastic_uniform(offset: np.ndarray, expectation: np.ndarray, n: int) -> np.ndarray:
+    """``selectionstochunif`` of every run: ``n`` equally spaced pointers over its wheel (a row of
+    ``expectation``), shifted by the run's ``offset`` (a U(0, 1) draw) times the spacing; the
+    indices picked, shape (runs, n)."""
+    wheel = np.cumsum(expectation, axis=1) / expectation.sum(axis=1, keepdims=True)
     step = 1.0 / n
-    pointers = rng.random() * step + step * np.arange(n)
-    idx = np.searchsorted(wheel, pointers, side="left")
-    return np.minimum(idx, expectation.size - 1)
+    pointers = offset[:, None] * step + step * np.arange(n)
+    # the leftmost wheel slot not below each pointer (numpy's searchsorted(side="left") of a
+    # nondecreasing wheel), for every run at once
+    idx = np.count_nonzero(wheel[:, None, :] < pointers[:, :, None], axis=2)
+    return np.minimum(idx, expectation.shape[1] - 1)
 
 
-def _adaptive_feasible(rng, parents: np.ndarray, delta: float, lb, ub) -> np.ndarray:
-    """Random direction with an adapted step, turned and shortened so the child stays feasible."""
+def adaptive_feasible(
+    unit: np.ndarray, parents: np.ndarray, delta: np.ndarray, lb, ub
+) -> np.ndarray:
+    """Random directions ``unit`` (U(-1, 1), shape runs x parents x D) scaled to each run's
+    adapted step ``delta``, turned and shortened so that every child stays feasible."""
     span = ub - lb
-    d = rng.uniform(-1.0, 1.0, parents.shape) * span * delta
+    d = unit * span * delta[:, None, None]
     trial = parents + d
     # a coordinate that would leave the box on one side moves the other way instead
     d = np.where((trial > ub) | (trial < lb), -d, d)
     # shorten the whole step (same direction) where even the turned coordinate overshoots
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(d > 0, (ub - parents) / d, np.where(d < 0, (lb - parents) / d, np.inf))
-    s = np.minimum(1.0, room.min(axis=1, initial=np.inf))
-    child = parents + s[:, None] * d
+    s = np.minimum(1.0, room.min(axis=2, initial=np.inf))
+    child = parents + s[:, :, None] * d
     return np.clip(child, lb, ub)  # rounding only; the step is already feasible
 
 
-@register("ga")
+@register("ga", batched=True)
 def ga(
-    tracker: Tracker,
-    rng: np.random.Generator,
+    runs: Runs,
+    rngs: list[np.random.Generator],
     pop_size: int,
     *,
     elite_count: int | None = None,
@@ -122,12 +140,13 @@ def ga(
     scale: float = 1.0,
     shrink: float = 1.0,
 ) -> Steps:
-    """Minimise with the MATLAB-``ga``-like GA described in the module docstring.
+    """Minimise with the MATLAB-``ga``-like GA described in the module docstring, every run of
+    ``runs`` moved as one array operation, each from its own generator in ``rngs``.
 
     ``elite_count`` defaults to ``ceil(0.05 * pop_size)``; ``scale`` and ``shrink`` apply only to
     ``mutation="gaussian"`` (MATLAB's mutationgaussian defaults, 1 and 1).
     """
-    P, D = int(pop_size), tracker.dim
+    S, P, D = runs.n, int(pop_size), runs.dim
     if mutation not in ("adaptfeasible", "gaussian"):
         raise ValueError(f"mutation must be 'adaptfeasible' or 'gaussian', got {mutation!r}")
     n_elite = math.ceil(0.05 * P) if elite_count is None else int(elite_count)
@@ -137,44 +156,61 @@ def ga(
         raise ValueError(f"crossover_fraction must be in [0, 1], got {crossover_fraction}")
     n_xover = math.floor(crossover_fraction * (P - n_elite) + 0.5)  # MATLAB round()
     n_mut = P - n_elite - n_xover
+    n_kids = n_xover + n_mut
     n_parents = 2 * n_xover + n_mut
-    lb, ub = tracker.lb, tracker.ub
+    lb, ub = runs.lb, runs.ub
+    adaptive = mutation == "adaptfeasible"
+    which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
 
-    X = tracker.random_uniform(rng, P)
-    score = yield from tracker.ask(X)
-    tracker.end_iteration()
-    best_hist = [float(np.min(score))]
-    delta = 1.0
+    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    score = yield from runs.ask(X)
+    runs.end_iteration()
+    best_before, best_last = np.full(S, np.nan), score.min(axis=1)  # the last two generations'
+    delta = np.ones(S)
+    offset = np.empty(S)
+    perm = np.empty((S, n_parents), dtype=np.int64)
+    # per run: the crossover mask's uniforms, then (adaptfeasible) the mutation directions'
+    uniforms = np.empty((S, (n_kids if adaptive else n_xover) * D))
+    normals = np.empty((S, n_mut, D))
 
     t = 0
-    while not tracker.done:
+    while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
         t += 1
-        nfe_start = tracker.nfe
-        expectation, order = _rank_expectation(score, n_parents)
-        parents = _stochastic_uniform(rng, expectation, n_parents)
-        parents = parents[rng.permutation(n_parents)]
-        elite = order[:n_elite]
+        nfe_start = runs.nfe.copy()
+        for s, rng in enumerate(rngs):
+            offset[s] = rng.random()
+            perm[s] = rng.permutation(n_parents)
+            rng.random(out=uniforms[s])
+            if not adaptive:
+                normals[s] = rng.standard_normal((n_mut, D))
+        expectation, order = rank_expectation(score, n_parents)
+        parents = stochastic_uniform(offset, expectation, n_parents)
+        parents = np.take_along_axis(parents, perm, axis=1)
+        elite = order[:, :n_elite]
 
-        p1, p2 = parents[0 : 2 * n_xover : 2], parents[1 : 2 * n_xover : 2]
-        take_first = rng.random((n_xover, D)) < 0.5
-        xover_kids = np.where(take_first, X[p1], X[p2])
+        p1, p2 = parents[:, 0 : 2 * n_xover : 2], parents[:, 1 : 2 * n_xover : 2]
+        take_first = uniforms[:, : n_xover * D].reshape(S, n_xover, D) < 0.5
+        xover_kids = np.where(take_first, X[which, p1], X[which, p2])
 
-        mut_parents = X[parents[2 * n_xover :]]
-        if mutation == "adaptfeasible":
+        mut_parents = X[which, parents[:, 2 * n_xover :]]
+        if adaptive:
             if t > 2:
-                improved = best_hist[-1] < best_hist[-2]
-                delta = min(1.0, 4.0 * delta) if improved else max(_SQRT_EPS, delta / 4.0)
-            mut_kids = _adaptive_feasible(rng, mut_parents, delta, lb, ub)
+                improved = best_last < best_before
+                delta = np.where(
+                    improved, np.minimum(1.0, 4.0 * delta), np.maximum(_SQRT_EPS, delta / 4.0)
+                )
+            unit = -1.0 + 2.0 * uniforms[:, n_xover * D :].reshape(S, n_mut, D)  # U(-1, 1)
+            mut_kids = adaptive_feasible(unit, mut_parents, delta, lb, ub)
         else:
-            sigma = scale * (1.0 - shrink * tracker.progress())  # t/T
-            noise = rng.standard_normal(mut_parents.shape) * (ub - lb) * sigma
+            sigma = scale * (1.0 - shrink * runs.progress())  # t/T
+            noise = normals * (ub - lb) * sigma[:, None, None]
             mut_kids = np.clip(mut_parents + noise, lb, ub)
 
-        kids = np.vstack([xover_kids, mut_kids])
-        kid_score = yield from tracker.ask(kids)
-        X = np.vstack([X[elite], kids])
-        score = np.concatenate([score[elite], kid_score])
-        best_hist.append(float(np.min(score)))
-        if tracker.nfe - nfe_start < kids.shape[0]:
+        kids = np.concatenate([xover_kids, mut_kids], axis=1)
+        kid_score = yield from runs.ask(kids)
+        X = np.concatenate([X[which, elite], kids], axis=1)
+        score = np.concatenate([np.take_along_axis(score, elite, axis=1), kid_score], axis=1)
+        best_before, best_last = best_last, score.min(axis=1)
+        if (runs.nfe - nfe_start < n_kids).any():
             break  # the evaluation budget ended inside this generation
-        tracker.end_iteration()
+        runs.end_iteration()

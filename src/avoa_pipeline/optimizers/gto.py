@@ -33,10 +33,25 @@ Pseudo-code (one iteration = two population evaluations)::
 
 Vectorised where the code's semantics allow it: all random draws, the "unknown place" and "known
 place" moves, the competition move, the evaluations and the greedy replacement (the code's
-replacement loop only writes X_i/S, which nothing else in that loop reads). Kept sequential,
-as in the code: the "other gorillas" move (it reads GX rows that may already have been
-regenerated in the same loop) and the follow-silverback move (its mean of GX changes as rows are
-replaced). A fixed-evaluation budget is checked between the two evaluations.
+replacement loop only writes X_i/S, which nothing else in that loop reads). Kept sequential over
+the gorillas, as in the code: the "other gorillas" move (it reads GX rows that may already have
+been regenerated in the same loop) and the follow-silverback move (its mean of GX changes as rows
+are replaced). A fixed-evaluation budget is checked between the two evaluations.
+
+Seeds in one array. The runs of a fit block (its seeds) move together, as arrays shaped runs x
+gorillas x dimension (they share the budget, so they are always at the same iteration and phase):
+every move above is one array operation over all runs, and the two sequential loops are
+compiled loops (numba) over the runs and gorillas, because as numpy operations over the runs, one
+per gorilla, they cost more than all the array moves. C and L are drawn per run, so whether a
+run follows the silverback or competes (C >= w) is a mask over the runs. Each run draws from its
+own generator exactly what the one-run algorithm drew, in the same order, per iteration: C's and
+L's uniforms, u_unknown, u_known, r and Z in one ``rng.random`` call (consecutive doubles of one
+stream are the same whether drawn in one call or several, and ``uniform(-C, C)`` is
+``-C + 2C d`` of the same double), then the rows ``rng.integers(0, P, (P, 3))``; after the
+exploration evaluation, only if it competes, the vector/scalar choice, E's normals (one
+``standard_normal`` call for the P x D and the P of them) and Q's uniforms. C is computed with
+``math.cos`` run by run, the one-run code's function (numpy's vectorised cosine is not promised
+to round as libm's does on every CPU).
 
 Differences between (a) the authors' code, (b) the original GTO paper, (c) Fahmy et al. (no GTO
 equations printed, nothing to compare) and (d) mealpy 3.0.2 ``OriginalAGTO`` (mealpy's ``GTO`` is
@@ -76,94 +91,160 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
-from .base import Steps, Tracker, register
+from .base import Runs, Steps, register
 
 
 class _Troop:
-    """Positions X, their costs, and the silverback; group formation = greedy replacement."""
+    """Every run's positions X, their costs, and its silverback (arrays over runs); group
+    formation = greedy replacement."""
 
     def __init__(self, X: np.ndarray, cost: np.ndarray):
-        self.X = X
-        self.cost = cost
-        k = int(np.argmin(cost))
-        self.silverback = X[k].copy()
-        self.silverback_cost = float(cost[k])
+        self.X = X  # (runs, P, D)
+        self.cost = cost  # (runs, P)
+        each = np.arange(X.shape[0])
+        k = np.argmin(cost, axis=1)
+        self.silverback = X[each, k]  # (runs, D)
+        self.silverback_cost = cost[each, k]
 
     def group_formation(self, GX: np.ndarray, cost: np.ndarray) -> None:
         better = cost < self.cost
         self.X[better] = GX[better]
         self.cost[better] = cost[better]
-        k = int(np.argmin(cost))
-        if cost[k] < self.silverback_cost:
-            self.silverback = GX[k].copy()
-            self.silverback_cost = float(cost[k])
+        k = np.argmin(cost, axis=1)
+        best = cost[np.arange(GX.shape[0]), k]
+        m = best < self.silverback_cost
+        if m.any():
+            self.silverback[m] = GX[m, k[m]]
+            self.silverback_cost[m] = best[m]
 
 
-@register("gto")
+@nb.njit(cache=True, nogil=True)
+def _move_to_others(GX, old, X, idx, others, L, r) -> None:
+    """The "other gorillas" move of every run, in place, gorilla by gorilla as the reference's
+    loop: row ``i`` of a run that makes this move reads the candidates ``GX_r1``, ``GX_r2``
+    (``idx[:, i, 1:]``) as already regenerated if they come before ``i``, else from ``old``."""
+    n, P, D = GX.shape
+    for s in range(n):
+        for i in range(P):
+            if not others[s, i]:
+                continue
+            j1, j2 = idx[s, i, 1], idx[s, i, 2]
+            for d in range(D):
+                g1 = GX[s, j1, d] if j1 < i else old[s, j1, d]
+                g2 = GX[s, j2, d] if j2 < i else old[s, j2, d]
+                x = X[s, i, d]
+                GX[s, i, d] = x - L[s] * (L[s] * (x - g1) + r[s, i] * (x - g2))
+
+
+@nb.njit(cache=True, nogil=True)
+def _follow_silverback(GX, X, silverback, L, follow) -> None:
+    """The follow-the-silverback move of every run in ``follow``, in place, gorilla by gorilla as
+    the reference's loop: row ``i`` uses M = |mean of GX's rows| with the rows before ``i``
+    already replaced. The mean adds the rows in order and divides by their number, as numpy's
+    ``mean(axis=0)`` of a population of two or more dimensions does (of one dimension numpy
+    sums pairwise, which may round a last bit differently)."""
+    n, P, D = GX.shape
+    for s in range(n):
+        if not follow[s]:
+            continue
+        for i in range(P):
+            for d in range(D):  # M's coordinate d depends on column d alone
+                total = GX[s, 0, d]
+                for j in range(1, P):
+                    total += GX[s, j, d]
+                M = abs(total / P)
+                GX[s, i, d] = L[s] * M * (X[s, i, d] - silverback[s, d]) + X[s, i, d]
+
+
+@register("gto", batched=True)
 def gto(
-    tracker: Tracker,
-    rng: np.random.Generator,
+    runs: Runs,
+    rngs: list[np.random.Generator],
     pop_size: int,
     p: float = 0.03,
     beta: float = 3.0,
     w: float = 0.8,
 ) -> Steps:
-    """GTO as in the authors' MATLAB code (see the module docstring for every deviation)."""
+    """GTO as in the authors' MATLAB code (see the module docstring for every deviation), every
+    run of ``runs`` moved as one array operation, each from its own generator in ``rngs``."""
     if not 0.0 <= p <= 1.0:
         raise ValueError(f"p must be in [0, 1], got {p}")
 
-    P, D = pop_size, tracker.dim
-    lb, ub = tracker.lb, tracker.ub
+    S, P, D = runs.n, pop_size, runs.dim
+    lb, ub = runs.lb, runs.ub
+    which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
 
-    X = tracker.random_uniform(rng, P)
-    troop = _Troop(X, (yield from tracker.ask(X)))
+    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    troop = _Troop(X, (yield from runs.ask(X)))
     GX = X.copy()
-    tracker.end_iteration()
-    T = tracker.planned_iterations(2 * P)
+    runs.end_iteration()
+    T = runs.planned_iterations(2 * P)
 
-    while not tracker.done:
-        It = tracker.iteration + 1
-        C = (math.cos(2.0 * rng.random()) + 1.0) * max(0.0, 1.0 - It / T)
-        L = C * (2.0 * rng.random() - 1.0)
+    # per run and iteration: C's and L's uniforms, u_unknown, u_known, r (P each), Z (P x D)
+    draws = np.empty((S, 2 + 3 * P + P * D))
+    idx = np.empty((S, P, 3), dtype=np.int64)  # X_r, GX_r1, GX_r2
+    C = np.empty(S)
+    # the competition's draws, per run that competes: the vector/scalar choice, E's normals
+    # (P x D, then P), Q's uniforms; zeros until drawn (a following run's are never used)
+    choice = np.zeros((S, P))
+    normals = np.zeros((S, P * D + P))
+    q = np.zeros((S, P))
+
+    while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
+        It = int(runs.iteration[0]) + 1
+        decay = max(0.0, 1.0 - It / T)
+        for s, rng in enumerate(rngs):
+            rng.random(out=draws[s])
+            idx[s] = rng.integers(0, P, size=(P, 3))
+            C[s] = (math.cos(2.0 * draws[s, 0]) + 1.0) * decay  # libm's rounding, as one run
+        L = C * (2.0 * draws[:, 1] - 1.0)
         X = troop.X
+        Cb, Lb = C[:, None, None], L[:, None, None]
 
         # --- exploration ----------------------------------------------------------------------
-        u_unknown = rng.random(P) < p
-        u_known = rng.random(P) >= 0.5
-        r = rng.random(P)  # r1 / r2 / r3 of the one move each gorilla makes
-        Z = rng.uniform(-C, C, (P, D))
-        idx = rng.integers(0, P, size=(P, 3))  # X_r, GX_r1, GX_r2
-        unknown = u_unknown
-        known = ~u_unknown & u_known
-        others = ~u_unknown & ~u_known
+        per = draws[:, 2 : 2 + 3 * P].reshape(S, 3, P)
+        unknown = per[:, 0] < p
+        known = ~unknown & (per[:, 1] >= 0.5)
+        others = ~unknown & ~known
+        r = per[:, 2]  # r1 / r2 / r3 of the one move each gorilla makes
+        lo = -Cb
+        Z = lo + (Cb - lo) * draws[:, 2 + 3 * P :].reshape(S, P, D)  # rng.uniform(-C, C)
         old = GX
-        GX = np.empty_like(old)
-        GX[unknown] = (ub - lb) * r[unknown, None] + lb
-        GX[known] = (r[known, None] - C) * X[idx[known, 0]] + L * Z[known] * X[known]
-        for i in np.flatnonzero(others):
-            # rows before i were regenerated already in the reference loop, the others not yet
-            j1, j2 = idx[i, 1], idx[i, 2]
-            g1 = GX[j1] if j1 < i else old[j1]
-            g2 = GX[j2] if j2 < i else old[j2]
-            GX[i] = X[i] - L * (L * (X[i] - g1) + r[i] * (X[i] - g2))
-        GX = tracker.clip(GX)
-        troop.group_formation(GX, (yield from tracker.ask(GX)))
-        if tracker.done:
+        GX = np.where(
+            unknown[:, :, None],
+            (ub - lb) * r[:, :, None] + lb,
+            (r[:, :, None] - Cb) * X[which, idx[:, :, 0]] + Lb * Z * X,
+        )
+        _move_to_others(GX, old, X, idx, others, L, r)
+        GX = runs.clip(GX)
+        troop.group_formation(GX, (yield from runs.ask(GX)))
+        if runs.done.all():
             break
 
         # --- exploitation (the silverback after the exploration evaluation) --------------------
-        S = troop.silverback
-        if w <= C:  # follow the silverback; the mean of GX changes as its rows are replaced
-            for i in range(P):
-                M = np.abs(GX.mean(axis=0))
-                GX[i] = L * M * (X[i] - S) + X[i]
-        else:  # competition for adult females
-            vector = rng.random(P) >= 0.5
-            E = np.where(vector[:, None], rng.standard_normal((P, D)), rng.standard_normal((P, 1)))
-            Q = 2.0 * rng.random((P, 1)) - 1.0
-            GX = S - (S * Q - X * Q) * (beta * E)
-        GX = tracker.clip(GX)
-        troop.group_formation(GX, (yield from tracker.ask(GX)))
-        tracker.end_iteration()
+        sb = troop.silverback
+        follow = w <= C
+        compete = ~follow
+        for s in np.flatnonzero(compete):
+            rng = rngs[s]
+            rng.random(out=choice[s])
+            rng.standard_normal(out=normals[s])
+            rng.random(out=q[s])
+        new = GX
+        if follow.any():  # follow the silverback; the mean of GX changes as its rows are replaced
+            _follow_silverback(GX, X, sb, L, follow)
+        if compete.any():  # competition for adult females
+            E = np.where(
+                (choice >= 0.5)[:, :, None],
+                normals[:, : P * D].reshape(S, P, D),
+                normals[:, P * D :, None],
+            )
+            Q = 2.0 * q[:, :, None] - 1.0
+            competed = sb[:, None] - (sb[:, None] * Q - X * Q) * (beta * E)
+            new = np.where(follow[:, None, None], GX, competed)
+        GX = runs.clip(new)
+        troop.group_formation(GX, (yield from runs.ask(GX)))
+        runs.end_iteration()

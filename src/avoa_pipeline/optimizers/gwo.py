@@ -45,7 +45,17 @@ using the reference's ``l = t - 1``. So ``Budget(iterations=500)`` gives the ref
 ``Max_iter = 501`` evaluation rounds and the ``a``-schedule of ``Max_iter = 500``. Under a pure
 evaluation budget ``Budget(max_nfe=N, iterations=None)``, ``T = ceil((N - P) / P)``
 (:meth:`.base.Tracker.planned_iterations`); the last, possibly partial population is cut by the
-tracker.
+budget's accounts (:class:`.base.Runs`).
+
+Seeds in one array. The runs of a fit block (its seeds) move together, as arrays shaped runs x
+wolves x dimension: one ``a`` for all (they share the budget, so they are always at the same
+iteration), one array operation for every run's move. Each run draws from its own generator
+exactly what the one-run algorithm drew, in the same order: per iteration ``r1`` then ``r2``,
+each ``3 x P x D`` uniforms, here as one ``rng.random`` call per run (consecutive doubles of one
+stream are the same whether drawn in one call or two). The leader update stays sequential over
+the wolves, as in the reference: a compiled loop (numba) over the runs and wolves, because as
+numpy operations over the runs, one per wolf and comparison, it costs more than the whole move
+(a few array operations over every run at once).
 
 Differences vs mealpy 3.0.2 ``GWO.OriginalGWO``:
 
@@ -66,52 +76,57 @@ Differences vs mealpy 3.0.2 ``GWO.OriginalGWO``:
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
-from .base import Steps, Tracker, register
+from .base import Runs, Steps, register
 
 
-def _update_leaders(X, f, leader_pos, leader_score) -> None:
-    """The reference's sequential alpha/beta/delta update (in place; see module docstring)."""
-    for i in range(X.shape[0]):
-        fi = f[i]
-        if fi < leader_score[0]:
-            leader_score[0] = fi
-            leader_pos[0] = X[i]
-        if fi > leader_score[0] and fi < leader_score[1]:
-            leader_score[1] = fi
-            leader_pos[1] = X[i]
-        if fi > leader_score[0] and fi > leader_score[1] and fi < leader_score[2]:
-            leader_score[2] = fi
-            leader_pos[2] = X[i]
+@nb.njit(cache=True, nogil=True)
+def update_leaders(f: np.ndarray, X: np.ndarray, pos: np.ndarray, score: np.ndarray) -> None:
+    """The reference's sequential alpha/beta/delta update (see the module docstring) of every run:
+    ``f`` (runs x wolves), ``X`` (runs x wolves x D); ``pos`` (runs x 3 x D) and ``score``
+    (runs x 3) are updated in place, wolf by wolf in index order."""
+    for s in range(f.shape[0]):
+        for i in range(f.shape[1]):
+            fi = f[s, i]
+            if fi < score[s, 0]:
+                score[s, 0] = fi
+                pos[s, 0] = X[s, i]
+            if fi > score[s, 0] and fi < score[s, 1]:
+                score[s, 1] = fi
+                pos[s, 1] = X[s, i]
+            if fi > score[s, 0] and fi > score[s, 1] and fi < score[s, 2]:
+                score[s, 2] = fi
+                pos[s, 2] = X[s, i]
 
 
-@register("gwo")
-def gwo(tracker: Tracker, rng: np.random.Generator, pop_size: int, **settings) -> Steps:
-    """Grey Wolf Optimizer (reference MATLAB version); no tunable settings."""
+@register("gwo", batched=True)
+def gwo(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
+    """Grey Wolf Optimizer (reference MATLAB version), every run of ``runs`` moved as one array
+    operation, each from its own generator in ``rngs``; no tunable settings."""
     if settings:
         raise TypeError(f"gwo takes no settings, got {sorted(settings)}")
-    P, D = pop_size, tracker.dim
-    T = tracker.planned_iterations(P)  # the a-schedule's horizon
+    S, P, D = runs.n, pop_size, runs.dim
+    T = runs.planned_iterations(P)  # the a-schedule's horizon
 
-    leader_pos = np.zeros((3, D))  # alpha, beta, delta (reference: zeros(1, dim))
-    leader_score = np.full(3, np.inf)
+    leader_pos = np.zeros((S, 3, D))  # alpha, beta, delta (reference: zeros(1, dim))
+    leader_score = np.full((S, 3), np.inf)
 
-    X = tracker.random_uniform(rng, P)
-    f = yield from tracker.ask(X)
-    _update_leaders(X, f, leader_pos, leader_score)
-    tracker.end_iteration()
+    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    update_leaders((yield from runs.ask(X)), X, leader_pos, leader_score)
+    runs.end_iteration()
+    draws = np.empty((S, 2, 3, P, D))  # per run: r1, r2
 
     t = 0
-    while not tracker.done:
+    while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
         t += 1
         a = 2.0 - 2.0 * (t - 1) / T
-        r1 = rng.random((3, P, D))
-        r2 = rng.random((3, P, D))
-        A = 2.0 * a * r1 - a
-        C = 2.0 * r2
-        L = leader_pos[:, None, :]  # (3, 1, D)
-        X = tracker.clip(np.mean(L - A * np.abs(C * L - X[None]), axis=0))
-        f = yield from tracker.ask(X)
-        _update_leaders(X, f, leader_pos, leader_score)
-        tracker.end_iteration()
+        for s, rng in enumerate(rngs):
+            rng.random(out=draws[s])
+        A = 2.0 * a * draws[:, 0] - a  # (S, 3, P, D)
+        C = 2.0 * draws[:, 1]
+        L = leader_pos[:, :, None, :]  # (S, 3, 1, D)
+        X = runs.clip(np.mean(L - A * np.abs(C * L - X[:, None]), axis=1))
+        update_leaders((yield from runs.ask(X)), X, leader_pos, leader_score)
+        runs.end_iteration()
