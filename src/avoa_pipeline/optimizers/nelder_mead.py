@@ -143,7 +143,14 @@ class Simplexes:
             rho, chi, psi, sigma = 1, 1 + 2 / dim, 0.75 - 1 / (2 * dim), 1 - 1 / dim
         else:
             rho, chi, psi, sigma = 1, 2, 0.5, 0.5
-        self.rho, self.chi, self.psi, self.sigma = rho, chi, psi, sigma
+        self.sigma = sigma
+        # each branch's new point as a xbar + b x_N, a row per branch: scipy's expressions, as
+        # x - c y is x + (-c) y bit for bit and the coefficients are computed as scipy's
+        self.coef = np.zeros((SHRINK + 1, 2))
+        self.coef[REFLECT] = 1 + rho, -rho
+        self.coef[EXPAND] = 1 + rho * chi, -(rho * chi)
+        self.coef[CONTRACT_OUT] = 1 + psi * rho, -(psi * rho)
+        self.coef[CONTRACT_IN] = 1 - psi, psi
         self.sim = np.empty((n_seeds, N + 1, N))
         self.fsim = np.full((n_seeds, N + 1), np.inf)
         self.xbar = np.empty((n_seeds, N))
@@ -176,104 +183,101 @@ class Simplexes:
         self.iterations[s] = 1
         self.point[s] = sim[:, 0]
 
-    def _sort(self, s: np.ndarray) -> None:
-        """scipy's ``np.argsort`` of each seed's values (not stable: ties keep scipy's order only
-        because each row is sorted by the same call on the same values) and the vertices in it."""
-        if s.size:
-            ind = np.argsort(self.fsim[s], axis=1)
-            self.fsim[s] = np.take_along_axis(self.fsim[s], ind, axis=1)
-            self.sim[s] = np.take_along_axis(self.sim[s], ind[:, :, None], axis=1)
+    def _sort(self, which: np.ndarray) -> None:
+        """scipy's ``np.argsort`` of the values of each seed in the mask ``which``, the vertices
+        in that order. The sort is not stable: tied values keep scipy's order because each seed's
+        row is sorted by the same call on the same values (a row's order does not depend on the
+        other rows of the call)."""
+        ind = np.argsort(self.fsim, axis=1)
+        rows = np.arange(ind.shape[0])[:, None]
+        self.fsim = np.where(which[:, None], self.fsim[rows, ind], self.fsim)
+        self.sim = np.where(which[:, None, None], self.sim[rows, ind], self.sim)
 
     @np.errstate(invalid="ignore", over="ignore")  # inf - inf of failed simulations: harmless
     def advance(self, f: np.ndarray, alive: np.ndarray) -> np.ndarray:
         """Take each live seed's value ``f`` of its ``point`` through scipy's loop to the seed's
         next point. Returns the seeds whose search has ended (converged, or at its ``maxiter`` /
-        ``maxfev``): they need a restart."""
+        ``maxfev``): they need a restart.
+
+        Every branch is computed for every seed (a few dozen seeds: an operation on all of them
+        costs what one on a few does) and kept where the seed is in it."""
         N, sim, fsim, point = self.N, self.sim, self.fsim, self.point
-        rho, chi, psi = self.rho, self.chi, self.psi
-        phase = self.phase.copy()  # the branch each seed was in when it asked
+        code = np.where(alive, self.phase, -1)  # the branch each live seed was in when it asked
         completed = np.zeros(alive.size, dtype=bool)  # ended an iteration
-        initialised = np.zeros(alive.size, dtype=bool)  # evaluated its initial simplex
-        shrink = np.zeros(alive.size, dtype=bool)
+        initialised = np.zeros(alive.size, dtype=bool)  # evaluated its whole initial simplex
 
-        for which, done in ((INIT, initialised), (SHRINK, completed)):  # vertex by vertex
-            s = np.flatnonzero(alive & (phase == which))
-            if s.size:
-                k = self.idx[s]
-                fsim[s, k] = f[s]
-                k += 1
-                self.idx[s] = k
-                more = k <= N
-                point[s[more]] = sim[s[more], k[more]]
-                done[s[~more]] = True
+        vertex = (code == INIT) | (code == SHRINK)
+        if vertex.any():  # vertex by vertex: the initial simplex, a shrink
+            s = np.flatnonzero(vertex)
+            k = self.idx[s]
+            fsim[s, k] = f[s]
+            k += 1
+            self.idx[s] = k
+            more = k <= N
+            point[s[more]] = sim[s[more], k[more]]
+            last = s[~more]
+            init = code[last] == INIT
+            initialised[last[init]] = True
+            completed[last[~init]] = True
 
-        s = np.flatnonzero(alive & (phase == REFLECT))
-        if s.size:
-            fxr = self.fxr[s] = f[s]
-            expand = fxr < fsim[s, 0]
-            accept = ~expand & (fxr < fsim[s, -2])
-            contract = ~expand & ~accept
-            outside = contract & (fxr < fsim[s, -1])
-            inside = contract & ~outside
-            e, a, o, i = s[expand], s[accept], s[outside], s[inside]
-            if e.size:
-                point[e] = self.clip((1 + rho * chi) * self.xbar[e] - rho * chi * sim[e, -1])
-                self.phase[e] = EXPAND
-            sim[a, -1] = self.xr[a]
-            fsim[a, -1] = fxr[accept]
-            completed[a] = True
-            if o.size:
-                point[o] = self.clip((1 + psi * rho) * self.xbar[o] - psi * rho * sim[o, -1])
-                self.phase[o] = CONTRACT_OUT
-            if i.size:
-                point[i] = self.clip((1 - psi) * self.xbar[i] + psi * sim[i, -1])
-                self.phase[i] = CONTRACT_IN
+        # reflection: expand if f(xr) < f_0, take xr if f(xr) < f_{N-1}, else contract, outside
+        # if f(xr) < f_N, inside otherwise
+        reflect = code == REFLECT
+        below_best = f < fsim[:, 0]
+        take_xr = reflect & ~below_best & (f < fsim[:, -2])
+        contraction = np.where(f < fsim[:, -1], CONTRACT_OUT, CONTRACT_IN)
+        moving = reflect & ~take_xr
+        # the second evaluation of an iteration: xe replaces the worst vertex if f(xe) < f(xr),
+        # else xr does; xc if f(xc) <= f(xr); xcc if f(xcc) < f_N; else the simplex shrinks
+        fxr = self.fxr
+        take = np.where(
+            code == EXPAND,
+            f < fxr,
+            np.where(code == CONTRACT_OUT, f <= fxr, (code == CONTRACT_IN) & (f < fsim[:, -1])),
+        )
+        expanded = code == EXPAND
+        replace = take_xr | take | expanded
+        np.copyto(sim[:, -1], np.where(take[:, None], point, self.xr), where=replace[:, None])
+        fsim[:, -1] = np.where(replace, np.where(take | take_xr, f, fxr), fsim[:, -1])
+        completed |= replace
+        shrink = (code >= CONTRACT_OUT) & (code <= CONTRACT_IN) & ~take
+        self.fxr = np.where(reflect, f, fxr)
+        self.phase = np.where(moving, np.where(below_best, EXPAND, contraction), self.phase)
 
-        s = np.flatnonzero(alive & (phase == EXPAND))
-        if s.size:
-            better = f[s] < self.fxr[s]
-            sim[s, -1] = np.where(better[:, None], point[s], self.xr[s])
-            fsim[s, -1] = np.where(better, f[s], self.fxr[s])
-            completed[s] = True
-
-        for which in (CONTRACT_OUT, CONTRACT_IN):
-            s = np.flatnonzero(alive & (phase == which))
-            if s.size:
-                fs = f[s]
-                ok = fs <= self.fxr[s] if which == CONTRACT_OUT else fs < fsim[s, -1]
-                a = s[ok]
-                sim[a, -1] = point[a]
-                fsim[a, -1] = fs[ok]
-                completed[a] = True
-                shrink[s[~ok]] = True
-
-        s = np.flatnonzero(shrink)
-        if s.size:  # every shrunk vertex at once: each depends on x_0 and itself only
+        if shrink.any():  # every shrunk vertex at once: each depends on x_0 and itself only
+            s = np.flatnonzero(shrink)
             best = sim[s, :1]
             sim[s, 1:] = self.clip(best + self.sigma * (sim[s, 1:] - best))
             self.phase[s] = SHRINK
             self.idx[s] = 1
             point[s] = sim[s, 1]
 
-        self.iterations[completed] += 1
+        self.iterations += completed
         starting = completed | initialised
-        self._sort(np.flatnonzero(starting))
-        self._sort(np.flatnonzero(initialised))  # scipy sorts the initial simplex twice
-
-        # the head of scipy's loop: its condition, then the convergence test, then reflection
-        s = np.flatnonzero(starting)
         stopped = np.zeros(alive.size, dtype=bool)
-        if s.size:
-            go = (self.fcalls[s] < self.maxfev) & (self.iterations[s] < self.maxiter)
-            spread_x = np.abs(sim[s, 1:] - sim[s, :1]).max(axis=(1, 2))
-            spread_f = np.abs(fsim[s, :1] - fsim[s, 1:]).max(axis=1)
+        if starting.any():
+            if initialised.any():  # scipy sorts the initial simplex twice
+                self._sort(initialised)
+            self._sort(starting)
+            sim, fsim = self.sim, self.fsim
+            # the head of scipy's loop: its condition, then the convergence test, then reflection
+            go = starting & (self.fcalls < self.maxfev) & (self.iterations < self.maxiter)
+            spread_x = np.abs((sim[:, 1:] - sim[:, :1]).reshape(len(sim), -1)).max(axis=1)
+            spread_f = np.abs(fsim[:, :1] - fsim[:, 1:]).max(axis=1)
             go &= ~((spread_x <= self.xatol) & (spread_f <= self.fatol))
-            stopped[s[~go]] = True
-            g = s[go]
-            if g.size:
-                xbar = self.xbar[g] = np.add.reduce(sim[g, :-1], 1) / N
-                point[g] = self.xr[g] = self.clip((1 + rho) * xbar - rho * sim[g, -1])
-                self.phase[g] = REFLECT
+            stopped = starting & ~go
+            if go.any():
+                xbar = np.add.reduce(sim[:, :-1], 1) / N
+                self.xbar = np.where(go[:, None], xbar, self.xbar)
+                self.phase = np.where(go, REFLECT, self.phase)
+                moving |= go
+
+        if moving.any():  # scipy's xr, xe, xc, xcc: a xbar + b x_N, clipped
+            coef = self.coef[self.phase]
+            new = self.clip(coef[:, :1] * self.xbar + coef[:, 1:] * sim[:, -1])
+            self.point = np.where(moving[:, None], new, point)
+            reflecting = moving & (self.phase == REFLECT)
+            self.xr = np.where(reflecting[:, None], new, self.xr)
         # a call past maxfev ends the search instead (scipy's _MaxFuncCallError)
         return alive & (stopped | (self.fcalls >= self.maxfev))
 
