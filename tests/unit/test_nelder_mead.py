@@ -18,7 +18,7 @@ from scipy.optimize import Bounds, OptimizeWarning, minimize
 from avoa_pipeline.optimizers import Budget, Tracker, minimize_together, step_together
 from avoa_pipeline.optimizers.base import search_steps
 from avoa_pipeline.optimizers.local_search import LocalSearchAccounting, restart_loop
-from avoa_pipeline.optimizers.nelder_mead import Simplexes, scipy_limits
+from avoa_pipeline.optimizers.nelder_mead import Simplexes, centroid, scipy_limits
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 
 LB, UB = np.array([-5.0, 0.0, 10.0, -1.0]), np.array([5.0, 1.0, 20.0, 3.0])
@@ -152,6 +152,20 @@ def test_other_dimensions(dim):
             np.testing.assert_array_equal(
                 np.array(points), np.array(_scipy_search(rosenbrock, lb, ub, x0, options))
             )
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3, 5, 8, 9, 12, 17])
+def test_centroid_adds_as_scipy_adds(dim):
+    # vertices of very different magnitudes and signs: the rounded sum depends on the order of
+    # the additions (checked below), and each seed's centroid must be scipy's
+    rng = np.random.default_rng(dim)
+    sim = rng.standard_normal((30, dim + 1, dim)) * 10.0 ** rng.integers(-8, 17, (30, dim + 1, dim))
+    got = centroid(sim)
+    for s in range(30):
+        np.testing.assert_array_equal(got[s], np.add.reduce(sim[s][:-1], 0) / dim)
+    if dim > 2:
+        backwards = np.add.reduce(sim[:, -2::-1], 1) / dim
+        assert not np.array_equal(got, backwards)
 
 
 def test_limits_are_scipys():

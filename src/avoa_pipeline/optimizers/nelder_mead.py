@@ -114,6 +114,15 @@ def scipy_limits(n: int, maxiter, maxfev) -> tuple[float, float]:
     return maxiter, maxfev
 
 
+def centroid(sim: np.ndarray) -> np.ndarray:
+    """Each seed's scipy centroid of its ``N`` best vertices (``sim``: seeds × (N + 1) × N,
+    sorted): ``np.add.reduce(sim[:-1], 0) / N`` adds the vertices one after the other, x_0 + x_1
+    first (numpy's pairwise summation is along a contiguous reduced axis only), and so does this
+    reduction over the vertex axis of every seed at once (tested on sums whose rounding depends
+    on the order)."""
+    return np.add.reduce(sim[:, :-1], 1) / (sim.shape[1] - 1)
+
+
 class Simplexes:
     """Every seed's Nelder–Mead search as arrays over seeds: the simplexes ``sim`` (seeds × (N +
     1) × N) and their values ``fsim``, the centroid and the reflected point of the running
@@ -267,7 +276,7 @@ class Simplexes:
             go &= ~((spread_x <= self.xatol) & (spread_f <= self.fatol))
             stopped = starting & ~go
             if go.any():
-                xbar = np.add.reduce(sim[:, :-1], 1) / N
+                xbar = centroid(sim)
                 self.xbar = np.where(go[:, None], xbar, self.xbar)
                 self.phase = np.where(go, REFLECT, self.phase)
                 moving |= go
