@@ -1,8 +1,8 @@
 """Nelder–Mead over arrays of seeds against scipy.optimize.minimize(method="Nelder-Mead") itself,
-bit for bit: every point asked, in scipy's order, with scipy's values and scipy's end of each
-local search; and a fit block's records against scipy driven one seed at a time through the
-greenlet path the module replaced (kept here as the reference), over budgets that end inside a
-restart's initial simplex and inside a shrink.
+bit for bit: every point asked, in scipy's order, and where each local search ends (scipy's
+convergence test, maxiter, maxfev); and a fit block's records against scipy driven one seed at a
+time through the greenlet path the module replaced (kept here as the reference), over budgets
+that end inside a restart's initial simplex and inside a shrink.
 
 Its bounds, budgets and history contract is in test_optimizer_contract.py, its restarts and
 settings in test_local.py.
@@ -50,9 +50,9 @@ def failing(X):
 
 
 def failing_corners(X):
-    """Rosenbrock with failed simulations in two corners of the box (NaN, +inf): a seed whose
-    start lies in the failing part of :func:`failing` may see nothing but +inf for a whole
-    search, and a short budget would then leave it without any point."""
+    """Rosenbrock with failed simulations (NaN, +inf) in two corners of the box only. Under
+    :func:`failing` a seed that starts in the failing part sees nothing but +inf for a whole
+    search (it shrinks onto its start), and a short budget leaves it no point to report."""
     f = rosenbrock(X)
     f[(X[:, 0] > 4.0) & (X[:, 3] > 2.0)] = np.nan
     f[(X[:, 1] > 0.9) & (X[:, 2] > 18.0)] = np.inf

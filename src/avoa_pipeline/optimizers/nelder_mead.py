@@ -15,7 +15,7 @@ handling (simplex points are clipped to the bounds).
 Why not call scipy. scipy's loop owns the iteration and calls the objective itself, one point at
 a time, so it can step one seed only: a fit block then ran one scipy loop per seed in a greenlet
 and stacked the seeds' one-point asks into one kernel call, and scipy's per-iteration Python, the
-greenlet switches and the per-seed accounting cost about five times the kernel's time. This module
+greenlet switches and the per-seed accounting cost several times the kernel's time. This module
 re-implements scipy's algorithm over arrays of seeds (simplexes shaped seeds × (D + 1) × D, one
 generator for all seeds): at each step every live seed asks exactly the next point scipy would
 evaluate, and which branch each seed takes is a mask over seeds. The arithmetic is scipy's,
@@ -30,8 +30,8 @@ One local search (scipy's, with ``N = D``; ``rho, chi, psi, sigma = 1, 2, 1/2, 1
 ``adaptive`` ``1, 1 + 2/N, 3/4 - 1/(2N), 1 - 1/N``)::
 
     x0 <- clip(x0, lb, ub)
-    simplex: x0 and x0 + (5 % of x0_k, or 0.00025 - x0_k if x0_k = 0) e_k, k = 1..N;
-             a coordinate above ub is reflected to 2 ub - x, then every point clipped to the box
+    simplex: x0, and for k = 1..N x0 with its k-th coordinate times 1.05 (0.00025 if it is 0);
+             a coordinate above ub is reflected to 2 ub - x, then every vertex clipped to the box
     evaluate the N + 1 vertices in order; sort them by value (np.argsort, twice, as scipy)
     while evaluations < maxfev and iterations < maxiter:
         stop if max |x_i - x_0| <= xatol and max |f_0 - f_i| <= fatol
@@ -76,7 +76,8 @@ the random start).
 Differences vs scipy's ``minimize``: none in the points evaluated and their order. scipy warns
 when ``x0`` lies outside the bounds; the uniform starts never do (they are clipped all the same).
 A value that is NaN (a simulation that blew up) is ``+inf`` here, as every optimizer's tracker
-makes it. Differences vs a plain single-start ``fminsearch``: restarts from fresh random points
+makes it. ``maxfev < 1`` is refused (scipy would stop at once, and the restarts never end).
+Differences vs a plain single-start ``fminsearch``: restarts from fresh random points
 until the budget is spent (so a converged local search does not waste the budget the population
 methods get), and bounds (``fminsearch`` is unconstrained). mealpy has no Nelder–Mead.
 """
@@ -88,7 +89,15 @@ import numpy as np
 from .base import Runs, Steps, register
 from .local_search import LocalSearchAccounting, restart_loop
 
-__all__ = ["NM_OPTIONS", "LocalSearchAccounting", "Simplexes", "nelder_mead", "restart_loop"]
+__all__ = [
+    "NM_OPTIONS",
+    "LocalSearchAccounting",
+    "Simplexes",
+    "centroid",
+    "nelder_mead",
+    "restart_loop",
+    "scipy_limits",
+]
 # LocalSearchAccounting and restart_loop moved to .local_search; quasi_newton imports them from here
 
 NM_OPTIONS = ("xatol", "fatol", "maxiter", "maxfev", "adaptive")
