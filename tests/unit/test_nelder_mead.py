@@ -146,7 +146,7 @@ def test_other_dimensions(dim):
     # and the adaptive coefficients of other dimensions
     lb, ub = np.full(dim, -3.0), np.linspace(2.0, 5.0, dim)
     X0 = _starts(lb, ub, np.random.default_rng(dim)) if dim > 3 else lb + 0.3 * (ub - lb)[None]
-    for options in ({}, {"adaptive": True}, {"maxfev": 60}):
+    for options in ({"maxfev": 400}, {"adaptive": True, "maxfev": 400}, {"maxfev": 60}):
         got = _batched_searches(rosenbrock, lb, ub, X0, options)
         for x0, points in zip(X0, got, strict=True):
             np.testing.assert_array_equal(
@@ -223,7 +223,7 @@ def _budgets_inside(f, options) -> list[int]:
     of its second search (and just before it) and inside a shrink (between two of its N points:
     an iteration of N + 2 evaluations is reflection, contraction, shrink)."""
     marks = []
-    _reference(f, Budget(pop_size=7, iterations=None, max_nfe=3000), 0, marks, **options)
+    _reference(f, Budget(pop_size=7, iterations=None, max_nfe=1500), 0, marks, **options)
     starts = [n for kind, n in marks if kind == "start"]
     assert len(starts) >= 2, "no restart in the reference run"
     budgets = [starts[1] - 1, starts[1] + 2]
@@ -233,7 +233,7 @@ def _budgets_inside(f, options) -> list[int]:
             shrinks.append(prev + 3)  # reflection, contraction and the first shrunk vertex
         prev = n if kind == "iteration" else n + LB.size + 1  # a start: its simplex first
     assert shrinks, "no shrink in the reference run"
-    return [*budgets, shrinks[0], shrinks[-1]]
+    return sorted({*budgets, shrinks[0], shrinks[-1]})
 
 
 @pytest.mark.parametrize(
@@ -249,7 +249,7 @@ def _budgets_inside(f, options) -> list[int]:
 def test_block_equals_scipy_one_seed_at_a_time(f, options):
     budgets = [Budget(pop_size=7, iterations=None, max_nfe=n) for n in _budgets_inside(f, options)]
     budgets += [Budget(pop_size=5, iterations=60), Budget(pop_size=9, iterations=30, max_nfe=200)]
-    seeds = [0, 3, 1, 4, 1]  # a repeated seed must give the same run twice
+    seeds = [0, 3, 1, 1]  # a repeated seed must give the same run twice
     for budget in budgets:
         block_rec = Recorder(f)
         block = minimize_together(
