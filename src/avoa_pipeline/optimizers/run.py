@@ -50,7 +50,7 @@ Pseudo-code (reference semantics; ``it/MaxIt`` is written ``τ``, see "Schedule"
 Evaluations per agent and iteration: 1, 2 or 3 (not 1-2: the Eq. 20 step is a third, conditional
 evaluation), so an iteration costs between P and 3·P evaluations: measured about 1.75·P early
 in a run and 1.6·P late (5-D sphere/Rosenbrock, P = 20). Every evaluation is preceded by a
-``tracker.done`` check, so a ``max_nfe`` budget is met exactly.
+check of the budget (the seed's ``Runs.done``), so a ``max_nfe`` budget is met exactly.
 
 Sequential updates (kept on purpose). The reference updates agent i in place before agent i+1
 moves, and agent i+1 sees that: x_lbest and the random partners read the updated population, and
@@ -66,19 +66,20 @@ evaluations), so each carries its own place in its iteration: its agent ``i`` an
 that agent's next candidate (0: Eq. 18, 1: ESQ, 2: Eq. 20). The agent loop is a state machine
 (:func:`_advance`, compiled) advanced for all seeds in one call per step: it applies each seed's
 told value (greedy replacement, and at the agent's end the refresh of x*) and moves the seed on to
-its next candidate or to the end of its iteration. A seed at the end of its iteration closes it
-(``runs.end_iteration``) and, budget left, starts the next one: its τ
-(``runs.progress(count_initial=True)``) and its random numbers (Python, from its own generator;
-see :class:`_Draws` for the order), then a second call of :func:`_advance` gives its first
-candidate. Before every ask a seed whose budget is spent stops, as the one-seed loop checked
-``tracker.done`` before every evaluation, so a last iteration cut by an evaluation budget stays
-open (the history's partial last entry). One run is the same state machine with one seed.
+its next candidate or to the end of its iteration. The seeds at the end of their iteration close
+it (``runs.end_iteration``) and, budget left, begin the next one: τ
+(``runs.progress(count_initial=True)``) and the random numbers (Python, each seed from its own
+generator, in the order the one-seed code drew them: :class:`_Draws`), then a second call of
+:func:`_advance` gives their first candidates. A seed whose budget is spent stops before asking,
+as the one-seed loop checked ``tracker.done`` before every evaluation, so a last iteration cut by
+an evaluation budget stays open (the history's partial last entry). One run is the same state
+machine with one seed.
 
 Why compiled: as plain numpy on 6-element vectors the moves cost about as much Python time as the
-model costs to simulate (RUN was half of the full grid's optimizer time), and a Python loop over
-the seeds each step would cost more than the evaluation of their 30 candidates. The moves are the
-reference's vector expressions unchanged (same operations in the same order, so the same
-numbers); the evaluations, the budget and the history stay with :class:`~.base.Runs`.
+model costs to simulate (RUN was half of the full grid's optimizer time). The moves are the
+reference's vector expressions written per coordinate (every one is elementwise: the same
+operations in the same order give the same numbers) so that a step allocates nothing; the
+evaluations, the budget and the history stay with :class:`~.base.Runs`.
 
 Schedule. The reference counts ``it = 2..MaxIt`` with the initial population as ``it = 1`` and uses
 ``τ = it/MaxIt``. With an iteration budget T (our iteration t = 1..T after the initial population)
@@ -134,9 +135,9 @@ from .base import Runs, Steps, register
 
 # The uniform draws of one seed and iteration live in one flat row, a field per use, in the order
 # the seed's generator gives them; each group below is filled by one ``rng.random`` call (between
-# two groups the generator gives integers or normals, see :meth:`_Draws.draw`). A field holds P
-# values per agent-wide unit: 1 (a scalar per agent), D (a vector per agent), 4 (the RK factors of
-# K1..K4) or P (a row of partner keys per agent).
+# two groups the generator gives integers or normals, see :meth:`_Draws.draw`). A field holds
+# P × its width values: width 1 (a scalar per agent), D (a vector per agent), 4 (the factors of
+# K1..K4 per agent) or P (a row of partner keys per agent).
 (
     _SF,  # Eq. 17.5: SF's rand
     _RK1_C,  # main RK: c = randi([1, 2])·(1 − rand), its rand
@@ -214,9 +215,16 @@ class _Draws:
         self.partners = np.empty((S, 2, P, 3), dtype=np.int64)
 
     def draw(self, s: int, rng: np.random.Generator) -> None:
-        """Seed ``s``'s numbers for one iteration from its generator, in the order the reference
-        port drew them, one call per use (consecutive uniform draws merged into one call: a stream
-        gives the same doubles whether drawn by one call or several)."""
+        """Seed ``s``'s numbers for one iteration from its generator ``rng``.
+
+        The one-seed code drew, one call per use, in this order: SF's rand(P); the main RK's
+        randi([1, 2]), then its rand(P), r1, r2 and K-factors; the same for Eq. 20's RK; the
+        partner keys rand(P, P); the rands of γ, Stp, g, the Eq. 18 branch and the ESQ gate; the
+        vectors of γ, Stp, Δx, L and the sign r; μ's randn; ESQ's u, w, β; ESQ's randn; Eq. 20's
+        rand(D); ESQ's decay and r; ESQ's partner keys; Eq. 20's gate; the randi of w's
+        coordinate; x3's rand. Here consecutive uniform draws are one call (a stream gives the
+        same doubles whether drawn by one call or several); every integer and normal draw is the
+        call it was."""
         u, ints, normals, P = self.uniform[s], self.ints[s], self.normals[s], self.P
         (a, b), (c, d), (e, f), (g, h), (i, j), (k, m) = self.calls
         rng.random(out=u[a:b])
@@ -352,10 +360,14 @@ def _eq20_move(s, i, X, best_x, wk, cand, sf, u, o, ints, lb, ub):
 
 
 @nb.njit(cache=True)
-def _three_partners(keys, i, out):
-    """``RndX`` of agent ``i``: the three agents other than ``i`` with the smallest ``keys``, in
-    increasing order of key, into ``out`` (what sorting the keys with ``keys[i] = inf`` and
-    taking the first three gives; ties, two equal doubles among P, go to the lower index)."""
+def rndx(keys, i, out):
+    """``RndX`` of agent ``i``: the three agents other than ``i`` with the smallest ``keys``
+    (uniform doubles), in increasing order of key, into ``out``.
+
+    A selection inside the compiled step instead of the one-seed code's ``np.argsort`` of the
+    keys with ``keys[i] = inf``: the same three in the same order whenever the keys differ;
+    of two equal keys (two equal doubles of one stream) the lower index comes first, where
+    argsort's order is unspecified."""
     out[:] = -1
     for j in range(keys.size):
         if j == i:
@@ -397,7 +409,7 @@ def _advance(
             for i in range(P):
                 for t, field in enumerate((_KEYS1, _KEYS2)):
                     keys = u[o[field] + i * P : o[field] + (i + 1) * P]
-                    _three_partners(keys, i, partners[s, t, i])
+                    rndx(keys, i, partners[s, t, i])
             x_mean[s] = X[s, 0]  # the population mean, summed in numpy's order (row by row)
             for p in range(1, P):
                 x_mean[s] += X[s, p]
