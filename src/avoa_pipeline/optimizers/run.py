@@ -186,10 +186,11 @@ _UNIFORM_GROUPS = (
 _RK1_INT, _RK2_INT, _W_COORD = range(3)  # randi([1, 2]) of each RK's c; Eq. 20's coordinate
 _MU, _ESQ_NORMAL = range(2)  # μ = 0.5 + 0.1·randn(D); ESQ's randn(D)
 
-# each seed's state between two steps
-_STOPPED, _CANDIDATE, _ENDED, _START = range(4)  # status: the run is over; a candidate to
-# evaluate; the iteration is over; an iteration to begin
-_MAIN, _ESQ, _EQ20 = range(3)  # phase: which of its agent's moves the pending candidate is
+# Each seed's state between two steps. Its status: its run is over; a candidate of it waits for
+# its value; its iteration is over; it begins an iteration. Its phase: which of its agent's moves
+# the pending candidate is (Eq. 18, ESQ, Eq. 20).
+_STOPPED, _CANDIDATE, _ENDED, _START = range(4)
+_MAIN, _ESQ, _EQ20 = range(3)
 
 
 class _Draws:
