@@ -1,4 +1,5 @@
-"""RUN (Runge-Kutta optimizer): evaluations per iteration, NaN objectives, the mean variant.
+"""RUN (Runge-Kutta optimizer): evaluations per iteration, NaN objectives, the mean variant, the
+partner choice, seeds out of phase under an evaluation budget.
 
 The contract it shares with the other optimizers (bounds, budgets, reproducibility, history,
 convergence, smallest population) is in test_optimizer_contract.py.
@@ -6,7 +7,8 @@ convergence, smallest population) is in test_optimizer_contract.py.
 
 import numpy as np
 
-from avoa_pipeline.optimizers import Budget, minimize
+from avoa_pipeline.optimizers import Budget, minimize, minimize_together
+from avoa_pipeline.optimizers.run import rndx
 from avoa_pipeline.optimizers.testfunctions import sphere
 
 
@@ -45,3 +47,44 @@ def test_population_mean_variant_runs():
     )
     assert r.iterations == 20
     assert r.best_f < 1.0
+
+
+def test_rndx_takes_the_three_smallest_keys_besides_the_agent_in_order():
+    rng = np.random.default_rng(5)
+    P = 9
+    out = np.empty(3, dtype=np.int64)
+    for _ in range(50):
+        keys = rng.random(P)
+        for i in range(P):
+            rndx(keys, i, out)
+            masked = keys.copy()
+            masked[i] = np.inf
+            np.testing.assert_array_equal(out, np.argsort(masked)[:3])
+    # equal keys: the lower index first
+    rndx(np.array([0.5, 0.2, 0.2, 0.9, 0.2]), 2, out)
+    np.testing.assert_array_equal(out, [1, 4, 0])
+
+
+def test_an_evaluation_budget_ends_each_seed_inside_its_own_iteration():
+    # the seeds of a block fall out of phase (an agent costs 1, 2 or 3 evaluations): each stops
+    # at the budget exactly, its closed iterations cost P..3P, its last one is left open
+    P, max_nfe = 6, 125
+    seeds = range(6)
+    block = minimize_together(
+        "run",
+        sphere,
+        [-10.0] * 3,
+        [10.0] * 3,
+        Budget(P, None, max_nfe),
+        [np.random.default_rng(s) for s in seeds],
+    )
+    ends = set()
+    for r in block:
+        assert r.nfe == max_nfe
+        assert r.history_nfe[-1] == max_nfe
+        closed = np.diff(r.history_nfe[:-1])
+        assert np.all((closed >= P) & (closed <= 3 * P))
+        ends.add(tuple(r.history_nfe))
+    assert len(ends) > 1  # out of phase indeed
+    # fewer evaluations than any whole iteration costs: iterations cut short by the budget
+    assert any(r.history_nfe[-1] - r.history_nfe[-2] < P for r in block)

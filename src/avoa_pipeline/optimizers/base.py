@@ -379,11 +379,15 @@ class Runs:
         """:meth:`Tracker.planned_iterations` (it depends on the budget alone)."""
         return Tracker.planned_iterations(self, evals_per_iteration)
 
-    def progress(self, *, count_initial: bool = False) -> np.ndarray:
-        """:meth:`Tracker.progress` of each run."""
-        out = np.zeros(self.n)
+    def progress(
+        self, *, count_initial: bool = False, which: np.ndarray | None = None
+    ) -> np.ndarray:
+        """:meth:`Tracker.progress` of each run, or of the runs in the mask ``which`` (in their
+        order; for algorithms whose runs start their iterations at different steps)."""
+        runs = range(self.n) if which is None else np.flatnonzero(which)
+        out = np.zeros(len(runs))
         T, N = self.budget.iterations, self.budget.max_nfe
-        for s in range(self.n):
+        for j, s in enumerate(runs):
             frac = 0.0
             if T is not None:
                 t = int(self.iteration[s]) + 1
@@ -392,7 +396,7 @@ class Runs:
                 hist = self._hist_nfe[s]
                 last = hist[-1] - hist[-2] if len(hist) > 1 else (hist[-1] if hist else 0)
                 frac = max(frac, min(1.0, (int(self.nfe[s]) + last) / N))
-            out[s] = frac
+            out[j] = frac
         return out
 
     # --- ask / tell ---------------------------------------------------------------------------

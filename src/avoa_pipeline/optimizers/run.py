@@ -50,7 +50,7 @@ Pseudo-code (reference semantics; ``it/MaxIt`` is written ``τ``, see "Schedule"
 Evaluations per agent and iteration: 1, 2 or 3 (not 1-2: the Eq. 20 step is a third, conditional
 evaluation), so an iteration costs between P and 3·P evaluations: measured about 1.75·P early
 in a run and 1.6·P late (5-D sphere/Rosenbrock, P = 20). Every evaluation is preceded by a
-``tracker.done`` check, so a ``max_nfe`` budget is met exactly.
+check of the budget (the seed's ``Runs.done``), so a ``max_nfe`` budget is met exactly.
 
 Sequential updates (kept on purpose). The reference updates agent i in place before agent i+1
 moves, and agent i+1 sees that: x_lbest and the random partners read the updated population, and
@@ -58,13 +58,28 @@ x* is refreshed after each agent. Vectorising over the population would change t
 the agent loop is kept. Every random number an agent may need (those of untaken branches included)
 is drawn per iteration in bulk, which changes the random stream but not the distribution.
 
-Why compiled: the loop is a numba generator (:func:`_agents`) that yields each candidate and is
-resumed with its objective value. As plain numpy on 6-element vectors, the moves cost about as much
-Python time as the model costs to simulate (RUN was half of the full grid's optimizer time); the
-generator keeps the algorithm's control flow in one place while the evaluations, the budget and
-the history stay with the Python :class:`~.base.Tracker`. Each candidate becomes an ask of one
-point (``tracker.ask_one``), so the seeds of a fit block stepped together are evaluated as one
-population of one candidate per seed (:func:`.base.step_together`).
+Seeds as arrays (the batched state machine). The seeds of a fit block are one generator over
+:class:`~.base.Runs` (``register(..., batched=True)``); vectorising over seeds changes nothing in
+any seed's algorithm. Each step, every live seed asks for its next single candidate, all of them in
+one ``runs.ask`` of shape (seeds, 1, D). The seeds fall out of phase (an agent costs 1, 2 or 3
+evaluations), so each carries its own place in its iteration: its agent ``i`` and the phase of
+that agent's next candidate (0: Eq. 18, 1: ESQ, 2: Eq. 20). The agent loop is a state machine
+(:func:`_advance`, compiled) advanced for all seeds in one call per step: it applies each seed's
+told value (greedy replacement, and at the agent's end the refresh of x*) and moves the seed on to
+its next candidate or to the end of its iteration. The seeds at the end of their iteration close
+it (``runs.end_iteration``) and, budget left, begin the next one: τ
+(``runs.progress(count_initial=True)``) and the random numbers (Python, each seed from its own
+generator, in the order the one-seed code drew them: :class:`_Draws`), then a second call of
+:func:`_advance` gives their first candidates. A seed whose budget is spent stops before asking,
+as the one-seed loop checked ``tracker.done`` before every evaluation, so a last iteration cut by
+an evaluation budget stays open (the history's partial last entry). One run is the same state
+machine with one seed.
+
+Why compiled: as plain numpy on 6-element vectors the moves cost about as much Python time as the
+model costs to simulate (RUN was half of the full grid's optimizer time). The moves are the
+reference's vector expressions written per coordinate (every one is elementwise: the same
+operations in the same order give the same numbers) so that a step allocates nothing; the
+evaluations, the budget and the history stay with :class:`~.base.Runs`.
 
 Schedule. The reference counts ``it = 2..MaxIt`` with the initial population as ``it = 1`` and uses
 ``τ = it/MaxIt``. With an iteration budget T (our iteration t = 1..T after the initial population)
@@ -111,31 +126,132 @@ from memory of the published equations and should be checked against the article
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numba as nb
 import numpy as np
 
-from .base import Steps, Tracker, register
+from .base import Runs, Steps, register
+
+# The uniform draws of one seed and iteration live in one flat row, a field per use, in the order
+# the seed's generator gives them; each group below is filled by one ``rng.random`` call (between
+# two groups the generator gives integers or normals, see :meth:`_Draws.draw`). A field holds
+# P × its width values: width 1 (a scalar per agent), D (a vector per agent), 4 (the factors of
+# K1..K4 per agent) or P (a row of partner keys per agent).
+(
+    _SF,  # Eq. 17.5: SF's rand
+    _RK1_C,  # main RK: c = randi([1, 2])·(1 − rand), its rand
+    _RK1_R1,  # main RK: r1 (vector)
+    _RK1_R2,  # main RK: r2 (vector)
+    _RK1_Q,  # main RK: the four factors of K1..K4
+    _RK2_C,  # Eq. 20 RK: c's rand
+    _RK2_R1,
+    _RK2_R2,
+    _RK2_Q,
+    _KEYS1,  # RndX keys of the partners a, b, c
+    _GAMMA,  # Eq. 11: γ's scalar rand
+    _STP,  # Stp: rand·x̄
+    _G,  # Eq. 18: g = 2·rand
+    _BRANCH,  # Eq. 18: which of its two forms
+    _ESQ_GATE,  # ESQ taken iff < 0.5
+    _V_GAMMA,  # γ: rand(D)·(ub − lb)
+    _V_STP,  # Stp's factor (vector)
+    _V_DELX,  # Δx's factor (vector)
+    _V_L,  # L = rand(D) < 0.5
+    _V_SIGN,  # r = ±1 per coordinate
+    _ESQ_U,  # ESQ: u = 2·rand(D)
+    _ESQ_W,  # ESQ: w's rand(D)
+    _ESQ_BETA,  # ESQ: β
+    _V_EQ20,  # Eq. 20: rand(D) of 2·rand(D)·x*
+    _ESQ_DECAY,  # ESQ: the rand in w's decay
+    _ESQ_R,  # ESQ: r ∈ {−1, 0, 1}
+    _KEYS2,  # RndX keys of the three agents averaged by ESQ
+    _EQ20_GATE,  # Eq. 20 taken iff < w[random coordinate]
+    _X3_RAND,  # Eq. 20: x3's rand
+) = range(29)
+_UNIFORM_GROUPS = (
+    ((_SF, "1"),),
+    ((_RK1_C, "1"), (_RK1_R1, "D"), (_RK1_R2, "D"), (_RK1_Q, "4")),
+    (
+        (_RK2_C, "1"), (_RK2_R1, "D"), (_RK2_R2, "D"), (_RK2_Q, "4"), (_KEYS1, "P"),
+        (_GAMMA, "1"), (_STP, "1"), (_G, "1"), (_BRANCH, "1"), (_ESQ_GATE, "1"),
+        (_V_GAMMA, "D"), (_V_STP, "D"), (_V_DELX, "D"), (_V_L, "D"), (_V_SIGN, "D"),
+    ),
+    ((_ESQ_U, "D"), (_ESQ_W, "D"), (_ESQ_BETA, "D")),
+    ((_V_EQ20, "D"), (_ESQ_DECAY, "1"), (_ESQ_R, "1"), (_KEYS2, "P"), (_EQ20_GATE, "1")),
+    ((_X3_RAND, "1"),),
+)  # fmt: skip
+
+# integer draws (ints[s, k]) and normal draws (normals[s, k]) of one seed and iteration
+_RK1_INT, _RK2_INT, _W_COORD = range(3)  # randi([1, 2]) of each RK's c; Eq. 20's coordinate
+_MU, _ESQ_NORMAL = range(2)  # μ = 0.5 + 0.1·randn(D); ESQ's randn(D)
+
+# Each seed's state between two steps. Its status: its run is over; a candidate of it waits for
+# its value; its iteration is over; it begins an iteration. Its phase: which of its agent's moves
+# the pending candidate is (Eq. 18, ESQ, Eq. 20).
+_STOPPED, _CANDIDATE, _ENDED, _START = range(4)
+_MAIN, _ESQ, _EQ20 = range(3)
 
 
-def _three_partners(rng: np.random.Generator, P: int) -> np.ndarray:
-    """For every agent i, three distinct random agents other than i (``RndX``), shape (P, 3)."""
-    keys = rng.random((P, P))
-    np.fill_diagonal(keys, np.inf)
-    return np.argsort(keys, axis=1)[:, :3]
+class _Draws:
+    """The random numbers of every seed's running iteration: ``uniform`` (seeds × the fields
+    above, flat), ``ints`` (seeds × 3 × P), ``normals`` (seeds × 2 × P × D), and the partners
+    :func:`_advance` chooses from the keys, ``partners`` (seeds × 2 × P × 3: a, b, c; ESQ's
+    three)."""
+
+    def __init__(self, S: int, P: int, D: int):
+        width = {"1": 1, "D": D, "4": 4, "P": P}
+        self.offset = np.zeros(_X3_RAND + 1, dtype=np.int64)
+        self.calls, pos = [], 0
+        for group in _UNIFORM_GROUPS:
+            start = pos
+            for field, unit in group:
+                self.offset[field] = pos
+                pos += P * width[unit]
+            self.calls.append((start, pos))
+        self.P = P
+        self.uniform = np.empty((S, pos))
+        self.ints = np.empty((S, 3, P), dtype=np.int64)
+        self.normals = np.empty((S, 2, P, D))
+        self.partners = np.empty((S, 2, P, 3), dtype=np.int64)
+
+    def draw(self, s: int, rng: np.random.Generator) -> None:
+        """Seed ``s``'s numbers for one iteration from its generator ``rng``.
+
+        The one-seed code drew, one call per use, in this order: SF's rand(P); the main RK's
+        randi([1, 2]), then its rand(P), r1, r2 and K-factors; the same for Eq. 20's RK; the
+        partner keys rand(P, P); the rands of γ, Stp, g, the Eq. 18 branch and the ESQ gate; the
+        vectors of γ, Stp, Δx, L and the sign r; μ's randn; ESQ's u, w, β; ESQ's randn; Eq. 20's
+        rand(D); ESQ's decay and r; ESQ's partner keys; Eq. 20's gate; the randi of w's
+        coordinate; x3's rand. Here consecutive uniform draws are one call (a stream gives the
+        same doubles whether drawn by one call or several); every integer and normal draw is the
+        call it was."""
+        u, ints, normals, P = self.uniform[s], self.ints[s], self.normals[s], self.P
+        (a, b), (c, d), (e, f), (g, h), (i, j), (k, m) = self.calls
+        rng.random(out=u[a:b])
+        ints[_RK1_INT] = rng.integers(1, 3, size=P)
+        rng.random(out=u[c:d])
+        ints[_RK2_INT] = rng.integers(1, 3, size=P)
+        rng.random(out=u[e:f])
+        rng.standard_normal(out=normals[_MU])
+        rng.random(out=u[g:h])
+        rng.standard_normal(out=normals[_ESQ_NORMAL])
+        rng.random(out=u[i:j])
+        ints[_W_COORD] = rng.integers(self.normals.shape[-1], size=P)
+        rng.random(out=u[k:m])
 
 
-def _rk_draws(rng: np.random.Generator, P: int, D: int) -> tuple:
-    """Random numbers of one ``RungeKutta`` call per agent: c = randi([1, 2])·(1 − rand), the
-    two coordinate vectors r1, r2 and the four scalar factors of K1..K4."""
-    c = rng.integers(1, 3, size=P) * (1.0 - rng.random(P))
-    return c, rng.random((P, D)), rng.random((P, D)), rng.random((P, 4))
+# The moves below are the reference's vector expressions written per coordinate (every one of
+# them is elementwise), so that no step allocates: each coordinate's value is computed by the same
+# operations in the same order as the vector form, hence the same number.
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _runge_kutta(xb, xw, delx, c, r1, r2, q):
-    """The RK4-like search mechanism SM of the reference (``RungeKutta``)."""
+    """One coordinate of the RK4-like search mechanism SM of the reference (``RungeKutta``):
+    K1..K4 with the steps h = 1/2, 1/2, 1 and the weights 1, 2, 2, 1."""
     k = 0.5 * (q[0] * xw - c * xb)
-    total = k.copy()
+    total = k
     for j in range(3):
         h, weight = (0.5, 2.0) if j < 2 else (1.0, 1.0)
         step = h * k * delx
@@ -144,192 +260,253 @@ def _runge_kutta(xb, xw, delx, c, r1, r2, q):
     return total / 6.0
 
 
-@nb.njit(cache=True)
-def _clip(x, lb, ub):
-    return np.minimum(np.maximum(x, lb), ub)
+@nb.njit(cache=True, inline="always")
+def _clip(x, lo, hi):
+    """``np.minimum(np.maximum(x, lo), hi)`` of one coordinate (a NaN stays NaN)."""
+    if x < lo:
+        x = lo
+    if x > hi:
+        x = hi
+    return x
 
 
 @nb.njit(cache=True)
-def _agents(
-    X, cost, best_x, best_f, x_mean, fbox, wk, lb, ub, tau, overwrite_mean, sf_all, m, v, esq
+def _main_move(
+    s, i, X, cost, best_x, x_mean, wk, cand, tau, sf, u, o, ints, normals, partners, lb, ub
 ):
-    """The agent loop of one iteration, as a generator: it yields each candidate to evaluate and
-    reads its objective value from ``fbox[0]`` when resumed; ``X``, ``cost``, ``best_x``,
-    ``best_f`` and ``x_mean`` are updated in place, so stopping early (budget spent) leaves the
-    state of the agents moved so far, as the Python loop it replaces did.
-
-    ``m`` holds the main move's random numbers per agent (see :func:`run`), ``v`` the vector ones
-    (shape (P, k, D)), ``esq`` the ESQ / Eq. 20 scalars.
-    """
-    P = X.shape[0]
-    span = ub - lb
+    """Agent ``i``'s move of Eq. 18 (seed ``s``), into ``wk[s, 3]`` and ``cand[s, 0]``;
+    Δx into ``wk[s, 0]`` (Eq. 20 reuses it)."""
+    D = X.shape[2]
+    Xs, cs, xs = X[s], cost[s], best_x[s]
+    a, b, c3 = partners[s, 0, i]
+    k = a  # the best of a, b, c (the first if tied, as argmin)
+    if cs[b] < cs[k]:
+        k = b
+    if cs[c3] < cs[k]:
+        k = c3
+    lbest = np.argmin(cs)  # x_lbest = X[lbest]
+    i_better = cs[i] < cs[k]  # x_b = X_i, x_w = X_k; else swapped
     decay_gamma = np.exp(-4.0 * tau)
-    for i in range(P):
-        a, b = int(m[i, 0]), int(m[i, 1])
-        p3 = m[i, 0:3].astype(np.int64)
-        k = p3[np.argmin(cost[p3])]
-        x_lbest = X[np.argmin(cost)].copy()
-        gamma = m[i, 3] * (X[i] - v[i, 0] * span) * decay_gamma
-        stp = v[i, 1] * ((best_x - m[i, 4] * x_mean) + gamma)
-        wk[0] = 2.0 * v[i, 2] * np.abs(stp)  # Δx, reused by Eq. 20
-        delx = wk[0]
-        if cost[i] < cost[k]:
-            xb, xw = X[i].copy(), X[k].copy()
+    c = ints[s, _RK1_INT, i] * (1.0 - u[o[_RK1_C] + i])
+    q = u[o[_RK1_Q] + 4 * i : o[_RK1_Q] + 4 * i + 4]
+    g = 2.0 * u[o[_G] + i]
+    eq18_c = u[o[_BRANCH] + i] < 0.5  # the x_c form of Eq. 18, else the x_m form
+    for j in range(D):
+        iv = i * D + j  # agent i's coordinate j in a vector field
+        gamma = u[o[_GAMMA] + i] * (Xs[i, j] - u[o[_V_GAMMA] + iv] * (ub[j] - lb[j])) * decay_gamma
+        stp = u[o[_V_STP] + iv] * ((xs[j] - u[o[_STP] + i] * x_mean[s, j]) + gamma)
+        delx = 2.0 * u[o[_V_DELX] + iv] * np.abs(stp)
+        wk[s, 0, j] = delx
+        if i_better:
+            xb, xw = Xs[i, j], Xs[k, j]
         else:
-            xb, xw = X[k].copy(), X[i].copy()
-        sm = _runge_kutta(xb, xw, delx, m[i, 5], v[i, 3], v[i, 4], m[i, 6:10])
-        L = v[i, 5] < 0.5
-        xc = np.where(L, X[i], X[a])
-        xm = np.where(L, best_x, x_lbest)
-        r = np.where(v[i, 6] < 0.5, 1.0, -1.0)
-        g, mu, sf = m[i, 10], v[i, 7], sf_all[i]
-        if m[i, 11] < 0.5:
+            xb, xw = Xs[k, j], Xs[i, j]
+        sm = _runge_kutta(xb, xw, delx, c, u[o[_RK1_R1] + iv], u[o[_RK1_R2] + iv], q)
+        if u[o[_V_L] + iv] < 0.5:
+            xc, xm = Xs[i, j], xs[j]
+        else:
+            xc, xm = Xs[a, j], Xs[lbest, j]
+        r = 1.0 if u[o[_V_SIGN] + iv] < 0.5 else -1.0
+        mu = 0.5 + 0.1 * normals[s, _MU, i, j]
+        if eq18_c:
             x_new = xc + r * sf * g * xc + sf * sm + mu * (xm - xc)
         else:
-            x_new = xm + r * sf * g * xm + sf * sm + mu * (X[a] - X[b])
-        wk[3] = _clip(x_new, lb, ub)
-        yield wk[3].copy()
-        if fbox[0] < cost[i]:
-            X[i] = wk[3]
-            cost[i] = fbox[0]
-
-        if m[i, 12] < 0.5:  # enhanced solution quality (Eq. 19)
-            decay_w = np.exp(-5.0 * esq[i, 0] * tau)
-            r_esq = np.floor(-1.0 + 3.0 * esq[i, 1])  # Unifrnd(-1, 2) floored: -1, 0, 1
-            u = 2.0 * v[i, 8]
-            wk[1] = 2.0 * v[i, 9] * decay_w
-            w = wk[1]
-            a3 = esq[i, 2:5].astype(np.int64)
-            x_avg3 = (X[a3[0]] + X[a3[1]] + X[a3[2]]) / 3.0
-            if overwrite_mean:
-                x_mean[:] = x_avg3
-            beta = v[i, 10]
-            x1 = beta * best_x + (1.0 - beta) * x_avg3
-            n = v[i, 11]
-            x2 = np.where(
-                w < 1.0,
-                x1 + r_esq * w * np.abs((x1 - x_avg3) + n),
-                (x1 - x_avg3) + r_esq * w * np.abs((u * x1 - x_avg3) + n),
-            )
-            wk[2] = _clip(x2, lb, ub)
-            yield wk[2].copy()
-            # (locals holding arrays must not live across a yield: numba 0.68 generators corrupt
-            # the heap then, so the vectors reused after a yield live in ``wk``)
-            if fbox[0] < cost[i]:
-                X[i] = wk[2]
-                cost[i] = fbox[0]
-            elif esq[i, 5] < wk[1, int(esq[i, 6])]:  # Eq. 20
-                x2 = wk[2]
-                sm = _runge_kutta(
-                    X[i].copy(), x2, wk[0], esq[i, 7], v[i, 12], v[i, 13], esq[i, 8:12]
-                )
-                x3 = (x2 - esq[i, 12] * x2) + sf_all[i] * (sm + (2.0 * v[i, 14] * best_x - x2))
-                wk[3] = _clip(x3, lb, ub)
-                yield wk[3].copy()
-                if fbox[0] < cost[i]:
-                    X[i] = wk[3]
-                    cost[i] = fbox[0]
-
-        if cost[i] < best_f[0]:
-            best_x[:] = X[i]
-            best_f[0] = cost[i]
+            x_new = xm + r * sf * g * xm + sf * sm + mu * (Xs[a, j] - Xs[b, j])
+        wk[s, 3, j] = cand[s, 0, j] = _clip(x_new, lb[j], ub[j])
 
 
-@register("run")
+@nb.njit(cache=True)
+def _esq_move(
+    s, i, X, best_x, x_mean, wk, cand, tau, u, o, normals, partners, lb, ub, overwrite_mean
+):
+    """Agent ``i``'s enhanced-solution-quality move (Eq. 19, seed ``s``), into ``wk[s, 2]`` and
+    ``cand[s, 0]``; w into ``wk[s, 1]`` (Eq. 20's gate reads it)."""
+    D = X.shape[2]
+    Xs = X[s]
+    decay_w = np.exp(-5.0 * u[o[_ESQ_DECAY] + i] * tau)
+    r_esq = np.floor(-1.0 + 3.0 * u[o[_ESQ_R] + i])  # Unifrnd(-1, 2) floored: -1, 0, 1
+    a0, a1, a2 = partners[s, 1, i]
+    for j in range(D):
+        iv = i * D + j
+        uu = 2.0 * u[o[_ESQ_U] + iv]
+        w = 2.0 * u[o[_ESQ_W] + iv] * decay_w
+        wk[s, 1, j] = w
+        x_avg3 = (Xs[a0, j] + Xs[a1, j] + Xs[a2, j]) / 3.0
+        if overwrite_mean:
+            x_mean[s, j] = x_avg3
+        beta = u[o[_ESQ_BETA] + iv]
+        x1 = beta * best_x[s, j] + (1.0 - beta) * x_avg3
+        n = normals[s, _ESQ_NORMAL, i, j]
+        if w < 1.0:
+            x2 = x1 + r_esq * w * np.abs((x1 - x_avg3) + n)
+        else:
+            x2 = (x1 - x_avg3) + r_esq * w * np.abs((uu * x1 - x_avg3) + n)
+        wk[s, 2, j] = cand[s, 0, j] = _clip(x2, lb[j], ub[j])
+
+
+@nb.njit(cache=True)
+def _eq20_move(s, i, X, best_x, wk, cand, sf, u, o, ints, lb, ub):
+    """Agent ``i``'s Eq. 20 move from the rejected ESQ point ``wk[s, 2]`` (seed ``s``), into
+    ``wk[s, 3]`` and ``cand[s, 0]``."""
+    D = X.shape[2]
+    c = ints[s, _RK2_INT, i] * (1.0 - u[o[_RK2_C] + i])
+    q = u[o[_RK2_Q] + 4 * i : o[_RK2_Q] + 4 * i + 4]
+    x3_rand = u[o[_X3_RAND] + i]
+    for j in range(D):
+        iv = i * D + j
+        x2 = wk[s, 2, j]
+        sm = _runge_kutta(X[s, i, j], x2, wk[s, 0, j], c, u[o[_RK2_R1] + iv], u[o[_RK2_R2] + iv], q)
+        x3 = (x2 - x3_rand * x2) + sf * (sm + (2.0 * u[o[_V_EQ20] + iv] * best_x[s, j] - x2))
+        wk[s, 3, j] = cand[s, 0, j] = _clip(x3, lb[j], ub[j])
+
+
+@nb.njit(cache=True)
+def rndx(keys, i, out):
+    """``RndX`` of agent ``i``: the three agents other than ``i`` with the smallest ``keys``
+    (uniform doubles), in increasing order of key, into ``out``.
+
+    A selection inside the compiled step instead of the one-seed code's ``np.argsort`` of the
+    keys with ``keys[i] = inf``: the same three in the same order whenever the keys differ;
+    of two equal keys (two equal doubles of one stream) the lower index comes first, where
+    argsort's order is unspecified."""
+    out[:] = -1
+    for j in range(keys.size):
+        if j == i:
+            continue
+        key = keys[j]
+        if out[0] < 0 or key < keys[out[0]]:
+            out[2], out[1], out[0] = out[1], out[0], j
+        elif out[1] < 0 or key < keys[out[1]]:
+            out[2], out[1] = out[1], j
+        elif out[2] < 0 or key < keys[out[2]]:
+            out[2] = j
+
+
+@nb.njit(cache=True)
+def _advance(
+    act, status, done, f, agent, phase, cand,
+    X, cost, best_x, best_f, x_mean, wk, tau, sf_scale,
+    uniform, o, ints, normals, partners, lb, ub, overwrite_mean,
+):  # fmt: skip
+    """One step of the agent loop of the seeds whose ``status`` is ``act`` (the module
+    docstring's state machine); returns how many seeds then have a candidate and how many have
+    ended their iteration.
+
+    ``act`` = :data:`_START`: the seed begins its iteration (RndX's partners from the keys, x̄,
+    agent 0's move). ``act`` = :data:`_CANDIDATE`: the seed takes the value ``f[s]`` of its
+    pending candidate (greedy replacement), then moves on: to the same agent's next move (ESQ if
+    its gate opens; Eq. 20 if ESQ was rejected and its gate opens), or to the agent's end (x*
+    refreshed) and the next agent's move, or to the end of its iteration (:data:`_ENDED`). A seed
+    with a new candidate (in ``cand[s, 0]``) whose budget is spent (``done``) stops
+    (:data:`_STOPPED`) instead of asking. ``X``, ``cost``, ``best_x``, ``best_f``, ``x_mean`` and
+    ``wk`` (what an agent reuses across its candidates: Δx, w, the ESQ point, the last candidate)
+    are each seed's state, in place."""
+    S, P = X.shape[0], X.shape[1]
+    for s in range(S):
+        if status[s] != act:
+            continue
+        u = uniform[s]
+        if act == _START:
+            for i in range(P):
+                for t, field in enumerate((_KEYS1, _KEYS2)):
+                    keys = u[o[field] + i * P : o[field] + (i + 1) * P]
+                    rndx(keys, i, partners[s, t, i])
+            x_mean[s] = X[s, 0]  # the population mean, summed in numpy's order (row by row)
+            for p in range(1, P):
+                x_mean[s] += X[s, p]
+            x_mean[s] /= P
+            i = 0
+        else:
+            i = agent[s]
+            sf = 2.0 * (0.5 - u[o[_SF] + i]) * sf_scale[s]  # Eq. 17.5
+            ph = phase[s]
+            # the pending candidate is wk[s, 3] (Eq. 18 or 20) or wk[s, 2] (ESQ)
+            accepted = f[s] < cost[s, i]
+            if accepted:
+                X[s, i] = wk[s, 2 if ph == _ESQ else 3]
+                cost[s, i] = f[s]
+            if ph == _MAIN and u[o[_ESQ_GATE] + i] < 0.5:  # enhanced solution quality
+                _esq_move(s, i, X, best_x, x_mean, wk, cand, tau[s], u, o, normals, partners,
+                          lb, ub, overwrite_mean)  # fmt: skip
+                phase[s], status[s] = _ESQ, _STOPPED if done[s] else _CANDIDATE
+                continue
+            w_coord = ints[s, _W_COORD, i]
+            if ph == _ESQ and not accepted and u[o[_EQ20_GATE] + i] < wk[s, 1, w_coord]:
+                _eq20_move(s, i, X, best_x, wk, cand, sf, u, o, ints, lb, ub)
+                phase[s], status[s] = _EQ20, _STOPPED if done[s] else _CANDIDATE
+                continue
+            if cost[s, i] < best_f[s]:  # the agent is done: refresh x*
+                best_x[s] = X[s, i]
+                best_f[s] = cost[s, i]
+            i += 1
+            if i == P:
+                status[s] = _ENDED
+                continue
+        agent[s] = i
+        sf = 2.0 * (0.5 - u[o[_SF] + i]) * sf_scale[s]
+        _main_move(s, i, X, cost, best_x, x_mean, wk, cand, tau[s], sf, u, o, ints, normals,
+                   partners, lb, ub)  # fmt: skip
+        phase[s], status[s] = _MAIN, _STOPPED if done[s] else _CANDIDATE
+    asking, ended = 0, 0
+    for s in range(S):
+        if status[s] == _CANDIDATE:
+            asking += 1
+        elif status[s] == _ENDED:
+            ended += 1
+    return asking, ended
+
+
+@register("run", batched=True)
 def run(
-    tracker: Tracker,
-    rng: np.random.Generator,
+    runs: Runs,
+    rngs: Sequence[np.random.Generator],
     pop_size: int,
     *,
     esq_overwrites_mean: bool = True,
 ) -> Steps:
-    """Minimise with RUN (see the module docstring). ``pop_size`` must be at least 4."""
-    P, D = int(pop_size), tracker.dim
+    """Minimise with RUN (see the module docstring), every seed of ``runs`` from its own
+    generator in ``rngs``. ``pop_size`` must be at least 4."""
+    S, P, D = runs.n, int(pop_size), runs.dim
     if P < 4:
         raise ValueError(f"RUN needs pop_size >= 4 (three partners besides the agent), got {P}")
-    lb, ub = tracker.lb, tracker.ub
+    lb, ub = runs.lb, runs.ub
 
-    X = tracker.random_uniform(rng, P)
-    cost = yield from tracker.ask(X)
-    tracker.end_iteration()
-    ib = int(np.argmin(cost))
-    best_x, best_f = X[ib].copy(), np.array([cost[ib]])
-    fbox = np.zeros(1)
-    wk = np.zeros((4, D))
+    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    cost = yield from runs.ask(X)
+    runs.end_iteration()
+    ib = np.argmin(cost, axis=1)
+    best_x, best_f = X[np.arange(S), ib], cost[np.arange(S), ib]
+    draws = _Draws(S, P, D)
+    x_mean, wk = np.empty((S, D)), np.empty((S, 4, D))
+    tau, sf_scale = np.zeros(S), np.zeros(S)
+    agent, phase = np.zeros(S, dtype=np.int64), np.zeros(S, dtype=np.int64)
+    status, f = np.full(S, _STOPPED), np.zeros(S)
+    cand = np.empty((S, 1, D))
 
-    while not tracker.done:
-        tau = tracker.progress(count_initial=True)  # the reference's it/MaxIt
-        x_mean = X.mean(axis=0)
-        SF = 2.0 * (0.5 - rng.random(P)) * (20.0 * np.exp(-12.0 * tau))  # Eqs. 17.5-17.6
-        # Every random number an agent may need, drawn for all agents in bulk (those of branches
-        # not taken go unused): same distributions as the reference's draws on demand.
-        rk1, rk2 = _rk_draws(rng, P, D), _rk_draws(rng, P, D)
-        m = np.column_stack(
-            [
-                _three_partners(rng, P),  # 0-2: a, b, c
-                rng.random(P),  # 3: γ factor
-                rng.random(P),  # 4: Stp: rand·x̄
-                rk1[0],  # 5: RK c
-                rk1[3],  # 6-9: RK K1..K4 factors
-                2.0 * rng.random(P),  # 10: g
-                rng.random(P),  # 11: branch of Eq. 18
-                rng.random(P),  # 12: ESQ gate
-            ]
-        )
-        v = np.stack(
-            [
-                rng.random((P, D)),  # 0: γ: rand(D)·(ub − lb)
-                rng.random((P, D)),  # 1: Stp factor
-                rng.random((P, D)),  # 2: Δx factor
-                rk1[1],  # 3: RK r1
-                rk1[2],  # 4: RK r2
-                rng.random((P, D)),  # 5: L
-                rng.random((P, D)),  # 6: sign r
-                0.5 + 0.1 * rng.standard_normal((P, D)),  # 7: μ
-                rng.random((P, D)),  # 8: ESQ u
-                rng.random((P, D)),  # 9: ESQ w
-                rng.random((P, D)),  # 10: ESQ β
-                rng.standard_normal((P, D)),  # 11: ESQ normals
-                rk2[1],  # 12: Eq. 20 RK r1
-                rk2[2],  # 13: Eq. 20 RK r2
-                rng.random((P, D)),  # 14: Eq. 20 rand(D)
-            ],
-            axis=1,
-        )
-        esq = np.column_stack(
-            [
-                rng.random(P),  # 0: decay of w
-                rng.random(P),  # 1: r ∈ {−1, 0, 1}
-                _three_partners(rng, P),  # 2-4: the three agents averaged
-                rng.random(P),  # 5: Eq. 20 gate
-                rng.integers(D, size=P),  # 6: coordinate of w compared with it
-                rk2[0],  # 7: RK c
-                rk2[3],  # 8-11: RK K1..K4 factors
-                rng.random(P),  # 12: x3's rand
-            ]
-        )
-        complete = True
-        for x in _agents(
-            X,
-            cost,
-            best_x,
-            best_f,
-            x_mean,
-            fbox,
-            wk,
-            lb,
-            ub,
-            tau,
-            esq_overwrites_mean,
-            SF,
-            m,
-            v,
-            esq,
-        ):
-            if tracker.done:
-                complete = False
-                break
-            fbox[0] = yield from tracker.ask_one(x)
-        if not complete:
-            break
-        tracker.end_iteration()
+    def step(act: int, done: np.ndarray) -> tuple[int, int]:
+        return _advance(act, status, done, f, agent, phase, cand, X, cost, best_x, best_f,
+                        x_mean, wk, tau, sf_scale, draws.uniform, draws.offset, draws.ints,
+                        draws.normals, draws.partners, lb, ub, esq_overwrites_mean)  # fmt: skip
+
+    starting, asking = ~runs.done, 0
+    while True:
+        if starting is not None and starting.any():  # these seeds begin an iteration
+            seeds = np.flatnonzero(starting)
+            status[seeds] = _START
+            tau[seeds] = runs.progress(count_initial=True, which=starting)  # it/MaxIt
+            sf_scale[seeds] = 20.0 * np.exp(-12.0 * tau[seeds])  # Eq. 17.6
+            for s in seeds:
+                draws.draw(s, rngs[s])
+            asking, _ = step(_START, runs.done)
+        if not asking:
+            return
+        F = yield from runs.ask(cand, status == _CANDIDATE)
+        f[:] = F[:, 0]
+        cand = np.empty((S, 1, D))  # the asked rows stay the caller's
+        asking, ended = step(_CANDIDATE, runs.done)
+        starting = None
+        if ended:  # these seeds close their iteration and, budget left, begin the next
+            closing = status == _ENDED
+            runs.end_iteration(closing)
+            status[closing] = _STOPPED
+            starting = closing & ~runs.done
