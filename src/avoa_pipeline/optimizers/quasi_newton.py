@@ -71,6 +71,8 @@ quasi-Newton method.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # private: scipy exposes no public reverse-communication L-BFGS-B; see the module docstring
@@ -173,13 +175,16 @@ class LbfgsbSearch:
             setulb(core.m, x, core.low, core.up, core.nbd, self.f, g, core.factr, core.pgtol,
                    self.wa, self.iwa, task, self.lsave, self.isave, self.dsave, core.maxls,
                    self.ln_task)  # fmt: skip
-            if task[0] == _FG:
-                if (x == self.point).all():  # ScalarFunction's memo (np.array_equal)
+            t = task[0]
+            if t == _FG:
+                point = self.point
+                # ScalarFunction's memo (np.array_equal); the first coordinate settles most asks
+                if x[0] == point[0] and (x == point).all():
                     self.f, self.g = self.f_point, self.g_point
                     continue
                 self.point = x.astype(np.float64)
                 return True
-            if task[0] != _NEW_X:
+            if t != _NEW_X:
                 return False
             self.iterations += 1
             if self.iterations >= core.maxiter:
@@ -214,38 +219,39 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
     next_mark = np.full(S, P, dtype=np.int64)  # evaluations that close the next iteration
 
     searches: list[LbfgsbSearch | None] = [None] * S
-    searching = np.ones(S, dtype=bool)  # the seed's restart loop goes on
-    again = np.zeros(S, dtype=bool)  # the point has a NaN: MemoizeJac evaluates it twice
-    f_first: list[float] = [0.0] * S  # fun's f at such a point, from its first evaluation
-    points = np.tile(lb, (S, 1))
+    live = list(range(S))  # the seeds whose restart loop goes on
+    again = [False] * S  # the point has a NaN: MemoizeJac evaluates it twice
+    f_first = [0.0] * S  # fun's f at such a point, from its first evaluation
     diagonal = np.arange(D)
     shifts = np.zeros((S, D, D))
 
     while True:
-        done = runs.done
-        for s in np.flatnonzero(searching):
-            if again[s]:
-                continue
-            search = searches[s]
-            if search is None or not search.advance():
-                if done[s]:  # restart_loop: no new start once the budget is spent
-                    searching[s] = False
-                    continue
-                x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Tracker.random_uniform
-                searches[s] = search = LbfgsbSearch(x0[0], core)
-            points[s] = search.point
-        room = np.minimum(D + 1, cap - runs.nfe)  # rows that fit into each seed's budget
-        searching &= room > 0  # nothing fits: the search ends (BudgetExhausted)
-        if not searching.any():
+        done = runs.done.tolist()
+        moving = []
+        for s in live:
+            if not again[s]:
+                search = searches[s]
+                if search is None or not search.advance():
+                    if done[s]:  # restart_loop: no new start once the budget is spent
+                        continue
+                    x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Tracker.random_uniform
+                    searches[s] = LbfgsbSearch(x0[0], core)
+            moving.append(s)
+        room = np.minimum(D + 1, cap - runs.nfe).tolist()  # rows that fit into each budget
+        live = [s for s in moving if room[s] > 0]  # nothing fits: the search ends
+        if not live:
             return
 
+        # every seed's fun(x), as one array operation (finished seeds' rows are not asked)
+        points = np.array([lb if search is None else search.point for search in searches])
         x = np.clip(points, lb, ub)
         steps = np.where(x + h <= ub, h, -h)
         shifts[:, diagonal, diagonal] = steps
         X = np.concatenate([x[:, None, :], x[:, None, :] + shifts], axis=1)  # (S, D + 1, D)
         F = np.full((S, D + 1), np.inf)
-        for k in np.unique(room[searching]).astype(int):  # one ask unless the budgets differ
-            group = searching & (room == k)
+        for k in sorted({room[s] for s in live}):  # one ask unless the budgets differ
+            group = np.zeros(S, dtype=bool)
+            group[[s for s in live if room[s] == k]] = True
             F[group, :k] = (yield from runs.ask(X[:, :k], group))[group]
         while True:  # close an iteration for every pop_size evaluations
             closing = runs.nfe >= next_mark
@@ -253,14 +259,14 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
                 break
             runs.end_iteration(closing)
             next_mark[closing] += P
-        searching &= room == D + 1  # a cut call ends its search and the seed's run
+        live = [s for s in live if room[s] == D + 1]  # a cut call ends the seed's run
         with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, huge / step
             G = (F[:, 1:] - F[:, :1]) / steps
         G[~np.isfinite(G)] = 0.0
-        finite = np.isfinite(F[:, 0])
-        has_nan = np.isnan(points).any(axis=1)
-        for s in np.flatnonzero(searching):
-            f, g = (float(F[s, 0]), G[s]) if finite[s] else (_BIG, np.zeros(D))
+        f0 = F[:, 0].tolist()
+        has_nan = np.isnan(points).any(axis=1).tolist()
+        for s in live:
+            f, g = (f0[s], G[s]) if math.isfinite(f0[s]) else (_BIG, np.zeros(D))
             if again[s]:  # the second evaluation gives g; f is the first's
                 again[s] = False
                 f = f_first[s]
