@@ -36,7 +36,8 @@ those cost about three times the kernel's own time (``benchmarks/bench_fit_block
 _lbfgsb_py.py``) for one search, with what its wrappers do to the calls kept:
 
 - the workspace, the bounds (``nbd`` codes 0-3), ``factr = ftol / eps``, ``pgtol = gtol``, ``m =
-  maxcor``, ``maxls``; ``x0`` clipped to the box; ``g`` passed as a fresh float64 copy each call;
+  maxcor``, ``maxls``; ``x0`` clipped to the box; ``g`` passed as a fresh float64 copy each call
+  (the core can write into it; the memo's ``g`` stays as told);
 - ``ScalarFunction`` evaluates ``fun`` at ``x0`` before the first ``setulb`` call (which still
   gets ``f = 0``, ``g = 0``) and answers a request for the point it holds (``np.array_equal``)
   from its memo, without an evaluation (this happens at the first request, ``x0`` itself);
@@ -170,7 +171,7 @@ class LbfgsbSearch:
         setulb = _lbfgsb.setulb
         self.started = True
         while True:
-            # scipy upcasts g before every call (a float32 gradient, gh-18730): a fresh copy
+            # scipy upcasts g before every call (gh-18730), a fresh copy the core may write into
             self.g = g = self.g.astype(np.float64)
             setulb(core.m, x, core.low, core.up, core.nbd, self.f, g, core.factr, core.pgtol,
                    self.wa, self.iwa, task, self.lsave, self.isave, self.dsave, core.maxls,
