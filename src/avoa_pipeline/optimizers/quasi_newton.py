@@ -183,7 +183,7 @@ class LbfgsbSearch:
                 if x[0] == point[0] and (x == point).all():
                     self.f, self.g = self.f_point, self.g_point
                     continue
-                self.point = x.astype(np.float64)
+                self.point = x.copy()
                 return True
             if t != _NEW_X:
                 return False
@@ -220,30 +220,32 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
     next_mark = np.full(S, P, dtype=np.int64)  # evaluations that close the next iteration
 
     searches: list[LbfgsbSearch | None] = [None] * S
-    live = list(range(S))  # the seeds whose restart loop goes on
     again = [False] * S  # the point has a NaN: MemoizeJac evaluates it twice
     f_first = [0.0] * S  # fun's f at such a point, from its first evaluation
     diagonal = np.arange(D)
     shifts = np.zeros((S, D, D))
 
+    def moves_on(s: int, done: bool) -> bool:
+        """Seed ``s``'s search to its next point, or a new search once it has ended (restart_loop:
+        none once the budget is spent, False)."""
+        search = searches[s]
+        if search is not None and search.advance():
+            return True
+        if done:
+            return False
+        x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Tracker.random_uniform
+        searches[s] = LbfgsbSearch(x0[0], core)
+        return True
+
+    done = runs.done.tolist()
+    live = [s for s in range(S) if moves_on(s, done[s])]  # the seeds whose run goes on
     while True:
-        done = runs.done.tolist()
-        moving = []
-        for s in live:
-            if not again[s]:
-                search = searches[s]
-                if search is None or not search.advance():
-                    if done[s]:  # restart_loop: no new start once the budget is spent
-                        continue
-                    x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Tracker.random_uniform
-                    searches[s] = LbfgsbSearch(x0[0], core)
-            moving.append(s)
         room = np.minimum(D + 1, cap - runs.nfe).tolist()  # rows that fit into each budget
-        live = [s for s in moving if room[s] > 0]  # nothing fits: the search ends
+        live = [s for s in live if room[s] > 0]  # nothing fits: the run ends (BudgetExhausted)
         if not live:
             return
 
-        # every seed's fun(x), as one array operation (finished seeds' rows are not asked)
+        # every seed's fun(x) as one array operation (the rows of ended runs are not asked)
         points = np.array([lb if search is None else search.point for search in searches])
         x = np.clip(points, lb, ub)
         steps = np.where(x + h <= ub, h, -h)
@@ -260,13 +262,16 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
                 break
             runs.end_iteration(closing)
             next_mark[closing] += P
-        live = [s for s in live if room[s] == D + 1]  # a cut call ends the seed's run
         with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, huge / step
             G = (F[:, 1:] - F[:, :1]) / steps
         G[~np.isfinite(G)] = 0.0
         f0 = F[:, 0].tolist()
         has_nan = np.isnan(points).any(axis=1).tolist()
+        done = runs.done.tolist()
+        moving = []
         for s in live:
+            if room[s] < D + 1:  # a cut call ends the run (BudgetExhausted)
+                continue
             f, g = (f0[s], G[s]) if math.isfinite(f0[s]) else (_BIG, np.zeros(D))
             if again[s]:  # the second evaluation gives g; f is the first's
                 again[s] = False
@@ -274,5 +279,9 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
             elif has_nan[s]:
                 again[s] = True
                 f_first[s] = f
+                moving.append(s)
                 continue
             searches[s].tell(f, g)
+            if moves_on(s, done[s]):
+                moving.append(s)
+        live = moving
