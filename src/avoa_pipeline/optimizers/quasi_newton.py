@@ -212,11 +212,13 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
     h = rel_step * (ub - lb)
     core = LbfgsbCore(lb, ub, settings)
 
-    # the evaluation cap of a local search (nelder_mead.LocalSearchAccounting)
+    # the evaluation cap of a local search (nelder_mead.LocalSearchAccounting); a Budget has one
+    # of the two limits at least
     budget = runs.budget
-    cap = np.inf if budget.max_nfe is None else budget.max_nfe
-    if budget.iterations is not None:
-        cap = min(cap, (budget.iterations + 1) * P)
+    cap = min(
+        ([] if budget.max_nfe is None else [budget.max_nfe])
+        + ([] if budget.iterations is None else [(budget.iterations + 1) * P])
+    )
     next_mark = np.full(S, P, dtype=np.int64)  # evaluations that close the next iteration
 
     searches: list[LbfgsbSearch | None] = [None] * S
