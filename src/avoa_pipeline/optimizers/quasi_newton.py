@@ -32,9 +32,10 @@ the same arguments, hence the same points and the same records bit for bit -- bu
 needs ``f`` and ``g`` and asks the ``D + 1`` rows of all seeds in one ask. No ``minimize``
 wrapper, no ``ScalarFunction``/``MemoizeJac`` objects, no greenlet per seed: on the paper's fit
 block (``benchmarks/bench_fit_block.py --algorithms quasi_newton``: scenario 4 case 4, 30 seeds;
-the previous version and this one run alternately, twice, load about 7 on two cores) the block
-took 16.8 s, 4.0 times its kernel bound, before, and 5.2-5.7 s, 1.2-1.4 times, after (process
-CPU 6.9 s before, 2.1-2.3 s after); the records are the same.
+the previous version and this one run alternately, twice, load 2.5-3.3 on two cores) the block
+took 5.2-5.5 s, 3.2-3.5 times its kernel bound, before, and 1.8-1.9 s, 1.1-1.2 times, after; the
+records are the same. With 10 seeds of scenario 1 case 1 (a cheaper kernel call, so the steps'
+own cost weighs more): 2.1 s, 8.0 times, before; 1.2 s, 4.3 times, after.
 :class:`LbfgsbSearch` is scipy 1.17.1's ``_minimize_lbfgsb`` loop (``scipy/optimize/
 _lbfgsb_py.py``) for one search, with what its wrappers do to the calls kept:
 
