@@ -11,7 +11,7 @@ from optim_helpers import runner
 
 from avoa_pipeline.optimizers import Budget
 from avoa_pipeline.optimizers.avoa import BestTwo, levy_sigma
-from avoa_pipeline.optimizers.base import Tracker
+from avoa_pipeline.optimizers.base import Runs
 from avoa_pipeline.optimizers.testfunctions import sphere
 
 run = runner("avoa")
@@ -70,9 +70,9 @@ def test_best_two_memory_equals_the_references_vulture_by_vulture_loop():
 
 
 def test_horizon_under_an_evaluation_budget():
-    t = Tracker(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=None, max_nfe=10020))
+    t = Runs(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=None, max_nfe=10020), 1)
     assert t.planned_iterations(20) == 500
-    t = Tracker(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=100, max_nfe=10020))
+    t = Runs(sphere, [0.0], [1.0], Budget(pop_size=20, iterations=100, max_nfe=10020), 1)
     assert t.planned_iterations(20) == 100
 
 

@@ -1,14 +1,44 @@
-"""Tracker schedules: the iteration horizon and the run's progress, written once for all."""
+"""The accounts of a block of runs: the iteration horizon, each run's progress, asks of one row."""
 
 import numpy as np
 import pytest
 
-from avoa_pipeline.optimizers import Budget, Tracker
+from avoa_pipeline.optimizers import Budget, Runs
 from avoa_pipeline.optimizers.testfunctions import sphere
 
 
-def tracker(**budget) -> Tracker:
-    return Tracker(sphere, [-1.0, -1.0], [1.0, 1.0], Budget(**budget))
+class OneRun:
+    """One run's view of a :class:`Runs` of one, in the scalars the tests below read."""
+
+    def __init__(self, **budget):
+        self.runs = Runs(sphere, [-1.0, -1.0], [1.0, 1.0], Budget(**budget), 1)
+
+    def planned_iterations(self, cost):
+        return self.runs.planned_iterations(cost)
+
+    def evaluate(self, X):
+        return self.runs.evaluate(X[None])[0]
+
+    def end_iteration(self):
+        self.runs.end_iteration()
+
+    def progress(self, **kw):
+        return float(self.runs.progress(**kw)[0])
+
+    @property
+    def done(self):
+        return bool(self.runs.done[0])
+
+    @property
+    def iteration(self):
+        return int(self.runs.iteration[0])
+
+    def result(self):
+        return self.runs.result(0)
+
+
+def tracker(**budget) -> OneRun:
+    return OneRun(**budget)
 
 
 @pytest.mark.parametrize(
@@ -94,21 +124,43 @@ def _counting_objective_one(x):
 
 
 @pytest.mark.parametrize("one", [None, _counting_objective_one])
-def test_evaluate_one_keeps_the_accounts_of_evaluate(one):
+def test_asks_of_one_row_keep_the_accounts_of_population_asks(one):
+    # an ask of one row goes through objective_one where given: the same values and accounts
     budget = Budget(pop_size=2, iterations=None, max_nfe=3)
-    fast = Tracker(sphere, [-1.0, -1.0], [1.0, 1.0], budget, objective_one=one)
-    slow = Tracker(sphere, [-1.0, -1.0], [1.0, 1.0], budget)
+    fast = Runs(sphere, [-1.0, -1.0], [1.0, 1.0], budget, 1, objective_one=one)
+    slow = Runs(sphere, [-1.0, -1.0], [1.0, 1.0], budget, 1)
     points = np.array([[0.5, 0.5], [0.1, -0.2], [0.9, 0.0], [0.0, 0.0]])
-    got = [fast.evaluate_one(x) for x in points]
-    want = [float(slow.evaluate(x[None, :])[0]) for x in points]
+    got = [float(fast.evaluate(x[None, None, :])[0, 0]) for x in points]
+    want = [float(slow.evaluate(x[None, None, :])[0, 0]) for x in points]
     assert got == want
     assert got[-1] == np.inf  # past max_nfe: not evaluated, never best
-    assert (fast.nfe, fast.best_f) == (slow.nfe, slow.best_f) == (3, slow.best_f)
-    np.testing.assert_array_equal(fast.best_x, [0.1, -0.2])
+    assert (fast.nfe[0], fast.best_f[0]) == (slow.nfe[0], slow.best_f[0]) == (3, slow.best_f[0])
+    np.testing.assert_array_equal(fast.best_x[0], [0.1, -0.2])
 
 
-def test_evaluate_one_treats_nan_as_worst():
-    tr = Tracker(sphere, [-1.0], [1.0], Budget(pop_size=1, iterations=1), lambda x: np.nan)
-    assert tr.evaluate_one(np.array([0.3])) == np.inf
-    assert tr.best_x is None
-    assert tr.nfe == 1
+def test_a_nan_is_the_worst_value():
+    runs = Runs(sphere, [-1.0], [1.0], Budget(pop_size=1, iterations=1), 1, lambda x: np.nan)
+    assert runs.evaluate(np.array([[[0.3]]]))[0, 0] == np.inf
+    assert runs.nfe[0] == 1
+    with pytest.raises(RuntimeError, match="no point"):
+        runs.result(0)
+
+
+def test_a_local_search_closes_an_iteration_every_pop_size_evaluations():
+    # D + 1 = 7 rows per ask, pop_size 3: one ask may close two iterations; the cap is
+    # (iterations + 1) pop_size or max_nfe, whichever is smaller
+    runs = Runs(sphere, [-1.0] * 6, [1.0] * 6, Budget(pop_size=3, iterations=5), 2)
+    assert runs.evaluation_cap(3) == 18
+    assert Runs(sphere, [-1.0], [1.0], Budget(3, 5, max_nfe=10), 1).evaluation_cap(3) == 10
+    runs.evaluate(np.zeros((2, 7, 6)), live=np.array([True, False]))
+    runs.close_spent(3)  # run 0: 7 evaluations passed the marks 3 and 6
+    np.testing.assert_array_equal(runs.iteration, [1, 0])
+    runs.evaluate(np.zeros((2, 1, 6)))
+    runs.close_spent(3)  # 8 and 1 evaluations: no mark passed
+    np.testing.assert_array_equal(runs.nfe, [8, 1])
+    np.testing.assert_array_equal(runs.iteration, [1, 0])
+    runs.evaluate(np.zeros((2, 2, 6)))
+    runs.close_spent(3)  # 10 and 3: run 0 passed 9, run 1 its first mark (iteration 0)
+    np.testing.assert_array_equal(runs.iteration, [2, 0])
+    np.testing.assert_array_equal(runs.result(0).history_nfe, [7, 7, 10])
+    np.testing.assert_array_equal(runs.result(1).history_nfe, [3])

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from optim_helpers import Recorder, shifted
 
-from avoa_pipeline.optimizers import Budget, Tracker, minimize
+from avoa_pipeline.optimizers import Budget, Runs, minimize
 from avoa_pipeline.optimizers.gwo import update_leaders
 from avoa_pipeline.optimizers.testfunctions import sphere
 
@@ -25,7 +25,7 @@ def run(objective=sphere, lb=LB, ub=UB, budget=None, seed=0):
 
 def test_schedule_length():
     def tracker(budget):
-        return Tracker(sphere, LB, UB, budget)
+        return Runs(sphere, LB, UB, budget, 1)
 
     assert tracker(Budget(pop_size=20, iterations=500)).planned_iterations(20) == 500
     assert tracker(Budget(20, iterations=None, max_nfe=2000)).planned_iterations(20) == 99

@@ -35,7 +35,7 @@ from avoa_pipeline import fit, problem
 from avoa_pipeline.optimizers import (
     ALGORITHMS,
     Budget,
-    Tracker,
+    Runs,
     minimize,
     minimize_together,
 )
@@ -190,15 +190,16 @@ def test_an_evaluation_that_fails_ends_the_block_cleanly(name):
         )
 
 
-def test_tracker_answers_its_own_asks():
-    # without a driver, evaluate() is an ask answered by the tracker's objective
-    tr = Tracker(rosenbrock, LB, UB, Budget(pop_size=4, iterations=None, max_nfe=5))
+def test_runs_answer_their_own_asks():
+    # without a driver, evaluate() is an ask answered by the runs' objective, cut to each budget
+    runs = Runs(rosenbrock, LB, UB, Budget(pop_size=4, iterations=None, max_nfe=5), 2)
     X = np.array([[0.0, 0.5, 12.0, 1.0], [1.0, 0.5, 11.0, 0.0], [2.0, 0.2, 13.0, 2.0]])
-    np.testing.assert_array_equal(tr.evaluate(X), rosenbrock(X))
-    f = tr.evaluate(X)  # two rows left in the budget
-    np.testing.assert_array_equal(f, [*rosenbrock(X[:2]), np.inf])
-    assert tr.nfe == 5
-    assert tr.evaluate_one(X[2]) == np.inf
+    np.testing.assert_array_equal(runs.evaluate(np.stack([X, X])), [rosenbrock(X)] * 2)
+    f = runs.evaluate(np.stack([X, X]), live=np.array([True, False]))  # two rows left
+    np.testing.assert_array_equal(f, [[*rosenbrock(X[:2]), np.inf], [np.inf] * 3])
+    np.testing.assert_array_equal(runs.nfe, [5, 3])
+    f = runs.evaluate(np.stack([X[2:], X[2:]]))  # run 0's budget is spent, run 1 has two left
+    assert f.tolist() == [[np.inf], [rosenbrock(X[2:])[0]]]
 
 
 # --- the premise: a row's value does not depend on the other rows --------------------------------

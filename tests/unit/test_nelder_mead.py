@@ -12,12 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from one_seed_driver import (
+    LocalSearchAccounting,
+    Tracker,
+    restart_loop,
+    search_steps,
+    step_together,
+)
 from optim_helpers import Recorder, shifted
 from scipy.optimize import Bounds, OptimizeWarning, minimize
 
-from avoa_pipeline.optimizers import Budget, Tracker, minimize_together, step_together
-from avoa_pipeline.optimizers.base import search_steps
-from avoa_pipeline.optimizers.local_search import LocalSearchAccounting, restart_loop
+from avoa_pipeline.optimizers import Budget, minimize_together
 from avoa_pipeline.optimizers.nelder_mead import Simplexes, centroid, scipy_limits
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 

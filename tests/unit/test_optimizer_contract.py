@@ -32,9 +32,7 @@ from avoa_pipeline.optimizers import (
     Budget,
     OptimResult,
     Runs,
-    Tracker,
     drive,
-    step_together,
 )
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 
@@ -194,20 +192,8 @@ assert set(EXPECT) == set(ALGORITHMS)
 algorithms = pytest.mark.parametrize("name", ALGORITHMS)
 
 
-class StrictTracker(Tracker):
-    """Fails if the optimizer asks for an evaluation after the budget is spent."""
-
-    def ask(self, X):
-        assert not self.done, "ask() called after the budget was exhausted"
-        return super().ask(X)
-
-    def ask_one(self, x):
-        assert not self.done, "ask_one() called after the budget was exhausted"
-        return super().ask_one(x)
-
-
 class StrictRuns(Runs):
-    """:class:`StrictTracker` for the algorithms written over runs (``batched``)."""
+    """Fails if the optimizer asks for an evaluation after the budget is spent."""
 
     def ask(self, X, live=None):
         asking = np.ones(self.n, dtype=bool) if live is None else live
@@ -217,14 +203,9 @@ class StrictRuns(Runs):
 
 def strict_result(name, rec, lb, ub, budget, rng) -> OptimResult:
     """One run of ``name`` whose every ask is checked against the budget."""
-    fn = REGISTRY[name]
-    if fn.batched:
-        runs = StrictRuns(rec, lb, ub, budget, 1)
-        drive(runs, fn(runs, [rng], budget.pop_size))
-        return runs.result(0)
-    tracker = StrictTracker(rec, lb, ub, budget)
-    step_together([(tracker, fn(tracker, rng, budget.pop_size))], rec)
-    return tracker.result()
+    runs = StrictRuns(rec, lb, ub, budget, 1)
+    drive(runs, REGISTRY[name](runs, [rng], budget.pop_size))
+    return runs.result(0)
 
 
 def checked_run(name, f, lb, ub, budget, seed=0, **settings) -> tuple[OptimResult, Recorder]:

@@ -19,11 +19,12 @@ import itertools
 import numpy as np
 import pytest
 import scipy.optimize
+from one_seed_driver import Tracker
 from optim_helpers import Recorder, shifted
 from scipy.optimize import Bounds
 from scipy.optimize import minimize as scipy_minimize
 
-from avoa_pipeline.optimizers import Budget, OptimResult, Tracker, minimize_together, quasi_newton
+from avoa_pipeline.optimizers import Budget, OptimResult, minimize_together, quasi_newton
 from avoa_pipeline.optimizers.quasi_newton import LBFGSB_DEFAULTS
 from avoa_pipeline.optimizers.testfunctions import rastrigin, rosenbrock, sphere
 

@@ -10,12 +10,10 @@ from .base import (
     Budget,
     OptimResult,
     Runs,
-    Tracker,
     drive,
     minimize,
     minimize_together,
     register,
-    step_together,
 )
 
 PAPER_LABELS = {
@@ -36,10 +34,8 @@ __all__ = [
     "Budget",
     "OptimResult",
     "Runs",
-    "Tracker",
     "drive",
     "minimize",
     "minimize_together",
     "register",
-    "step_together",
 ]

@@ -85,7 +85,7 @@ equations and (d) mealpy 3.0.2 ``OriginalAVOA``; **choice** = what this module d
     evaluations for T iterations, the convention of :mod:`.base`).
 11. Parameters: (a), (d) p1 = 0.6, p2 = 0.4, p3 = 0.6, alpha (L1) = 0.8, beta (L2) = 0.2,
     gamma (w, Fahmy's k) = 2.5; Fahmy gives no values (only P = 20, T = 500). **choice: (a).**
-12. Horizon T for t/T: :meth:`.base.Tracker.planned_iterations` with P evaluations per
+12. Horizon T for t/T: :meth:`.base.Runs.planned_iterations` with P evaluations per
     iteration: the budget's ``iterations``; under a pure evaluation budget the number of
     iterations that fit, ceil((max_nfe - P) / P) (the smaller of the two if both are set).
 """
@@ -149,7 +149,7 @@ class BestTwo:
             self.set1 |= m
 
 
-@register("avoa", batched=True)
+@register("avoa")
 def avoa(
     runs: Runs,
     rngs: list[np.random.Generator],

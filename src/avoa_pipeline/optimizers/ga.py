@@ -128,7 +128,7 @@ def adaptive_feasible(
     return np.clip(child, lb, ub)  # rounding only; the step is already feasible
 
 
-@register("ga", batched=True)
+@register("ga")
 def ga(
     runs: Runs,
     rngs: list[np.random.Generator],

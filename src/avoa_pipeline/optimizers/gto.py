@@ -82,7 +82,7 @@ the unrelated Giant Trevally Optimizer); **choice** = what this module does.
     candidate; (b) silent. **choice: clip** after each phase.
 9.  Evaluations: 2 P per iteration plus P for the initial population in (a) and (d) and here.
 10. Parameters: p = 0.03, beta = 3, w = 0.8 in (a), (b); (d) names them p1, beta, p2.
-11. Horizon T for It/T: :meth:`.base.Tracker.planned_iterations` with 2 P evaluations per
+11. Horizon T for It/T: :meth:`.base.Runs.planned_iterations` with 2 P evaluations per
     iteration: the budget's ``iterations``; under a pure evaluation budget the number of
     iterations that fit, ceil((max_nfe - P) / (2 P)) (the smaller of the two if both are set).
 """
@@ -159,7 +159,7 @@ def _follow_silverback(GX, X, silverback, L, follow) -> None:
                 GX[s, i, d] = L[s] * M * (X[s, i, d] - silverback[s, d]) + X[s, i, d]
 
 
-@register("gto", batched=True)
+@register("gto")
 def gto(
     runs: Runs,
     rngs: list[np.random.Generator],

@@ -44,7 +44,7 @@ and each of the ``T`` iterations evaluates one moved population, with the move o
 using the reference's ``l = t - 1``. So ``Budget(iterations=500)`` gives the reference's run with
 ``Max_iter = 501`` evaluation rounds and the ``a``-schedule of ``Max_iter = 500``. Under a pure
 evaluation budget ``Budget(max_nfe=N, iterations=None)``, ``T = ceil((N - P) / P)``
-(:meth:`.base.Tracker.planned_iterations`); the last, possibly partial population is cut by the
+(:meth:`.base.Runs.planned_iterations`); the last, possibly partial population is cut by the
 budget's accounts (:class:`.base.Runs`).
 
 Seeds in one array. The runs of a fit block (its seeds) move together, as arrays shaped runs x
@@ -101,7 +101,7 @@ def update_leaders(f: np.ndarray, X: np.ndarray, pos: np.ndarray, score: np.ndar
                 pos[s, 2] = X[s, i]
 
 
-@register("gwo", batched=True)
+@register("gwo")
 def gwo(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
     """Grey Wolf Optimizer (reference MATLAB version), every run of ``runs`` moved as one array
     operation, each from its own generator in ``rngs``; no tunable settings."""

@@ -60,14 +60,11 @@ Around it, per seed::
 
 Budget / iteration mapping. A local search has no population, so "an iteration" is defined as
 ``pop_size`` objective evaluations: the first ``pop_size`` evaluations close iteration 0 and every
-further ``pop_size`` evaluations close one more iteration. Each step evaluates one point per seed,
-so a seed closes an iteration exactly when its evaluation count reaches a multiple of
-``pop_size``. Hence ``Budget(iterations=T, pop_size=P)`` spends exactly ``(T + 1) P`` evaluations
+further ``pop_size`` evaluations close one more iteration (``Runs.close_spent``, as for
+quasi-Newton). Hence ``Budget(iterations=T, pop_size=P)`` spends exactly ``(T + 1) P`` evaluations
 -- the same as a population method with ``P`` agents that evaluates its initial population and
 then ``T`` populations (the paper: 20 x 500 = 10,000 moves + 20 initial points) -- and
 ``Budget(max_nfe=N)`` spends exactly ``N``. The best value across all restarts is the result.
-These are the accounts :class:`.local_search.LocalSearchAccounting` keeps for a search run one
-seed at a time.
 
 Settings (scipy's ``options`` of the same names and defaults): ``xatol``, ``fatol``, ``maxiter``,
 ``maxfev``, ``adaptive``; scipy's ``initial_simplex`` is not supported (the simplex is built from
@@ -87,18 +84,14 @@ from __future__ import annotations
 import numpy as np
 
 from .base import Runs, Steps, register
-from .local_search import LocalSearchAccounting, restart_loop
 
 __all__ = [
     "NM_OPTIONS",
-    "LocalSearchAccounting",
     "Simplexes",
     "centroid",
     "nelder_mead",
-    "restart_loop",
     "scipy_limits",
 ]
-# LocalSearchAccounting and restart_loop moved to .local_search; quasi_newton imports them from here
 
 NM_OPTIONS = ("xatol", "fatol", "maxiter", "maxfev", "adaptive")
 
@@ -300,7 +293,7 @@ class Simplexes:
         return alive & (stopped | (self.fcalls >= self.maxfev))
 
 
-@register("nelder_mead", batched=True)
+@register("nelder_mead")
 def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
     """Bounded Nelder–Mead (scipy's algorithm) restarted from random points until the budget is
     spent, every seed of ``runs`` stepped at once (one point per seed per step), each seed's
@@ -313,7 +306,7 @@ def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **se
 
     def restart(which: np.ndarray) -> None:
         s = np.flatnonzero(which)
-        # Tracker.random_uniform's start, one draw of D doubles per seed when its search starts
+        # Runs.random_uniform's start, one draw of D doubles per seed when its search starts
         u = np.stack([rngs[i].random((1, runs.dim))[0] for i in s])
         search.restart(s, runs.lb + u * span)
 
@@ -322,9 +315,7 @@ def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **se
     while alive.any():
         f = (yield from runs.ask(search.point.copy()[:, None, :], alive))[:, 0]
         search.fcalls += alive
-        closing = alive & (runs.nfe % pop_size == 0)  # another pop_size evaluations spent
-        if closing.any():
-            runs.end_iteration(closing)
+        runs.close_spent(pop_size)  # an iteration per pop_size evaluations
         alive &= ~runs.done
         ended = search.advance(f, alive)
         if ended.any():

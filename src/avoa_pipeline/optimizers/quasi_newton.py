@@ -28,7 +28,7 @@ SciPy's core, driven for every seed at once. What runs is exactly what
 options=settings)`` runs -- the same calls of scipy's compiled L-BFGS-B routine ``setulb`` with
 the same arguments, hence the same points and the same records bit for bit -- but the loop around
 ``setulb`` is ours, written over the seeds of a fit block (:class:`.base.Runs`,
-``register(..., batched=True)``): each step moves every seed's search to the next point where it
+``base.register``): each step moves every seed's search to the next point where it
 needs ``f`` and ``g`` and asks the ``D + 1`` rows of all seeds in one ask. No ``minimize``
 wrapper, no ``ScalarFunction``/``MemoizeJac`` objects, no greenlet per seed: on the paper's fit
 block (``benchmarks/bench_fit_block.py --algorithms quasi_newton``: scenario 4 case 4, 30 seeds;
@@ -198,7 +198,7 @@ class LbfgsbSearch:
                 task[0], task[1] = _STOP, _STOP_EVALUATIONS
 
 
-@register("quasi_newton", batched=True)
+@register("quasi_newton")
 def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
     """L-BFGS-B restarted until the budget is spent, every seed's forward-difference gradient
     (``D + 1`` points) in one ask per step (see the module docstring)."""
@@ -216,14 +216,7 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
     h = rel_step * (ub - lb)
     core = LbfgsbCore(lb, ub, settings)
 
-    # the evaluation cap of a local search (nelder_mead.LocalSearchAccounting); a Budget has one
-    # of the two limits at least
-    budget = runs.budget
-    cap = min(
-        ([] if budget.max_nfe is None else [budget.max_nfe])
-        + ([] if budget.iterations is None else [(budget.iterations + 1) * P])
-    )
-    next_mark = np.full(S, P, dtype=np.int64)  # evaluations that close the next iteration
+    cap = runs.evaluation_cap(P)  # an iteration is P evaluations, as for Nelder–Mead
 
     searches: list[LbfgsbSearch | None] = [None] * S
     again = [False] * S  # the point has a NaN: MemoizeJac evaluates it twice
@@ -239,7 +232,7 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
             return True
         if done:
             return False
-        x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Tracker.random_uniform
+        x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Runs.random_uniform
         searches[s] = LbfgsbSearch(x0[0], core)
         return True
 
@@ -265,12 +258,7 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
                 group = np.zeros(S, dtype=bool)
                 group[[s for s in live if room[s] == k]] = True
                 F[group, :k] = (yield from runs.ask(X[:, :k], group))[group]
-        while True:  # close an iteration for every pop_size evaluations
-            closing = runs.nfe >= next_mark
-            if not closing.any():
-                break
-            runs.end_iteration(closing)
-            next_mark[closing] += P
+        runs.close_spent(P)
         with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, huge / step
             G = (F[:, 1:] - F[:, :1]) / steps
         G[~np.isfinite(G)] = 0.0

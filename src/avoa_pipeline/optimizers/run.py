@@ -59,7 +59,7 @@ the agent loop is kept. Every random number an agent may need (those of untaken 
 is drawn per iteration in bulk, which changes the random stream but not the distribution.
 
 Seeds as arrays (the batched state machine). The seeds of a fit block are one generator over
-:class:`~.base.Runs` (``register(..., batched=True)``); vectorising over seeds changes nothing in
+:class:`~.base.Runs` (``base.register``); vectorising over seeds changes nothing in
 any seed's algorithm. Each step, every live seed asks for its next single candidate, all of them in
 one ``runs.ask`` of shape (seeds, 1, D). The seeds fall out of phase (an agent costs 1, 2 or 3
 evaluations), so each carries its own place in its iteration: its agent ``i`` and the phase of
@@ -87,7 +87,7 @@ this is ``τ = (t+1)/(T+1)``, which reaches 1 in the last iteration exactly as t
 With an evaluation budget, τ is the fraction of the budget that will have been spent by the end of
 the iteration, estimated from the evaluations of the previous iteration
 (``min(1, (nfe + nfe_prev_iteration)/max_nfe)``); with both budgets the larger fraction is used.
-Both are :meth:`.base.Tracker.progress` with ``count_initial=True``.
+Both are :meth:`.base.Runs.progress` with ``count_initial=True``.
 
 Differences between (a) the reference code, (b) the paper and (c) mealpy 3.0.2 ``OriginalRUN``
 --------------------------------------------------------------------------------------------------
@@ -118,8 +118,9 @@ from memory of the published equations and should be checked against the article
    (c) two independent normal vectors, one per branch - same distribution. Choice: (a).
 8. Termination. (a) MaxIt iterations, initial population counted as iteration 1; (c) checks the
    budget only at the end of an epoch, so ``max_fe`` can be overshot by up to ~3·P evaluations.
-   Choice: our Tracker (exact evaluation budget; the paper's "500 iterations" = 500 update
-   iterations after the initial population - the reference itself would run MaxIt−1 = 499).
+   Choice: our budget accounts (``base.Runs``: exact evaluation budget; the paper's
+   "500 iterations" = 500 update iterations after the initial population - the reference itself
+   would run MaxIt−1 = 499).
 9. Bounds. (a), (c): clip to [lb, ub] after every move. Choice: the same.
 10. Ties. (a) ``Cost(i) < Cost(k)`` and greedy ``CostNew < Cost(i)`` strict; (c) strict. Same.
 """
@@ -456,7 +457,7 @@ def _advance(
     return asking, ended
 
 
-@register("run", batched=True)
+@register("run")
 def run(
     runs: Runs,
     rngs: Sequence[np.random.Generator],
