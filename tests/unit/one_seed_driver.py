@@ -12,7 +12,6 @@ independent statement (``test_base.py``).
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Generator, Sequence
 from typing import Any
@@ -100,50 +99,6 @@ class Tracker:
         if self.budget.max_nfe is not None and self.nfe >= self.budget.max_nfe:
             return True
         return self.budget.iterations is not None and self.iteration >= self.budget.iterations
-
-    # --- schedules ----------------------------------------------------------------------------
-    def planned_iterations(self, evals_per_iteration: float) -> int:
-        """Iteration horizon ``T`` over which an algorithm stretches its ``t/T`` schedules.
-
-        For algorithms whose iterations each cost a fixed ``evals_per_iteration`` evaluations
-        (AVOA, GWO: ``P``; GTO: ``2 P``). An iteration budget gives its ``iterations``. An
-        evaluation budget gives the number of iterations that ``max_nfe`` allows after the initial
-        population of ``budget.pop_size``, rounded up (the last one may be cut short by the
-        budget): ``ceil((max_nfe - pop_size) / evals_per_iteration)``. With both budgets, the
-        smaller; never less than 1, so ``t/T`` is always defined.
-        """
-        if evals_per_iteration <= 0:
-            raise ValueError(f"evals_per_iteration must be positive, got {evals_per_iteration}")
-        budget = self.budget
-        horizons = []
-        if budget.iterations is not None:
-            horizons.append(budget.iterations)
-        if budget.max_nfe is not None:
-            horizons.append(math.ceil((budget.max_nfe - budget.pop_size) / evals_per_iteration))
-        return max(1, min(horizons))
-
-    def progress(self, *, count_initial: bool = False) -> float:
-        """Fraction of the run that will be done when the running iteration ends, in [0, 1].
-
-        For the schedules of algorithms whose iterations cost a varying number of evaluations
-        (RUN, GA), called before the iteration spends any. The running iteration is
-        ``t = iteration + 1``. An iteration budget ``T`` gives ``t / T``, or with
-        ``count_initial`` (a reference that counts the initial population as its iteration 1)
-        ``(t + 1) / (T + 1)``. An evaluation budget gives the share of ``max_nfe`` that will be
-        spent if this iteration costs as many evaluations as the last closed one (the initial
-        population for ``t = 1``), at most 1. With both budgets, the larger.
-        """
-        frac = 0.0
-        T = self.budget.iterations
-        if T is not None:
-            t = self.iteration + 1
-            frac = (t + 1) / (T + 1) if count_initial else t / T
-        N = self.budget.max_nfe
-        if N is not None:
-            hist = self._hist_nfe
-            last = hist[-1] - hist[-2] if len(hist) > 1 else (hist[-1] if hist else 0)
-            frac = max(frac, min(1.0, (self.nfe + last) / N))
-        return frac
 
     # --- ask / tell ---------------------------------------------------------------------------
     def ask(self, X: np.ndarray) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
