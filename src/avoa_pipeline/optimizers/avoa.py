@@ -179,6 +179,7 @@ def avoa(
         raise ValueError(f"gamma must be positive, got {gamma}")
 
     S, P, D = runs.n, pop_size, runs.dim
+    n = S * P  # every seed's vultures
     lb, ub = runs.lb, runs.ub
     sigma = levy_sigma()
 
@@ -203,40 +204,45 @@ def avoa(
         )
         P1 = (2.0 * draws[:, 1] + 1.0) * (1.0 - frac) + g
 
-        # per-vulture draws (one scalar each, as the MATLAB rand() calls), Levy per dimension
-        per = draws[:, 2:].reshape(S, 5, P)
-        F = (P1[:, None] * (2.0 * per[:, 0] - 1.0))[:, :, None]  # (S, P, 1)
-        R = np.where((per[:, 1] <= alpha)[:, :, None], b1[:, None, :], b2[:, None, :])
-        u = per[:, 2]  # the branch draw: rand < p1 / p3 / p2
-        r1 = per[:, 3, :, None]
-        r2 = per[:, 4, :, None]
-        levy = normals[:, 0] * sigma / np.abs(normals[:, 1]) ** (1.0 / LEVY_BETA)
+        # per-vulture draws (one scalar each, as the MATLAB rand() calls), Levy per dimension;
+        # every seed's vultures as rows, seed by seed: the one-seed code's statements on n rows
+        per = draws[:, 2:].reshape(S, 5, P).transpose(1, 0, 2).reshape(5, n)
+        F = (np.repeat(P1, P) * (2.0 * per[0] - 1.0))[:, None]  # (n, 1)
+        B1, B2 = np.repeat(b1, P, axis=0), np.repeat(b2, P, axis=0)
+        R = np.where((per[1] <= alpha)[:, None], B1, B2)
+        u = per[2]  # the branch draw: rand < p1 / p3 / p2
+        r1, r2 = per[3][:, None], per[4][:, None]
+        levy = (normals[:, 0] * sigma / np.abs(normals[:, 1]) ** (1.0 / LEVY_BETA)).reshape(n, D)
 
-        absF = np.abs(F[:, :, 0])
+        x = X.reshape(n, D)
+        absF = np.abs(F[:, 0])
         explore = absF >= 1.0
         late = absF < 0.5
         medium = ~explore & ~late
-        new = np.empty_like(X)
-        B1 = np.broadcast_to(b1[:, None, :], X.shape)
-        B2 = np.broadcast_to(b2[:, None, :], X.shape)
+        new = np.empty_like(x)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             m = explore & (u < p1)  # eq. 19a with D = |C R - X|, C = 2 rand
-            new[m] = R[m] - np.abs(2.0 * r1[m] * R[m] - X[m]) * F[m]
+            Rm, Xm, Fm = R[m], x[m], F[m]
+            new[m] = Rm - np.abs(2.0 * r1[m] * Rm - Xm) * Fm
             m = explore & ~(u < p1)  # eq. 19b
             new[m] = R[m] - F[m] + r1[m] * ((ub - lb) * r2[m] + lb)
             m = medium & (u < p3)  # competition, eqs. 21-22
-            new[m] = np.abs(2.0 * r1[m] * R[m] - X[m]) * (F[m] + r2[m]) - (R[m] - X[m])
+            Rm, Xm = R[m], x[m]
+            new[m] = np.abs(2.0 * r1[m] * Rm - Xm) * (F[m] + r2[m]) - (Rm - Xm)
             m = medium & ~(u < p3)  # rotating flight, eqs. 23-25
-            s1 = R[m] * (r1[m] * X[m] / (2.0 * np.pi)) * np.cos(X[m])
-            s2 = R[m] * (r2[m] * X[m] / (2.0 * np.pi)) * np.sin(X[m])
-            new[m] = R[m] - (s1 + s2)
+            Rm, Xm = R[m], x[m]
+            s1 = Rm * (r1[m] * Xm / (2.0 * np.pi)) * np.cos(Xm)
+            s2 = Rm * (r2[m] * Xm / (2.0 * np.pi)) * np.sin(Xm)
+            new[m] = Rm - (s1 + s2)
             m = late & (u < p2)  # aggregation, eqs. 26-28
-            a1 = B1[m] - (B1[m] * X[m]) / (B1[m] - X[m] ** 2) * F[m]
-            a2 = B2[m] - (B2[m] * X[m]) / (B2[m] - X[m] ** 2) * F[m]
+            B1m, B2m, Xm, Fm = B1[m], B2[m], x[m], F[m]
+            a1 = B1m - (B1m * Xm) / (B1m - Xm**2) * Fm
+            a2 = B2m - (B2m * Xm) / (B2m - Xm**2) * Fm
             new[m] = (a1 + a2) / 2.0
             m = late & ~(u < p2)  # attack with Levy flight, eq. 29
-            new[m] = R[m] - np.abs(R[m] - X[m]) * F[m] * levy[m]
-        X = runs.clip(np.where(np.isnan(new), X, new))
+            Rm = R[m]
+            new[m] = Rm - np.abs(Rm - x[m]) * F[m] * levy[m]
+        X = runs.clip(np.where(np.isnan(new), x, new)).reshape(S, P, D)
 
         best.update((yield from runs.ask(X)), X)
         runs.end_iteration()
