@@ -76,6 +76,7 @@ if GAP:
             log:
                 "logs/gap/pairs.log",
             threads: 1
+            localrule: True  # cheap: run by the submitting Snakemake on a cluster
             script:
                 "../scripts/gap_pairs_table.py"
 
@@ -156,6 +157,7 @@ if GAP:
         log:
             "logs/gap/real.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
         script:
             "../scripts/gap_real_table.py"
 
@@ -173,6 +175,7 @@ if GAP:
         log:
             "logs/gap/evaluate.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
         script:
             "../scripts/gap_evaluate.py"
 
@@ -189,6 +192,7 @@ if GAP:
         log:
             "logs/gap/paper_scenarios.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
         script:
             "../scripts/gap_paper_table.py"
 
@@ -202,6 +206,7 @@ if GAP:
         log:
             "logs/gap/pybamm.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
         script:
             "../scripts/gap_pybamm_table.py"
 
@@ -220,6 +225,7 @@ if GAP:
             nb="results/notebooks/gap_validation.ipynb",
         log:
             "logs/notebooks/gap_validation.log",
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
         shell:
             papermill("{input.nb}", "{output.nb}", "{log}", tables_dir="results/gap",
                       out_dir="results/gap/figures")
