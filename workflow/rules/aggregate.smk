@@ -10,6 +10,8 @@ rule aggregate_case:
     threads: 1
     priority: 5  # a finished pair's aggregate and report run between fits, not after the last
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/aggregate_case.py"
 
@@ -26,5 +28,7 @@ rule aggregate_all:
         "logs/aggregate/all.log",
     threads: 1
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/aggregate_all.py"

@@ -10,6 +10,8 @@ rule dataset:
     threads: 1
     priority: 10  # before any fit: the fits of a pair wait for its dataset
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/dataset.py"
 
@@ -25,5 +27,7 @@ rule effective_config:
     threads: 1
     priority: 10  # every notebook reads it: run first, so reports need not wait for it
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/effective_config.py"

@@ -10,6 +10,8 @@ rule fig_static:
     log:
         "logs/notebooks/fig_static.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   out_dir="results/figures")
@@ -27,6 +29,8 @@ rule fig_profile:
     log:
         "logs/notebooks/fig_profile.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   dataset_csv="{input.data}", scenario=SCENARIOS[0], case=CASE_LIST[0],
@@ -47,6 +51,8 @@ rule fig_fit:
     log:
         "logs/notebooks/fig_fit.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   dataset_csv="{input.data}", runs="{input.runs}", out_dir="results/figures")
@@ -69,6 +75,8 @@ rule fig_budget:
     log:
         "logs/notebooks/fig_budget_s{scenario}.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   runs="{input.runs}", histories="{input.histories}",

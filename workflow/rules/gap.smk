@@ -77,6 +77,8 @@ if GAP:
                 "logs/gap/pairs.log",
             threads: 1
             localrule: True  # cheap: run by the submitting Snakemake on a cluster
+            resources:
+                local_job=1,  # profiles/slurm: how many run at once
             script:
                 "../scripts/gap_pairs_table.py"
 
@@ -158,6 +160,8 @@ if GAP:
             "logs/gap/real.log",
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_real_table.py"
 
@@ -176,6 +180,8 @@ if GAP:
             "logs/gap/evaluate.log",
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_evaluate.py"
 
@@ -193,6 +199,8 @@ if GAP:
             "logs/gap/paper_scenarios.log",
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_paper_table.py"
 
@@ -207,6 +215,8 @@ if GAP:
             "logs/gap/pybamm.log",
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_pybamm_table.py"
 
@@ -226,6 +236,8 @@ if GAP:
         log:
             "logs/notebooks/gap_validation.log",
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         shell:
             papermill("{input.nb}", "{output.nb}", "{log}", tables_dir="results/gap",
                       out_dir="results/gap/figures")

@@ -26,6 +26,8 @@ rule panasonic_import:
             if PANASONIC else {},
     threads: 1
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/panasonic_import.py"
 
@@ -183,6 +185,8 @@ rule panasonic_drive_cycle_table:
                for c in real_dc.unseen_cycles(config, t)},
     threads: 1
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/panasonic_drive_cycle_table.py"
 
@@ -203,6 +207,8 @@ rule panasonic_drive_cycles_notebook:
     log:
         "logs/notebooks/real_drive_cycles.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", rmse_csv="{input.csv}",
                   runs_csv="{input.runs}", predictions="{input.pred}",
@@ -270,6 +276,8 @@ if PAN_JOINT_ON:
             tests=PAN_JOINT_TESTS,
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/panasonic_joint_table.py"
 
@@ -301,6 +309,8 @@ if SAMSUNG_CFG:
                                       ("real", "sources", SAMSUNG_CFG["hppc"][w.stemp]["file"])),
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_samsung_import.py"
 
@@ -360,6 +370,8 @@ if SAMSUNG_FITS:
             unseen=samsung_canon(SAMSUNG_JOINT["unseen"]),
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_samsung_joint_table.py"
 
@@ -381,6 +393,8 @@ if NASA_CFG:
                             *(("real", "sources", k) for k in plan.nasa_source_sha256(config))),
         threads: 1
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_nasa_import.py"
 
@@ -424,6 +438,8 @@ if SAMSUNG_CFG and NASA_CFG:
         log:
             "logs/notebooks/real_cells.log",
         localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         shell:
             papermill("{input.nb}", "{output.nb}", "{log}", rc_csv="{input.rc}",
                       arrhenius_csv="{input.arrhenius}", fade_csv="{input.fade}",

@@ -10,6 +10,8 @@ rule tables_config:
     log:
         "logs/notebooks/tables_config.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables")
@@ -39,6 +41,8 @@ rule case_report:
         not_run=lambda w: not ran(*scenario_case(w.nn)),
     priority: 5
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", figures_dir="results/figures",
@@ -70,6 +74,8 @@ rule table_objective:
         runs=lambda w, input: ",".join(input.runs),
         not_run=lambda w, input: not input.runs,
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", scenario="{params.scenario}",
@@ -92,6 +98,8 @@ rule table_time:
     params:
         not_run=not ran(4, 4),
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", runs="{input.runs}", not_run="{params.not_run}")
@@ -112,6 +120,8 @@ rule claims:
     log:
         "logs/notebooks/claims.log",
     localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", runs="{input.runs}",
