@@ -16,7 +16,14 @@ runs is printed. Stages:
   after the record is read): the difference is reading, checking and kernel loading;
 - notebook job: papermill executing a one-cell notebook that imports what the report notebooks
   import (``avoa_pipeline.report``), with the ``avoa-pipeline`` kernel: papermill's start, the
-  kernel's start and the imports.
+  kernel's start and the imports; beside it the same notebook without a kernel (``NO_KERNEL``:
+  papermill parameterizes it and its cells run by ``exec`` in papermill's own process, the least
+  any in-process engine such as ploomber-engine's could cost), the report's imports alone and
+  the job guard (``python -m avoa_pipeline.jobguard``) that the rules put around papermill.
+
+Each row gives the wall and the CPU seconds (user + system of the process and its children,
+``RUSAGE_CHILDREN``): on a shared machine the CPU seconds are the measure, the wall what one
+waits.
 
 Then the start-up cost of the paper grid's fit jobs (``config/config.yaml``, one block of seeds
 per job): the fit job's start-up × their number, with one job per scenario × case × algorithm
@@ -27,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import statistics
 import subprocess
 import sys
@@ -72,22 +80,47 @@ NOTEBOOK = {
 }  # fmt: skip
 
 
-def timed(cmd: list[str]) -> tuple[float, str]:
-    t0 = time.perf_counter()
+# A notebook run without a kernel: papermill's parameterization, then every code cell exec'd in
+# this process's namespace (outputs not captured): a lower bound for an in-process engine.
+NO_KERNEL = """
+import sys
+import nbformat
+from papermill.iorw import load_notebook_node
+from papermill.parameterize import parameterize_notebook
+nb = parameterize_notebook(load_notebook_node(sys.argv[1]), {})
+ns = {"__name__": "__main__"}
+for cell in nb.cells:
+    if cell.cell_type == "code":
+        exec(compile(cell.source, "<cell>", "exec"), ns)
+nbformat.write(nb, sys.argv[2])
+"""
+
+
+def cpu_children() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timed(cmd: list[str]) -> tuple[float, float, str]:
+    """Wall and CPU seconds of ``cmd`` (its processes, children included) and its stdout."""
+    c0, t0 = cpu_children(), time.perf_counter()
     out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
-    return time.perf_counter() - t0, out
+    return time.perf_counter() - t0, cpu_children() - c0, out
 
 
-def median_of(cmd: list[str], repeat: int) -> tuple[float, dict]:
-    """Median wall of ``cmd`` and the medians of the stage times it prints (a JSON line)."""
-    walls, stages = [], {}
+def median_of(cmd: list[str], repeat: int) -> tuple[float, dict, float]:
+    """Median wall of ``cmd``, the medians of the stage times it prints (a JSON line) and the
+    median CPU seconds."""
+    walls, cpus, stages = [], [], {}
     for _ in range(repeat):
-        wall, out = timed(cmd)
+        wall, cpu, out = timed(cmd)
         walls.append(wall)
+        cpus.append(cpu)
         lines = [ln for ln in out.splitlines() if ln.startswith("{")]
         for k, v in (json.loads(lines[-1]) if lines else {}).items():
             stages.setdefault(k, []).append(v)
-    return statistics.median(walls), {k: statistics.median(v) for k, v in stages.items()}
+    return (statistics.median(walls), {k: statistics.median(v) for k, v in stages.items()},
+            statistics.median(cpus))  # fmt: skip
 
 
 def main() -> None:
@@ -107,22 +140,35 @@ def main() -> None:
     diag_cmd = [PY, "-c", DIAG_CHILD, str(data), str(tmp / "diag.json")]
     nb_cmd = [PY, "-m", "papermill", "--no-progress-bar", "-k", "avoa-pipeline", str(nb),
               str(tmp / "out.ipynb")]  # fmt: skip
-    for cmd in (fit_cmd, diag_cmd, nb_cmd):  # warm-up: numba's cache and the OS's file cache
+    nb_free_cmd = [PY, "-c", NO_KERNEL, str(nb), str(tmp / "out_free.ipynb")]
+    imports_cmd = [PY, "-c", NOTEBOOK["cells"][0]["source"][0]]
+    for cmd in (fit_cmd, diag_cmd, nb_cmd, nb_free_cmd):  # warm-up: numba's cache, file cache
         timed(cmd)
-    rows = []
-    base, _ = median_of([PY, "-c", "pass"], args.repeat)
-    rows.append(("any job", "interpreter", base))
-    pre, _ = median_of([PY, "-c", "import pickle; from snakemake import script"], args.repeat)
-    rows.append(("script job", "script preamble (beyond the interpreter)", pre - base))
-    fit_wall, fit = median_of(fit_cmd, args.repeat)
-    rows += [("fit job", k, v) for k, v in fit.items()]
-    diag_wall, diag = median_of(diag_cmd, args.repeat)
-    rows += [("diagnosis job", k, v) for k, v in diag.items()]
-    nb_wall, _ = median_of(nb_cmd, args.repeat)
-    rows.append(("notebook job", "papermill + kernel start + report imports", nb_wall))
-    print(f"{'job':<15} {'stage':<45} {'s':>7}")
-    for job, stage, s in rows:
-        print(f"{job:<15} {stage:<45} {s:7.3f}")
+    rows = []  # job, stage, wall s, CPU s (None: a stage inside one process, wall only)
+    base, _, base_cpu = median_of([PY, "-c", "pass"], args.repeat)
+    rows.append(("any job", "interpreter", base, base_cpu))
+    pre, _, pre_cpu = median_of([PY, "-c", "import pickle; from snakemake import script"],
+                                args.repeat)  # fmt: skip
+    rows.append(("script job", "script preamble (beyond the interpreter)", pre - base,
+                 pre_cpu - base_cpu))  # fmt: skip
+    fit_wall, fit, _ = median_of(fit_cmd, args.repeat)
+    rows += [("fit job", k, v, None) for k, v in fit.items()]
+    diag_wall, diag, _ = median_of(diag_cmd, args.repeat)
+    rows += [("diagnosis job", k, v, None) for k, v in diag.items()]
+    nb_wall, _, nb_cpu = median_of(nb_cmd, args.repeat)
+    rows.append(("notebook job", "papermill + kernel start + report imports", nb_wall, nb_cpu))
+    free_wall, _, free_cpu = median_of(nb_free_cmd, args.repeat)
+    rows.append(("notebook job", "the same without a kernel (cells exec'd)", free_wall, free_cpu))
+    imp_wall, _, imp_cpu = median_of(imports_cmd, args.repeat)
+    rows.append(("notebook job", "the report's imports alone (with interpreter)", imp_wall,
+                 imp_cpu))  # fmt: skip
+    guard, _, guard_cpu = median_of([PY, "-m", "avoa_pipeline.jobguard", PY, "-c", "pass"],
+                                    args.repeat)  # fmt: skip
+    rows.append(("notebook job", "the job guard's process (beyond the interpreter)",
+                 guard - base, guard_cpu - base_cpu))  # fmt: skip
+    print(f"{'job':<15} {'stage':<46} {'wall s':>7} {'CPU s':>7}")
+    for job, stage, s, c in rows:
+        print(f"{job:<15} {stage:<46} {s:7.3f} {'' if c is None else f'{c:7.3f}':>7}")
     fit_start = pre + fit_wall  # interpreter, preamble, imports, kernel load, exit
     diag_start = pre + diag_wall - diag.get("diagnosis", 0.0)
     print(

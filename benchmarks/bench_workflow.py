@@ -17,6 +17,10 @@ rows as a fit block's seeds stepped together), then runs Snakemake and prints, f
 - the kernel bound of the fits actually run (records written by this run): their
   candidate-samples (evaluations × samples) × the kernel's ns per candidate-sample of their
   scenario, and the ratios wall ÷ (kernel bound ÷ cores) and fit CPU ÷ kernel bound;
+- the whole run split by job kind in one table (``KINDS``: fits, real-data fits, notebooks,
+  datasets, aggregates, diagnoses, Snakemake itself, unattributed): each kind's processes, CPU
+  seconds, share of the run's CPU and, where one exists, its bound (fits: the kernel bound) and
+  CPU ÷ bound;
 - the jobs per rule and the optimizer time per algorithm from ``results/aggregate/runs.parquet``.
 
 Nothing is asserted.
@@ -39,6 +43,29 @@ import psutil
 ROOT = Path(__file__).resolve().parents[1]
 # the rule's name in the pickled job object of a `script:` rule's script ("rule": "<name>")
 _RULE = re.compile(r"\\x8c\\x04rule\\x94\\x8c(?:\\x[0-9a-f]{2}|\\[tnr]|[ -~])([A-Za-z_]\w*)\\x94")
+
+
+# Job kind of each rule (the rule's name as ``job_kind`` gives it): a fit computes records
+# with an optimizer (the paper grid's, with a kernel bound, or the real data's), a dataset job
+# makes or imports data, a diagnosis job diagnoses one record, an aggregate job reads records or
+# diagnoses and writes tables; notebooks are papermill's processes. A rule not matched lands in
+# "other" (printed, so a new rule is never silently lost).
+KINDS = (
+    ("fits", re.compile(r"fit")),  # the paper grid's fit blocks: the kernel bound is theirs
+    ("real-data fits", re.compile(r"panasonic_fit_\w+|panasonic_joint|real_samsung_arrhenius"
+                                  r"|real_nasa_fade|panasonic_cross_cycle"
+                                  r"|panasonic_soc_estimation")),
+    ("notebooks", re.compile(r"notebook")),
+    ("datasets", re.compile(r"dataset|gap_\w*data|gap_controls|\w+_import|panasonic_ocv")),
+    ("diagnoses", re.compile(r"gap_diagnose\w*|\w+_diagnose")),
+    ("aggregates", re.compile(r"aggregate_\w+|effective_config|gap_\w+_table|gap_evaluate"
+                              r"|\w+_table")),
+)  # fmt: skip
+
+
+def kind_of(rule: str) -> str:
+    """The job kind (``KINDS``) of a rule as ``job_kind`` names it."""
+    return next((k for k, pat in KINDS if pat.fullmatch(rule)), "other")
 
 
 def kernel_ns(workdir: Path, configfile: str | None) -> tuple[dict[int, float], int]:
@@ -180,14 +207,34 @@ def main() -> None:
     print(f"  {'(between samples, shells)':28s} {'':5s} {children_cpu - attributed:8.1f}")
 
     cs = fits_run_since(wd, t_start)
+    bound = sum(cs[s] * ns.get(s, max(ns.values())) * 1e-9 for s in cs) if cs else 0.0
     if cs:
-        bound = sum(cs[s] * ns.get(s, max(ns.values())) * 1e-9 for s in cs)
         fit_cpu = sum(by_kind.get("fit", []))
         print(f"fits run: {sum(cs.values()):.3e} candidate-samples; kernel bound {bound:.1f} s, "
               f"÷ {cores} cores = {bound / cores:.1f} s")  # fmt: skip
         print(f"wall ÷ (kernel bound ÷ cores) = {wall / (bound / cores):.2f}; "
               f"fit jobs' CPU ÷ kernel bound = {fit_cpu:.0f} / {bound:.0f} = "
               f"{fit_cpu / bound:.2f}")  # fmt: skip
+
+    # the whole run by job kind: every CPU second of the run is in exactly one row
+    split: dict[str, list[float]] = defaultdict(list)
+    for rule, cpus in by_kind.items():
+        split[kind_of(rule)] += cpus
+    rows = [(k, len(split[k]), sum(split[k])) for k, _ in KINDS]
+    if split.get("other"):
+        rows.append(("other", len(split["other"]), sum(split["other"])))
+    rows += [("Snakemake itself", 1, main_cpu),
+             ("unattributed", 0, children_cpu - attributed)]  # fmt: skip
+    total = children_cpu + main_cpu
+    print(f"the run by job kind (CPU {total:.0f} s over {cores} cores = {total / cores:.0f} s "
+          f"of the {wall:.0f} s wall):")  # fmt: skip
+    print(f"  {'kind':18s} {'procs':>5s} {'CPU s':>8s} {'share':>6s} {'bound s':>8s} "
+          f"{'CPU/bound':>9s}")  # fmt: skip
+    for k, n, cpu in rows:
+        b = f"{bound:8.1f} {cpu / bound:9.2f}" if k == "fits" and bound else f"{'-':>8s} {'-':>9s}"
+        print(f"  {k:18s} {n:5d} {cpu:8.1f} {100 * cpu / total:5.1f}% {b}")
+    if split.get("other"):
+        print("  other: " + ", ".join(r for r in by_kind if kind_of(r) == "other"))
     for rule, n in sorted(jobs.items(), key=lambda kv: -kv[1]):
         print(f"  {rule:28s} {n:5d} jobs")
 

@@ -9,6 +9,9 @@ rule aggregate_case:
         "logs/aggregate/s{scenario}/c{case}.log",
     threads: 1
     priority: 5  # a finished pair's aggregate and report run between fits, not after the last
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/aggregate_case.py"
 
@@ -24,5 +27,8 @@ rule aggregate_all:
     log:
         "logs/aggregate/all.log",
     threads: 1
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/aggregate_all.py"

@@ -15,6 +15,14 @@ for _lock in snakemake_compat.clear_stale_locks_of(workflow):
     print(f"removed stale Snakemake lock .snakemake/locks/{_lock} (no live run here)",
           file=sys.stderr)
 
+# `localrule: True` marks the jobs of a few seconds (notebooks, aggregates, tables, datasets and
+# imports): on a cluster the submitting Snakemake runs them itself, as Snakemake's docs advise for
+# short jobs, since a submission costs more than they do (a job step and a second Snakemake
+# start-up: about 10-20 s on the local SLURM, docs/cluster.md); locally it changes nothing. Fits
+# and diagnoses, minutes of CPU, are submitted (in groups, profiles/slurm). Each also takes one
+# `local_job`: Snakemake 9 on a cluster starts local jobs without counting cores (its
+# --local-cores is not used), so the SLURM profile caps them with that resource.
+
 # The schema (Snakefile) checks shapes; these are the checks it cannot state. The whole config is
 # checked here once, and each job gets only the parts its rule passes (config_part).
 avoa_config.check(config, "snakemake config")

@@ -9,6 +9,9 @@ rule dataset:
         settings=config_part(*plan.DATASET_PARTS),
     threads: 1
     priority: 10  # before any fit: the fits of a pair wait for its dataset
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/dataset.py"
 
@@ -23,5 +26,8 @@ rule effective_config:
         "logs/config.log",
     threads: 1
     priority: 10  # every notebook reads it: run first, so reports need not wait for it
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/effective_config.py"

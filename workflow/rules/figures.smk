@@ -9,6 +9,9 @@ rule fig_static:
         nb="results/notebooks/fig_static.ipynb",
     log:
         "logs/notebooks/fig_static.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   out_dir="results/figures")
@@ -25,6 +28,9 @@ rule fig_profile:
         nb="results/notebooks/fig_profile.ipynb",
     log:
         "logs/notebooks/fig_profile.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   dataset_csv="{input.data}", scenario=SCENARIOS[0], case=CASE_LIST[0],
@@ -44,6 +50,9 @@ rule fig_fit:
         nb="results/notebooks/fig_fit.ipynb",
     log:
         "logs/notebooks/fig_fit.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   dataset_csv="{input.data}", runs="{input.runs}", out_dir="results/figures")
@@ -65,6 +74,9 @@ rule fig_budget:
         nb="results/notebooks/fig_budget_s{scenario}.ipynb",
     log:
         "logs/notebooks/fig_budget_s{scenario}.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   runs="{input.runs}", histories="{input.histories}",

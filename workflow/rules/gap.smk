@@ -76,6 +76,9 @@ if GAP:
             log:
                 "logs/gap/pairs.log",
             threads: 1
+            localrule: True  # cheap: run by the submitting Snakemake on a cluster
+            resources:
+                local_job=1,  # profiles/slurm: how many run at once
             script:
                 "../scripts/gap_pairs_table.py"
 
@@ -156,6 +159,9 @@ if GAP:
         log:
             "logs/gap/real.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_real_table.py"
 
@@ -173,6 +179,9 @@ if GAP:
         log:
             "logs/gap/evaluate.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_evaluate.py"
 
@@ -189,6 +198,9 @@ if GAP:
         log:
             "logs/gap/paper_scenarios.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_paper_table.py"
 
@@ -202,6 +214,9 @@ if GAP:
         log:
             "logs/gap/pybamm.log",
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/gap_pybamm_table.py"
 
@@ -220,6 +235,9 @@ if GAP:
             nb="results/notebooks/gap_validation.ipynb",
         log:
             "logs/notebooks/gap_validation.log",
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         shell:
             papermill("{input.nb}", "{output.nb}", "{log}", tables_dir="results/gap",
                       out_dir="results/gap/figures")

@@ -25,6 +25,9 @@ rule panasonic_import:
                         *(f"real.panasonic.{k}" for k in REAL["panasonic"] if k != "experiment"))
             if PANASONIC else {},
     threads: 1
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/panasonic_import.py"
 
@@ -181,6 +184,9 @@ rule panasonic_drive_cycle_table:
         tests={f"{t}/{c}": pan_canon(f"{t}/{c}") for t in PAN_EXP_TEMPS
                for c in real_dc.unseen_cycles(config, t)},
     threads: 1
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     script:
         "../scripts/panasonic_drive_cycle_table.py"
 
@@ -200,6 +206,9 @@ rule panasonic_drive_cycles_notebook:
         nb="results/notebooks/real_drive_cycles.ipynb",
     log:
         "logs/notebooks/real_drive_cycles.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", rmse_csv="{input.csv}",
                   runs_csv="{input.runs}", predictions="{input.pred}",
@@ -266,6 +275,9 @@ if PAN_JOINT_ON:
             own_dirs=pan_diagnoses()["diagnosis"],
             tests=PAN_JOINT_TESTS,
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/panasonic_joint_table.py"
 
@@ -296,6 +308,9 @@ if SAMSUNG_CFG:
             cfg=lambda w: config_part("real.root", "real.samsung",
                                       ("real", "sources", SAMSUNG_CFG["hppc"][w.stemp]["file"])),
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_samsung_import.py"
 
@@ -354,6 +369,9 @@ if SAMSUNG_FITS:
             fits=list(SAMSUNG_FITS),
             unseen=samsung_canon(SAMSUNG_JOINT["unseen"]),
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_samsung_joint_table.py"
 
@@ -374,6 +392,9 @@ if NASA_CFG:
             cfg=config_part("real.root", "real.nasa",
                             *(("real", "sources", k) for k in plan.nasa_source_sha256(config))),
         threads: 1
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         script:
             "../scripts/real_nasa_import.py"
 
@@ -416,6 +437,9 @@ if SAMSUNG_CFG and NASA_CFG:
             nb=plan.CELL_OUTPUTS["report"][0],
         log:
             "logs/notebooks/real_cells.log",
+        localrule: True  # cheap: run by the submitting Snakemake on a cluster
+        resources:
+            local_job=1,  # profiles/slurm: how many run at once
         shell:
             papermill("{input.nb}", "{output.nb}", "{log}", rc_csv="{input.rc}",
                       arrhenius_csv="{input.arrhenius}", fade_csv="{input.fade}",

@@ -9,6 +9,9 @@ rule tables_config:
         nb="results/notebooks/tables_config.ipynb",
     log:
         "logs/notebooks/tables_config.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables")
@@ -37,6 +40,9 @@ rule case_report:
         hist=lambda w, input: input.agg[1] if input.agg else "",
         not_run=lambda w: not ran(*scenario_case(w.nn)),
     priority: 5
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", figures_dir="results/figures",
@@ -67,6 +73,9 @@ rule table_objective:
         scenario=lambda w: int(w.nn) - 19,
         runs=lambda w, input: ",".join(input.runs),
         not_run=lambda w, input: not input.runs,
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", scenario="{params.scenario}",
@@ -88,6 +97,9 @@ rule table_time:
         "logs/notebooks/table_time.log",
     params:
         not_run=not ran(4, 4),
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", runs="{input.runs}", not_run="{params.not_run}")
@@ -107,6 +119,9 @@ rule claims:
         nb="results/notebooks/claims.ipynb",
     log:
         "logs/notebooks/claims.log",
+    localrule: True  # cheap: run by the submitting Snakemake on a cluster
+    resources:
+        local_job=1,  # profiles/slurm: how many run at once
     shell:
         papermill("{input.nb}", "{output.nb}", "{log}", config_path="{input.cfg}",
                   tables_dir="results/tables", runs="{input.runs}",
