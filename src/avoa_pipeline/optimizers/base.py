@@ -57,8 +57,9 @@ ObjectiveOne = Callable[[np.ndarray], float]
 """One point in (shape ``(D,)``), its objective value out; must equal ``Objective`` on one row."""
 
 Steps = Generator[np.ndarray, np.ndarray, None]
-"""A run of an optimizer: yields the rows it asks to evaluate (shape ``(k, D)``), is sent their
-objective values (shape ``(k,)``)."""
+"""The runs of an optimizer over a block of seeds: yields the rows it asks to evaluate, every
+asking seed's rows one after another (shape ``(k, D)``), is sent their objective values (shape
+``(k,)``)."""
 
 REGISTRY: dict[str, Callable[..., Steps]] = {}
 
@@ -354,7 +355,7 @@ class Runs:
 
 
 def drive(runs: Runs, steps: Steps) -> None:
-    """Run a algorithm's ``steps`` over ``runs`` to its end: each ask's rows (all runs')
+    """Run an algorithm's ``steps`` over ``runs`` to its end: each ask's rows (all runs')
     in one objective call, the clocks charged as :class:`Runs` says."""
     values = None
     while True:
