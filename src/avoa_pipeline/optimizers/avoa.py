@@ -118,8 +118,16 @@ class BestTwo:
         self.f2 = np.full(n, np.inf)
         self.x1 = np.full((n, dim), np.nan)
         self.x2 = np.full((n, dim), np.nan)
-        self.set1 = np.zeros(n, dtype=bool)
-        self.set2 = np.zeros(n, dtype=bool)
+
+    @property
+    def set1(self) -> np.ndarray:
+        """Per run: B1 holds a vulture (only a value below +inf ever enters)."""
+        return self.f1 < np.inf
+
+    @property
+    def set2(self) -> np.ndarray:
+        """Per run: B2 holds a vulture."""
+        return self.f2 < np.inf
 
     def update(self, f: np.ndarray, X: np.ndarray) -> None:
         """The reference update, vulture by vulture in index order, for every run at once:
@@ -140,13 +148,11 @@ class BestTwo:
         m = v2 < self.f2
         if m.any():
             self.f2[m], self.x2[m] = v2[m], X[m, k2[m]]
-            self.set2 |= m
         k1 = np.argmin(f, axis=1)
         v1 = f[rows, k1]
         m = v1 < self.f1
         if m.any():
             self.f1[m], self.x1[m] = v1[m], X[m, k1[m]]
-            self.set1 |= m
 
 
 @register("avoa")
