@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 
 os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
@@ -29,8 +30,20 @@ CYCLER_HELP = (
 )
 
 
+NUMBERS = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,\s*[-+]?(\d+\.?\d*|\.\d+)"
+                     r"([eE][-+]?\d+)?)*,?$")  # fmt: skip
+"""An argument that starts with a minus and is a number or a comma-separated list of them
+(``-10,0,10``, ``-1e-3``): a value, not an option (argparse's own rule takes only ``-10`` and
+``-.5``, so ``--temperatures -10,0,10`` was "expected one argument")."""
+
+
 class Parser(argparse.ArgumentParser):
-    """argparse with usage errors as one-line :class:`UserError` (exit 2, no usage block)."""
+    """argparse with usage errors as one-line :class:`UserError` (exit 2, no usage block), and
+    negative numbers and lists of numbers taken as values (:data:`NUMBERS`)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NUMBERS  # argparse's hook for what looks like a number
 
     def error(self, message):  # one line, exit 2 (argparse prints the usage block otherwise)
         raise UserError(f"{self.prog}: {message}")
@@ -493,10 +506,11 @@ def _flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:
                     if not flag.endswith("at a bound of its fit")]  # fmt: skip
 
 
-def _model_and_record(args, data, predicts: bool = False):
+def _model_and_record(args, data, predicts: bool = False, rest_ok: bool = False):
     """``simulate`` and ``export``: the model (``FittedModel.load``, its one refusal) and the
     record it runs on (or None), checked together: ``--soc0`` in [0, 1], a temperature for a
-    thermal model (unless the caller ``predicts`` one: ``simulate``, :func:`_temperature`)."""
+    thermal model (unless the caller ``predicts`` one: ``simulate``, :func:`_temperature`);
+    ``rest_ok``: a record that only rests is read (``estimate``)."""
     import numpy as np
 
     from . import inputs
@@ -507,13 +521,15 @@ def _model_and_record(args, data, predicts: bool = False):
     model = FittedModel.load(args.model)
     if data is None:
         return model, None
-    rec = inputs.read_record(data, cycler=args.cycler, current_sign=args.current_sign)
+    rec = inputs.read_record(data, cycler=args.cycler, current_sign=args.current_sign,
+                             rest_ok=rest_ok)  # fmt: skip
     from . import records
     from .model import elements
     from .model.ecm import IDX
 
     # the model's capacity tells the units the record alone cannot (minutes, mA)
-    records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]))
+    records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]),
+                        rest_ok=rest_ok)  # fmt: skip
     needs_t = {e for e in model.config.effects if elements.get(e).needs_temperature}
     if needs_t and "temperature_c" not in rec.frame.columns and not predicts:
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "
@@ -540,6 +556,16 @@ def _ambient(args, rec) -> tuple[float, str]:
                         "give --ambient-c")  # fmt: skip
     where = f"{side}: field 'ambient_temperature_c'"
     return heat.check_ambient(meta["ambient_temperature_c"], where), "the sidecar"
+
+
+def _unused_ambient(args, pred) -> list[str]:
+    """``simulate --ambient-c`` where nothing predicted a temperature from it (the model has no
+    temperature law, so the record's run needs none): one warning line, as the option changed
+    nothing (a record with temperature_c is refused in :func:`_temperature`)."""
+    if args.ambient_c is None or pred is not None:
+        return []
+    return [f"--ambient-c {args.ambient_c:g}: ignored: {args.model} has no temperature law, so "
+            "no cell temperature is predicted from the ambient"]  # fmt: skip
 
 
 def _temperature(args, model, rec):
@@ -611,6 +637,7 @@ def cmd_simulate(args) -> None:
     inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
     if model.heat is not None:
         inputs.warn(f"{args.model}: {flag}" for flag in heat.flags(model.heat))
+    inputs.warn(_unused_ambient(args, pred))
     if pred is not None and not pred.converged:
         inputs.warn([f"{args.model}: the temperature's fixed point moved "
                      f"{pred.last_change_k:.3g} K in its last of {pred.passes} passes "
@@ -800,8 +827,15 @@ def cmd_estimate(args) -> None:
         raise UserError(f"--reference-soc0 must lie in [0, 1], got {ref}")
     if not np.isfinite(args.current_bias_a):
         raise UserError(f"--current-bias-a must be finite, got {args.current_bias_a}")
-    # the model and record as simulate reads them (its --soc0 rule is for a start, not a guess)
-    model, rec = _model_and_record(argparse.Namespace(**{**vars(args), "soc0": None}), args.data)
+    # the model and record as simulate reads them (its --soc0 rule is for a start, not a guess);
+    # a record that only rests is read too: its SOC is the OCV's
+    model, rec = _model_and_record(argparse.Namespace(**{**vars(args), "soc0": None}), args.data,
+                                   rest_ok=True)  # fmt: skip
+    limit = estimate.bias_limit_a(model, rec.frame["current_a"].to_numpy())
+    if abs(args.current_bias_a) > limit:
+        raise UserError(f"--current-bias-a {args.current_bias_a:g} A: beyond the currents of "
+                        f"{args.data} (|I| at most {limit:.4g} A); a sensor's offset is a "
+                        "fraction of the range it reads")  # fmt: skip
     result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
                                       source=args.model)  # fmt: skip
     summary = {"model": str(args.model), "record": str(args.data), **result.summary}
@@ -811,8 +845,17 @@ def cmd_estimate(args) -> None:
         estimate_figures.render(result.frame, summary, png_tmp, title=str(args.data))
     inputs.warn(rec.warnings)
     inputs.warn(_flag_lines(args.model, model.at_bounds(), model.intervals))
+    out_of = summary["outside_range"]
+    if out_of is not None:
+        lo, hi = out_of["range"]
+        inputs.warn([f"{args.data}: the estimated SOC reaches {out_of['soc']:.4f} ± "
+                     f"{out_of['soc_sd']:.2g} at t = {out_of['time_s']:g} s, outside "
+                     f"{args.model}'s SOC range {lo:g}-{hi:g} by more than "
+                     f"{out_of['sd_beyond']:g} sd: no SOC of the cell; the record's voltage "
+                     "leaves what the model describes (another cell, or model?)"])  # fmt: skip
     line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
-            f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip
+            + (" (the record only rests: the SOC of its OCV)" if summary["rest_only"] else "")
+            + f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip
     if ref is not None:
         f = summary["filter"]
         line += (f"; after 5 min RMSE {100 * f['rmse_after_window']:.2f} %, max "

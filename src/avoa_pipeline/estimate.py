@@ -99,6 +99,12 @@ END_SLOPE_SPAN = 0.02
 continues past that end: 2 % of SOC, twenty steps of the table's 0.1 % grid (a slope over one
 step would carry the table's rounding)."""
 
+RANGE_SD = 2.0
+"""An estimated SOC beyond the model's SOC range (:func:`soc_range`) by more than this many of
+its own sd is one the cell cannot have (:func:`outside_range`): ±2 sd is the band whose coverage
+the filter is scored on (``coverage_2sd``); a SOC just past an end within it is the filter's
+uncertainty, not a contradiction."""
+
 CONVERGENCE_S = 300.0
 """The issue's convergence window: errors are scored after the first 5 min."""
 WITHIN = 0.02
@@ -576,6 +582,9 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
         "final_soc": float(est.soc[-1]), "final_soc_sd": float(est.soc_sd[-1]),
         "final_bias_a": float(est.bias_a[-1]), "final_bias_sd_a": float(est.bias_sd[-1]),
         "innovation_rms_mv": float(1e3 * np.sqrt(np.mean(est.innovation_v**2))),
+        "rest_only": bool(not np.any(rec.i)),  # the SOC is then the OCV's
+        "soc_range": list(soc_range(fitted)),
+        "outside_range": outside_range(fitted, frame),
     }  # fmt: skip
     if reference_soc0 is not None:
         ref = reference_soc(rec, model, float(reference_soc0))
@@ -588,6 +597,46 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
         summary["coulomb_counting"] = score(rec.t, counted, np.zeros(rec.n), ref)
         summary["coulomb_counting"].pop("coverage_2sd")
     return Result(frame, summary)
+
+
+def soc_range(fitted) -> tuple[float, float]:
+    """The SOC over which a model's OCV is known: its table's span, or 0-1 for the rational
+    curve (its SOC is the fraction of the fitted capacity)."""
+    table = fitted.config.table
+    if table is None:
+        return 0.0, 1.0
+    grid = table.grid()
+    return float(grid[0]), float(grid[-1])
+
+
+def outside_range(fitted, frame: pd.DataFrame) -> dict | None:
+    """Where the estimate leaves the model's SOC range (:func:`soc_range`) by more than
+    :data:`RANGE_SD` of its own sd, after the first :data:`CONVERGENCE_S` (a wrong start's
+    transient; the whole record if it is shorter): its farthest sample (time, SOC, sd, the
+    range), or None. A record whose voltage lies outside the model's OCV (0.5 V below it gave a
+    final SOC of −0.86 ± 0.0006) ends there: no SOC of the cell, and no sd says so."""
+    lo, hi = soc_range(fitted)
+    t, soc, sd = (frame[c].to_numpy() for c in ("time_s", "soc", "soc_sd"))
+    late = (t - t[0]) >= CONVERGENCE_S
+    idx = np.flatnonzero(late) if late.any() else np.arange(t.size)
+    excess = np.maximum(lo - soc[idx], soc[idx] - hi) - RANGE_SD * sd[idx]
+    k = int(idx[np.argmax(excess)])
+    if excess.max() <= 0:
+        return None
+    return {"time_s": float(t[k]), "soc": float(soc[k]), "soc_sd": float(sd[k]),
+            "range": [lo, hi], "sd_beyond": RANGE_SD}  # fmt: skip
+
+
+def bias_limit_a(fitted, current_a: np.ndarray) -> float:
+    """The largest current-sensor offset (A) a run may add (``--current-bias-a``): the largest
+    |current| of the record, since a sensor's range covers what it reads and its offset is a
+    fraction of that range (:data:`BIAS_SD_OF_RANGE`); on a record that only rests, the current
+    the model was trained at (``current_scale_a``), else 1C of its capacity. 1e6 A on a 2 A
+    record ran without a word before, its innovations 599 V RMS."""
+    peak = float(np.max(np.abs(current_a))) if np.size(current_a) else 0.0
+    if peak > 0:
+        return peak
+    return fitted.current_scale_a or float(10.0 ** fitted.x[IDX["lq"]])
 
 
 def replace_current(rec: ecm.Record, i: np.ndarray) -> ecm.Record:

@@ -31,7 +31,7 @@ import pandas as pd
 
 from . import records
 from .errors import DataError, UserError
-from .io import read_csv, sha256
+from .io import READ_NOTES, read_csv, sha256
 from .names import CURRENT_SIGNS
 
 TABLE_COLUMNS = ("soc", "ocv_v")
@@ -62,7 +62,7 @@ def _refuse_raw_export(path: Path) -> None:
                         " or a cycler's export read with --cycler")  # fmt: skip
 
 
-def _read(path, cycler: str | None, current_sign: str) -> records.Checked:
+def _read(path, cycler: str | None, current_sign: str, rest_ok: bool = False) -> records.Checked:
     """A file read and checked, its sign not yet judged (the set of files decides the advice)."""
     if current_sign not in CURRENT_SIGNS:
         raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
@@ -75,7 +75,7 @@ def _read(path, cycler: str | None, current_sign: str) -> records.Checked:
         return records.converted(frame, str(path), info, origin)
     _refuse_raw_export(path)
     return records.read(path, keys=None, required=records.REQUIRED, current_sign=current_sign,
-                        judge_sign=False)  # fmt: skip
+                        judge_sign=False, rest_ok=rest_ok)  # fmt: skip
 
 
 def _canonical(c: records.Checked) -> bool:
@@ -101,7 +101,9 @@ def _judge(reads: list[records.Checked], current_sign: str) -> list[records.Chec
             records.sign_contradiction(r.source, "column 'current_a'", current_sign, r.sign)
             + f"; {advice}"
         )
-    unclear = [_canonical(r) and r.sign.verdict == records.CANNOT_TELL for r in reads]
+    # a record that only rests has no sign to tell (estimate reads one: its SOC is the OCV's)
+    unclear = [_canonical(r) and r.sign.verdict == records.CANNOT_TELL
+               and not records.only_rests(r.frame["current_a"]) for r in reads]  # fmt: skip
     return [
         replace(r, warnings=(*r.warnings,
                              records.sign_unclear(r.source, "column 'current_a'", r.sign)))
@@ -127,10 +129,11 @@ def _no_duplicates(paths) -> None:
 
 
 def read_record(
-    path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]
+    path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0], rest_ok: bool = False
 ) -> records.Checked:
-    """One checked record of a path (a canonical CSV, or ``cycler``'s raw export)."""
-    (checked,) = _judge([_read(path, cycler, current_sign)], current_sign)
+    """One checked record of a path (a canonical CSV, or ``cycler``'s raw export); ``rest_ok``:
+    one that only rests passes (``records.check_scale``)."""
+    (checked,) = _judge([_read(path, cycler, current_sign, rest_ok)], current_sign)
     return checked
 
 
@@ -185,7 +188,9 @@ def _read_ocv(path, cycler, current_sign):
                 if values.isna().any():
                     row = int(values.isna().to_numpy().argmax())
                     raise DataError(f"{path}: column {col!r} row {row + 2}: not a number")
-            return ocv_mod.from_table(frame.apply(pd.to_numeric), str(path)), None
+            table = ocv_mod.from_table(frame.apply(pd.to_numeric), str(path))
+            read_notes = raw.attrs.get(READ_NOTES, ())  # a partial last row dropped
+            return replace(table, notes=(*read_notes, *table.notes)), None
         if not set(records.REQUIRED) <= set(raw.columns):
             raise DataError(
                 f"{path}: need columns 'soc', 'ocv_v' (an OCV table) or 'time_s', "

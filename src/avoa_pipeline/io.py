@@ -3,6 +3,20 @@
 Every reader fails with one line naming the file (what a record's columns must hold is
 ``records.py``'s); writers go through a temporary file in the target folder and an atomic rename,
 so an error never leaves half a file; :func:`check_output` is called before any work.
+
+Faults of the machine, not of the input, are handled here, once (docs/inputs.md, "Faults"):
+
+- a write the system refuses (:data:`WRITE_FAULTS`: a full disk or quota, a file too large, a
+  read-only file system, no permission) is one :class:`UserError` naming the path
+  (:func:`write_refusal`), from :func:`atomic_paths`, the lock and the probe alike; every
+  temporary and the lock are removed on the way out. Any other OSError is not expected and keeps
+  its traceback;
+- every temporary carries its run's pid and host in its name (:func:`_run_tag`), so a later run
+  on the same output removes those of runs that no longer live (:func:`sweep_temporaries`, called
+  under the lock): a run killed mid-write leaves them for one run only;
+- a CSV still being written is told by two signals (:func:`read_csv`): a last line without its
+  line end (the row is dropped, with a warning) and a size, modification time or inode that
+  changes while the file is read (refused).
 """
 
 from __future__ import annotations
@@ -15,6 +29,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import socket
 import stat
 import tempfile
@@ -28,6 +43,85 @@ from .errors import DataError, UserError
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
+
+WRITE_FAULTS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES,
+                          errno.EPERM})  # fmt: skip
+"""The errors of a write that the machine, not the program, causes and the user fixes (free some
+space or quota, write elsewhere, get permission): each is one line naming the path. Any other
+OSError while writing (EIO of a failing disk, EBADF of a bug) is unexpected and keeps its
+traceback."""
+
+
+def write_refusal(exc: OSError, path: str | Path, what: str = "") -> UserError | None:
+    """The one-line UserError of a write fault (:data:`WRITE_FAULTS`) at ``path`` (``what``: the
+    option that named it, e.g. "--out"), or None for an OSError that is not one: the caller
+    re-raises it."""
+    if exc.errno not in WRITE_FAULTS:
+        return None
+    lead = f"{what} {path}" if what else f"{path}"
+    return UserError(f"{lead}: cannot write ({exc.strerror or exc})")
+
+
+def _refuse_write(exc: OSError, path: str | Path, what: str = "") -> None:
+    """Raise the refusal of :func:`write_refusal`, or ``exc`` itself if it is not a write fault."""
+    err = write_refusal(exc, path, what)
+    if err is None:
+        raise exc
+    raise err from None
+
+
+TMP_SUFFIX = ".tmp"
+_TMP_NAME = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)@(?P<host>[A-Za-z0-9_.-]+)\."
+                       r"(?P<tag>[a-z0-9_]{8}|bak)\.tmp$")  # fmt: skip
+"""A temporary of this package: ``.NAME.PID@HOST.XXXXXXXX.tmp`` (``mkstemp``'s eight random
+characters) or ``.NAME.PID@HOST.bak.tmp`` (:func:`_keep`); :func:`sweep_temporaries` reads the
+pid and host back from the name."""
+
+
+def _host() -> str:
+    """This machine's name as a temporary's name holds it (characters outside a host name's
+    letters, digits, ``.`` and ``-`` as ``_``)."""
+    return re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "localhost"
+
+
+def _run_tag() -> str:
+    """``PID@HOST``: which run a temporary belongs to (:data:`_TMP_NAME`)."""
+    return f"{os.getpid()}@{_host()}"
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs on this machine (signal 0 checks, sends nothing; a process
+    of another user exists too). A pid reused since is taken as alive: its temporaries stay."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OverflowError:  # no process has a pid beyond the kernel's range
+        return False
+    return True
+
+
+def sweep_temporaries(folder: str | Path) -> list[Path]:
+    """Remove the temporaries in ``folder`` (:data:`_TMP_NAME`) of runs on this host that no
+    longer live (a run killed mid-write); those of live runs and of other hosts (a shared file
+    system: their pids mean nothing here) stay. Returns the paths removed. Called under the
+    output's lock (:func:`output_lock`), so a run only ever sweeps beside its own output."""
+    host, removed = _host(), []
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed  # a folder not yet made, or not listable: nothing of ours to sweep
+    for name in names:
+        m = _TMP_NAME.match(name)
+        if m is None or m["host"] != host or _alive(int(m["pid"])):
+            continue
+        path = Path(folder) / name
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)
+            removed.append(path)
+    return removed
 
 
 @contextlib.contextmanager
@@ -44,7 +138,10 @@ def atomic_paths(*paths: str | Path):
     their earlier content back (kept through a hard link while the renames run)."""
     with contextlib.ExitStack() as stack:
         tmps = [stack.enter_context(_temporary(Path(p))) for p in paths]
-        yield tmps
+        try:
+            yield tmps
+        except OSError as exc:  # writing a temporary: a full disk names the files
+            _refuse_write(exc, _written(paths, tmps, exc))
         backups, done = [], []
         try:
             for p, tmp in zip(map(Path, paths), tmps, strict=True):
@@ -69,12 +166,29 @@ def atomic_paths(*paths: str | Path):
                         os.unlink(backup)
 
 
+def _written(paths, tmps, exc: OSError) -> str:
+    """What a write fault inside :func:`atomic_paths` names: the target whose temporary the
+    error names, else the one target, else the folder and the targets' names (a full disk fails
+    whichever file is being written; the error of a buffered write names no file)."""
+    for p, tmp in zip(paths, tmps, strict=True):
+        if exc.filename is not None and os.fspath(exc.filename) == os.fspath(tmp):
+            return str(p)
+    if len(paths) == 1:
+        return str(paths[0])
+    folders = {Path(p).parent for p in paths}
+    if len(folders) == 1:
+        return f"{folders.pop()} ({', '.join(Path(p).name for p in paths)})"
+    return ", ".join(map(str, paths))
+
+
 @contextlib.contextmanager
 def _temporary(path: Path):
-    """A temporary file beside ``path`` (its folder made if missing), removed on the way out."""
+    """A temporary file beside ``path`` (its folder made if missing; named by :data:`_TMP_NAME`),
+    removed on the way out."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_run_tag()}.", suffix=TMP_SUFFIX,
+                                   dir=path.parent)  # fmt: skip
     except OSError as exc:  # a read-only folder, a file on the way: the user's to fix
         raise UserError(f"{path}: cannot write ({exc.strerror or exc})") from None
     os.close(fd)
@@ -89,7 +203,7 @@ def _keep(path: Path) -> Path | None:
     """A hard link to the file at ``path`` (None if there is none, or the file system links no
     files): what :func:`atomic_paths` puts back if a later rename fails (without one, the new
     file is removed)."""
-    backup = path.with_name(f".{path.name}.{os.getpid()}.bak.tmp")
+    backup = path.with_name(f".{path.name}.{_run_tag()}.bak{TMP_SUFFIX}")
     try:
         os.link(path, backup)
     except OSError:
@@ -243,15 +357,73 @@ def _header(path: Path) -> list[str]:
     return names
 
 
+READ_NOTES = "read_notes"
+"""The key of :func:`read_csv`'s warnings in the frame's ``attrs`` (a dropped partial row): the
+records layer adds them to the record's warnings."""
+SHOWN_CHARS = 40
+"""How much of a dropped partial line a warning quotes (a row of a cycler's export is shorter)."""
+
+
+def _stamp(path: Path) -> tuple[int, int, int, int]:
+    """What changes when a file is written to or replaced: (device, inode, size, mtime in ns)."""
+    st = os.stat(path)
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
+def _partial_tail(path: Path) -> bytes | None:
+    """The last line of ``path`` if it has no line end and follows one that has (a row still
+    being written, ``2556.0,2.0,3.``); None if the file ends with a line end (or blanks after
+    one), or has a single line (the header alone: pandas reads no row)."""
+    with open(path, "rb") as f:
+        size = f.seek(0, os.SEEK_END)
+        tail, pos = b"", size
+        while pos > 0:  # back to the last line end, a block at a time
+            step = min(HEADER_BYTES, pos)
+            pos -= step
+            f.seek(pos)
+            tail = f.read(step) + tail
+            cut = max(tail.rfind(b"\n"), tail.rfind(b"\r"))
+            if cut >= 0:
+                line = tail[cut + 1 :]
+                return line if line.strip() else None
+    return None
+
+
+def _changed(path: Path, before, what: str) -> None:
+    """DataError if ``path`` no longer has the stamp ``before`` (:func:`_stamp`): a file
+    written to, truncated, replaced or removed while it was read is no snapshot of any moment."""
+    try:
+        after = _stamp(path)
+    except FileNotFoundError:
+        raise DataError(f"{path}: removed while it was read{what}") from None
+    if after == before:
+        return
+    if after[:2] != before[:2]:
+        how = "replaced by another file"
+    elif after[2] != before[2]:
+        how = f"its size went from {before[2]} to {after[2]} bytes"
+    else:
+        how = "its modification time moved"
+    raise DataError(f"{path}: changed while it was read ({how}){what}: is a cycler still "
+                    "writing it? read it once the test has ended, or read a copy")  # fmt: skip
+
+
 def read_csv(path: str | Path) -> pd.DataFrame:
     """A CSV with stripped column names; a missing, unreadable or mis-delimited file is a one-line
     DataError. The header is looked at first (bounded, :data:`HEADER_BYTES`): a compressed,
     UTF-16, binary, tab- or semicolon-separated file is named as such (pandas would read it as
     one column, as shifted values, or fail on a codec), and a column given twice is refused
-    (pandas would rename the second one and read the first silently)."""
+    (pandas would rename the second one and read the first silently).
+
+    A file still being written (docs/inputs.md, "A file still being written"): a file whose
+    size, modification time or inode changes while it is read is refused; a last line without
+    its line end is dropped, with a warning in ``attrs[READ_NOTES]`` (the row of a cycler that
+    had not finished writing it, ``2556.0,2.0,3.`` read as 3.0 V otherwise)."""
     path = Path(path)
     _header(path)
     try:
+        before = _stamp(path)
+        tail = _partial_tail(path)
         with warnings.catch_warnings():
             warnings.simplefilter("error", pd.errors.ParserWarning)
             df = pd.read_csv(path, index_col=False, encoding="utf-8-sig")
@@ -268,7 +440,17 @@ def read_csv(path: str | Path) -> pd.DataFrame:
         raise DataError(f"{path}: not a readable CSV ({msg})") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    _changed(path, before, "")
     df.columns = [str(c).strip() for c in df.columns]
+    notes = []
+    if tail is not None and len(df):
+        shown = tail.decode("utf-8", "replace")
+        shown = shown if len(shown) <= SHOWN_CHARS else shown[:SHOWN_CHARS] + "..."
+        notes.append(f"{path}: line {len(df) + 1} ({shown!r}) has no line end: a row still being "
+                     "written (or a file saved without its last line end); that row was "
+                     "dropped")  # fmt: skip
+        df = df.iloc[:-1].copy()
+    df.attrs[READ_NOTES] = tuple(notes)
     return df
 
 
@@ -338,7 +520,8 @@ def check_output(path: str | Path, *, inputs=(), folder: bool = False, what: str
     if not probe.is_dir():
         raise UserError(f"{what} {path}: {probe} is a file, not a folder")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=".avoa-probe.", dir=probe)
+        fd, tmp = tempfile.mkstemp(prefix=f".avoa-probe.{_run_tag()}.", suffix=TMP_SUFFIX,
+                                   dir=probe)  # fmt: skip
         os.close(fd)
         os.unlink(tmp)
     except OSError as exc:
@@ -372,7 +555,9 @@ def output_lock(path: str | Path, *, folder: bool = False, command: str = ""):
     however it ends, so a lock file left by a killed run is stale by construction and the next
     run takes it over (Snakemake's ``--unlock`` is not needed); a run that ends removes it, also
     on an error. A file system that cannot lock (NFS mounted ``nolock``) runs unlocked. The path is
-    checked first (:func:`check_output`); folders made for the lock are removed if left empty."""
+    checked first (:func:`check_output`); folders made for the lock are removed if left empty.
+    Holding the lock, the run removes the temporaries of runs that no longer live beside (or in)
+    its output (:func:`sweep_temporaries`)."""
     check_output(path, folder=folder)
     path = Path(os.path.abspath(path))
     lock = path / LOCK_SUFFIX if folder else path.parent / f".{path.name}{LOCK_SUFFIX}"
@@ -380,6 +565,7 @@ def output_lock(path: str | Path, *, folder: bool = False, command: str = ""):
     try:
         fd = _take_lock(lock, path, command)
         try:
+            sweep_temporaries(path if folder else path.parent)  # of killed runs, under the lock
             yield lock
         finally:
             if fd is not None:
@@ -453,8 +639,14 @@ def _take_lock(lock: Path, out: Path, command: str) -> int | None:
             "start": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             "command": command,
         }
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+        except OSError as exc:  # a full disk takes the lock's inode but not its details
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(lock)
+            os.close(fd)
+            _refuse_write(exc, out, "--out")
         return fd
 
 

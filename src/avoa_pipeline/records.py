@@ -30,14 +30,14 @@ from __future__ import annotations
 import itertools
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from .errors import DataError, UserError
-from .io import atomic_paths, read_csv, read_json, read_sidecar, sha256, sidecar_of
+from .io import READ_NOTES, atomic_paths, read_csv, read_json, read_sidecar, sha256, sidecar_of
 
 COLUMNS = ("time_s", "current_a", "voltage_v", "temperature_c")
 REQUIRED = COLUMNS[:3]
@@ -202,6 +202,11 @@ def current_scale(current) -> float:
     return float(np.quantile(a, 0.99)) if a.size else 0.0
 
 
+def only_rests(current) -> bool:
+    """Whether no current flows at all (every 99th-percentile |I| is 0): no sign to tell."""
+    return current_scale(current) <= 0
+
+
 def at_rest(current, scale: float | None = None) -> np.ndarray:
     """Per sample: |I| at most REST_FRACTION of the current scale (:func:`current_scale` of
     ``current`` unless given: a caller passes the whole record's, or floors it away from 0)."""
@@ -242,6 +247,7 @@ def check_scale(
     capacity_ah: float | None = None,
     *,
     names: dict[str, str] | None = None,
+    rest_ok: bool = False,
 ) -> tuple[str, ...]:
     """One cell's record in seconds, amperes, volts and °C: DataError naming the column (``names``
     maps a canonical column to the raw export's own, for messages about a raw file); returns the
@@ -252,8 +258,9 @@ def check_scale(
       else 1/MIN_C_RATE hours of the record's 99th-percentile current): milliseconds and hours
       are caught; with a known capacity, minutes too (the rests, OCV_SLOPE_MAX); no logging gap
       (MAX_GAP_S) under load;
-    - current: a 99th-percentile |I| above zero and, with a known capacity, between MIN_C_RATE
-      and MAX_C_RATE; without one, above AMBIGUOUS_CURRENT_A a warning;
+    - current: a 99th-percentile |I| above zero (``rest_ok``: a record that only rests passes,
+      for ``estimate``: its SOC is the OCV's) and, with a known capacity, between MIN_C_RATE and
+      MAX_C_RATE; without one, above AMBIGUOUS_CURRENT_A a warning;
     - voltage: within VOLTAGE_RANGE_V; temperature within TEMPERATURE_RANGE_C.
     """
     col = {c: c for c in COLUMNS} | (names or {})
@@ -268,7 +275,7 @@ def check_scale(
             f"is over {MAX_C_RATE:g} C for {capacity_ah:g} Ah; looks like mA "
             "(need A)"
         )
-    if scale <= 0:
+    if scale <= 0 and not rest_ok:
         raise DataError(
             f"{source}: column {col['current_a']!r}: no current flows; nothing to identify"
         )
@@ -600,20 +607,23 @@ def check(
     current_sign: str = SIGNS[0],
     judge_sign: bool = True,
     meta: dict | None = None,
+    rest_ok: bool = False,
 ) -> Checked:
     """The one check of a frame: :func:`validate`, the current negated if ``current_sign`` is
     charge-positive, :func:`check_scale` and :func:`sign_evidence`; a contradicted sign is a
     DataError, a sign the record cannot tell a warning, unless ``judge_sign`` is False (the input
-    layer judges a command's files together). ``meta``: its sidecar's content."""
+    layer judges a command's files together). ``meta``: its sidecar's content; ``rest_ok``: a
+    record that only rests passes (:func:`check_scale`), with no word on its sign."""
     clean = validate(frame, source, first_row=first_row, min_samples=min_samples,
                      required=required)  # fmt: skip
     if current_sign == SIGNS[1]:
         clean = clean.assign(current_a=-clean["current_a"])
-    notes = check_scale(clean, source, capacity_ah)
+    notes = check_scale(clean, source, capacity_ah, rest_ok=rest_ok)
+    clean.attrs["source"] = source  # what the model library names in its messages
     ev = frame_sign(clean)
     if judge_sign and ev.contradicts:
         raise DataError(sign_contradiction(source, "column 'current_a'", current_sign, ev))
-    if judge_sign and ev.verdict == CANNOT_TELL:
+    if judge_sign and ev.verdict == CANNOT_TELL and not only_rests(clean["current_a"]):
         notes = (*notes, sign_unclear(source, "column 'current_a'", ev))
     return Checked(clean, source, ev, notes, dict(origin or {"read_as": "frame"}), meta or {})
 
@@ -726,5 +736,8 @@ def read(
     origin = {"read_as": "canonical CSV", "current_sign": check_as.get("current_sign", SIGNS[0])}
     if side.is_file():
         origin["sidecar"] = str(side)
-    return check(read_csv(path), str(path), capacity_ah=cap, origin=origin, meta=meta,
-                 required=required, **check_as)  # fmt: skip
+    raw = read_csv(path)
+    checked = check(raw, str(path), capacity_ah=cap, origin=origin, meta=meta,
+                    required=required, **check_as)  # fmt: skip
+    read_notes = raw.attrs.get(READ_NOTES, ())  # a partial last row dropped (io.read_csv)
+    return replace(checked, warnings=(*read_notes, *checked.warnings)) if read_notes else checked

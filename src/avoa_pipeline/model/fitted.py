@@ -503,8 +503,11 @@ def _intervals_schema(names: list[str]) -> dict:
         "method": {"type": "string"},
         "level": {"const": LEVEL},
         "samples": {"type": "integer", "minimum": 0, "maximum": MAX_COUNT},
-        "effective_samples": _number(0.0, MAX_COUNT, "at most the samples"),
-        "residual_sd_mv": _number(0.0, 1e3 * (hi - lo), "within one cell's voltage range"),
+        # both above 0: estimate divides by the one and its noise rests on the other (a fit of
+        # at least one sample has n/τ > 0 samples, and a logger's noise and resolution never
+        # leave a residual of exactly 0); 0 gave a ZeroDivisionError and a filter that broke down
+        "effective_samples": _number(0.0, MAX_COUNT, "a fit's effective sample count", True),
+        "residual_sd_mv": _number(0.0, 1e3 * (hi - lo), "a fit's residual sd (mV)", True),
         "parameters": _object({r: entry for r in reports}),
         "correlated_pairs": _list(pair),
         "flags": _list({"type": "string"}),
