@@ -48,6 +48,11 @@ The noise, from the model file alone (never tuned per record; each constant belo
   range (sd = range/√3); e at its stationary sd; b at 0 with sd :data:`BIAS_SD_OF_RANGE` of the
   record's largest |current|.
 
+What cannot be right is said (issue 38): a SOC that leaves the model's SOC range
+(:func:`soc_range`) by more than :data:`RANGE_SD` of its sd is reported (:func:`outside_range`,
+a warning of the command); ``--current-bias-a`` beyond the record's currents is refused
+(:func:`bias_limit_a`); a record that only rests is a valid one (its SOC is the OCV's).
+
 Current bias: the state b (random walk) absorbs a sensor offset: a constant offset makes the
 coulomb count drift by b·t/(3600·Q), which the voltage then contradicts, and the filter moves b
 rather than pushing the SOC against the count at every step. ``--current-bias-a B`` adds B to

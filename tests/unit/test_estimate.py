@@ -261,6 +261,10 @@ BAD = [
     (["--reference-soc0", "1.5"], "--reference-soc0 must lie in [0, 1]"),
     (["--current-bias-a", "nan"], "--current-bias-a must be finite"),
     (["--soc0", "x"], "soc0 must be a number"),
+    # a sensor offset beyond what the record carries (1e6 A on a 2 A record ran, its innovations
+    # 599 V RMS)
+    (["--current-bias-a", "1e6"], "--current-bias-a 1e+06 A: beyond the currents of"),
+    (["--current-bias-a", "-20"], "--current-bias-a -20 A: beyond the currents of"),
 ]
 
 
@@ -284,6 +288,66 @@ def test_a_model_without_intervals_is_refused_naming_the_field(tmp_path, capsys)
     assert code == 2
     assert err.startswith(f"error: {m}: intervals: missing")
     assert not (tmp_path / "soc.csv").exists()
+
+
+@pytest.mark.parametrize("field", ["effective_samples", "residual_sd_mv"])
+def test_a_tampered_interval_is_refused_naming_the_file_and_the_field(tmp_path, capsys, field):
+    """0 effective samples gave a ZeroDivisionError; a residual sd of 0 a filter that broke down,
+    refused naming ``<data>``."""
+    m, rec = files(tmp_path)
+    d = json.loads(Path(m).read_text())
+    d["intervals"][field] = 0
+    Path(m).write_text(json.dumps(d))
+    code, _, err = run_cli(["estimate", m, rec, "--out", str(tmp_path / "soc.csv")], capsys)
+    assert code == 2
+    assert err.startswith(f"error: {m}: field 'intervals.{field}': 0 outside")
+    assert err.count("\n") == 1
+    assert not (tmp_path / "soc.csv").exists()
+
+
+def test_a_soc_outside_the_models_range_is_warned_not_given_quietly(tmp_path, capsys):
+    """A record 0.5 V below the model's OCV ended at SOC −0.86 ± 0.0006 with exit 0 and no word:
+    now one warning line, and the summary says where it left the range."""
+    m, rec = files(tmp_path)
+    out = tmp_path / "soc.csv"
+    code, _, err = run_cli(["estimate", m, rec, "--out", str(out)], capsys)
+    assert code == 0
+    assert "SOC range" not in err
+    assert json.loads(out.with_suffix(".json").read_text())["outside_range"] is None
+    low = tmp_path / "low.csv"
+    frame = pd.read_csv(rec)
+    frame.assign(voltage_v=float(ocv_table().values.min()) - 0.5).to_csv(low, index=False)
+    code, _, err = run_cli(["estimate", m, str(low), "--out", str(out)], capsys)
+    assert code == 0
+    (line,) = [x for x in err.splitlines() if "SOC range" in x]
+    assert line.startswith(f"warning: {low}: the estimated SOC reaches -")
+    assert f"outside {m}'s SOC range 0-1 by more than 2 sd" in line
+    where = json.loads(out.with_suffix(".json").read_text())["outside_range"]
+    assert where["soc"] + 2 * where["soc_sd"] < 0
+    assert where["time_s"] >= E.CONVERGENCE_S
+
+
+def test_a_record_that_only_rests_gives_the_soc_of_its_ocv(tmp_path, capsys):
+    """Refused before ("no current flows; nothing to identify"): for estimate a rest is a valid
+    record, and its SOC is the OCV's."""
+    m, _ = files(tmp_path)
+    model = FittedModel.load(m)
+    rest = drive(seconds=600).assign(current_a=0.0)
+    rest = rest.assign(voltage_v=model.simulate(rest, soc0=0.6))
+    rec = tmp_path / "rest.csv"
+    rest.to_csv(rec, index=False)
+    out = tmp_path / "soc.csv"
+    code, text, err = run_cli(["estimate", m, str(rec), "--out", str(out)], capsys)
+    assert code == 0, err
+    assert "warning" not in err  # no word on a sign a rest cannot tell
+    assert "the record only rests: the SOC of its OCV" in text
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["rest_only"] is True
+    assert summary["final_soc"] == pytest.approx(0.6, abs=max(2 * summary["final_soc_sd"], 1e-3))
+    # a sensor offset on a rest is judged against the current the model was trained at
+    code, _, err = run_cli(["estimate", m, str(rec), "--out", str(out), "--current-bias-a",
+                            "0.01"], capsys)  # fmt: skip
+    assert code == 0, err
 
 
 def test_a_thermal_model_needs_the_records_temperature(tmp_path, capsys):

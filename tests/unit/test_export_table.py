@@ -172,9 +172,22 @@ def test_defaults_follow_the_model(tmp_path, capsys):
     assert np.diff(temps) == pytest.approx(2.0)
 
 
+@pytest.mark.parametrize("temperatures", ["-10,0,10", "-10, -5.5,0", "-1e1,0,1e1"])
+def test_a_list_of_negative_temperatures_is_a_value_not_an_option(tmp_path, capsys, temperatures):
+    """argparse took ``-10,0,10`` for an option ("expected one argument"); a list of numbers
+    starting with a minus is a value (cli.NUMBERS), and the next option is still one."""
+    tab, side, _ = write_table(tmp_path, capsys, fitted("table", ("thermal",)), "--temperatures",
+                               temperatures, "--soc-grid", "0,0.5,1")  # fmt: skip
+    want = [float(t) for t in temperatures.split(",")]
+    assert side["grid"]["temperature_c"] == want
+    assert sorted(set(tab["temperature_c"])) == want
+    assert side["grid"]["soc"] == [0.0, 0.5, 1.0]
+
+
 @pytest.mark.parametrize(
     ("options", "says"),
     [
+        (["--temperatures", "-10,-x"], "--temperatures"),  # not a list of numbers: an option
         (["--soc-grid", "0,0.5,1.2"], "--soc-grid"),
         (["--soc-grid", "0.5,0.2"], "increase"),
         (["--soc-grid", "0.5"], "at least 2"),
