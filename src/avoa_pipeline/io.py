@@ -79,9 +79,16 @@ pid and host back from the name."""
 
 
 def _host() -> str:
-    """This machine's name as a temporary's name holds it (characters outside a host name's
-    letters, digits, ``.`` and ``-`` as ``_``)."""
-    return re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "localhost"
+    """Where a pid means this process: the machine's name (characters outside a host name's
+    letters, digits, ``.`` and ``-`` as ``_``) and, on Linux, the pid namespace's number
+    (containers that share a host name and a folder count their pids apart: a live process of
+    one looks dead from another)."""
+    name = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "localhost"
+    try:
+        ns = re.sub(r"\D", "", os.readlink("/proc/self/ns/pid"))  # "pid:[4026531836]"
+    except OSError:
+        ns = ""
+    return f"{name}-pidns{ns}" if ns else name
 
 
 def _run_tag() -> str:
@@ -105,9 +112,11 @@ def _alive(pid: int) -> bool:
 
 def sweep_temporaries(folder: str | Path) -> list[Path]:
     """Remove the temporaries in ``folder`` (:data:`_TMP_NAME`) of runs on this host that no
-    longer live (a run killed mid-write); those of live runs and of other hosts (a shared file
-    system: their pids mean nothing here) stay. Returns the paths removed. Called under the
-    output's lock (:func:`output_lock`), so a run only ever sweeps beside its own output."""
+    longer live (a run killed mid-write); those of live runs and of other hosts or pid
+    namespaces (a shared file system, another container: their pids mean nothing here) stay.
+    Returns the paths removed. Called by :func:`output_lock` (a rerun that is refused still
+    sweeps beside its output) and :func:`atomic_paths` (every writer, the Snakemake jobs too).
+    A dead run's temporary is never renamed by anyone, so no lock is needed to remove it."""
     host, removed = _host(), []
     try:
         names = os.listdir(folder)
@@ -135,7 +144,11 @@ def atomic_path(path: str | Path):
 def atomic_paths(*paths: str | Path):
     """Yield temporary paths beside ``paths``; on success rename them all onto ``paths``, or
     none: where a later rename fails (a target became a folder), the targets already renamed get
-    their earlier content back (kept through a hard link while the renames run)."""
+    their earlier content back (kept through a hard link while the renames run). The
+    temporaries of dead runs in the targets' folders are swept first (:func:`sweep_temporaries`:
+    the Snakemake jobs write through here without a lock)."""
+    for folder in dict.fromkeys(Path(p).parent for p in paths):
+        sweep_temporaries(folder)  # of killed runs: every writer of a folder sweeps it
     with contextlib.ExitStack() as stack:
         tmps = [stack.enter_context(_temporary(Path(p))) for p in paths]
         try:

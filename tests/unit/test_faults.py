@@ -15,6 +15,7 @@ import errno
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -318,6 +319,19 @@ def test_a_folder_output_sweeps_inside_it(tmp_path):
     with io.output_lock(out, folder=True, command="test"):
         assert not stale.exists()
     assert beside.exists()
+
+
+def test_every_writer_sweeps_the_folder_it_writes_into(tmp_path):
+    """The Snakemake jobs write through ``atomic_path`` without the lock: the sweep is there too.
+    A temporary of the same pid in another pid namespace (a container sharing the host name) is
+    another machine's."""
+    dead, host = _dead_pid(), io._host()
+    stale = tmp_path / f".r.json.{dead}@{host}.a1b2c3d4.tmp"
+    other_ns = tmp_path / f".r.json.{dead}@{socket.gethostname()}-pidns1.a1b2c3d4.tmp"
+    for p in (stale, other_ns):
+        p.write_text("{")
+    io.write_json({"a": 1}, tmp_path / "r.json")
+    assert _names(tmp_path) == sorted([other_ns.name, "r.json"])
 
 
 def test_temporaries_are_named_by_their_run(tmp_path):
