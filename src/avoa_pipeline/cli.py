@@ -400,6 +400,7 @@ def cmd_recovery(args) -> None:
 def cmd_convert(args) -> None:
     from pathlib import Path
 
+    from .io import unchanged_while_read
     from .real.importers import cycler
 
     out = Path(args.out)
@@ -424,9 +425,11 @@ def cmd_convert(args) -> None:
         jobs = [(out, {"sheet": args.sheet, "concat": args.sheets == "concat"})]
     for path, _ in jobs:
         _csv_and_sidecar(path, [args.raw])
-    # every sheet converted before any is written: a bad sheet leaves no file
-    done = [(path, *cycler.convert(args.raw, args.cycler, **options, **which))
-            for path, which in jobs]  # fmt: skip
+    # every sheet converted before any is written: a bad sheet leaves no file; an export that
+    # changes meanwhile (a cycler still writing it) is refused
+    with unchanged_while_read(args.raw):
+        done = [(path, *cycler.convert(args.raw, args.cycler, **options, **which))
+                for path, which in jobs]  # fmt: skip
     for path, frame, info in done:
         side = cycler.write(frame, info, path)
         charge = info["charge"]["discharged_ah_output"]

@@ -31,7 +31,7 @@ import pandas as pd
 
 from . import records
 from .errors import DataError, UserError
-from .io import READ_NOTES, read_csv, sha256
+from .io import READ_NOTES, read_csv, sha256, unchanged_while_read
 from .names import CURRENT_SIGNS
 
 TABLE_COLUMNS = ("soc", "ocv_v")
@@ -70,7 +70,8 @@ def _read(path, cycler: str | None, current_sign: str, rest_ok: bool = False) ->
     if cycler is not None and not is_canonical(path):
         from .real.importers import cycler as cyc
 
-        frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
+        with unchanged_while_read(path):  # an export still being written is refused
+            frame, info = cyc.convert(path, cycler)  # checked there, on the current channel
         origin = {"read_as": f"{cycler} export", "conversion": info}
         return records.converted(frame, str(path), info, origin)
     _refuse_raw_export(path)

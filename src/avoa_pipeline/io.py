@@ -402,13 +402,13 @@ def _partial_tail(path: Path) -> bytes | None:
     return None
 
 
-def _changed(path: Path, before, what: str) -> None:
+def _changed(path: Path, before) -> None:
     """DataError if ``path`` no longer has the stamp ``before`` (:func:`_stamp`): a file
     written to, truncated, replaced or removed while it was read is no snapshot of any moment."""
     try:
         after = _stamp(path)
     except FileNotFoundError:
-        raise DataError(f"{path}: removed while it was read{what}") from None
+        raise DataError(f"{path}: removed while it was read") from None
     if after == before:
         return
     if after[:2] != before[:2]:
@@ -417,8 +417,23 @@ def _changed(path: Path, before, what: str) -> None:
         how = f"its size went from {before[2]} to {after[2]} bytes"
     else:
         how = "its modification time moved"
-    raise DataError(f"{path}: changed while it was read ({how}){what}: is a cycler still "
+    raise DataError(f"{path}: changed while it was read ({how}): is a cycler still "
                     "writing it? read it once the test has ended, or read a copy")  # fmt: skip
+
+
+@contextlib.contextmanager
+def unchanged_while_read(path: str | Path):
+    """Hold that the file at ``path`` is the same after the block (which reads it) as before:
+    DataError otherwise (:func:`_changed`). A path that cannot be looked at before is left to
+    the block's reader to name."""
+    path = Path(path)
+    try:
+        before = _stamp(path)
+    except OSError:
+        before = None
+    yield
+    if before is not None:
+        _changed(path, before)
 
 
 def read_csv(path: str | Path) -> pd.DataFrame:
@@ -435,9 +450,8 @@ def read_csv(path: str | Path) -> pd.DataFrame:
     path = Path(path)
     _header(path)
     try:
-        before = _stamp(path)
-        tail = _partial_tail(path)
-        with warnings.catch_warnings():
+        with unchanged_while_read(path), warnings.catch_warnings():
+            tail = _partial_tail(path)
             warnings.simplefilter("error", pd.errors.ParserWarning)
             df = pd.read_csv(path, index_col=False, encoding="utf-8-sig")
     except FileNotFoundError:
@@ -453,7 +467,6 @@ def read_csv(path: str | Path) -> pd.DataFrame:
         raise DataError(f"{path}: not a readable CSV ({msg})") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    _changed(path, before, "")
     df.columns = [str(c).strip() for c in df.columns]
     notes = []
     if tail is not None and len(df):

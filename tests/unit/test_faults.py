@@ -228,6 +228,31 @@ def test_a_record_that_vanishes_or_grows_while_it_is_read_is_one_line(cell, caps
     assert _names(out) == []
 
 
+def test_a_raw_export_that_grows_while_it_is_converted_is_one_line(tmp_path, capsys,
+                                                                  monkeypatch):  # fmt: skip
+    """``convert`` reads a raw export through PyProBE, not ``io.read_csv``: the file is held
+    unchanged over the conversion all the same."""
+    import cycler_fixtures as cf
+
+    from avoa_pipeline.real.importers import cycler
+
+    raw, _ = cf.export("arbin", tmp_path)
+    out = tmp_path / "out"
+    out.mkdir()
+    real = cycler.read_columns
+
+    def read(path, *args, **kwargs):
+        got = real(path, *args, **kwargs)
+        with open(path, "a") as f:  # the cycler writes its next row once it was read
+            f.write(Path(path).read_text().splitlines()[-1] + "\n")
+        return got
+
+    monkeypatch.setattr(cycler, "read_columns", read)
+    assert main(["convert", str(raw), "--cycler", "arbin", "--out", str(out / "c.csv")]) == 2
+    _one_line(capsys.readouterr().err, "error", f"{raw}: changed while it was read")
+    assert _names(out) == []
+
+
 def test_a_file_replaced_while_it_is_read_is_refused(tmp_path, monkeypatch):
     path = tmp_path / "r.csv"
     path.write_text("a,b\n1,2\n")
