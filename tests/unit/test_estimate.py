@@ -305,6 +305,16 @@ def test_a_tampered_interval_is_refused_naming_the_file_and_the_field(tmp_path, 
     assert not (tmp_path / "soc.csv").exists()
 
 
+def test_a_checked_record_names_its_file_in_the_model_librarys_messages(tmp_path):
+    """The filter's refusals name ``rec.source``: a record read from a file is that file, not
+    ``<data>`` (the residual sd of 0 was refused as ``<data>``)."""
+    from avoa_pipeline import inputs
+
+    m, rec = files(tmp_path)
+    checked = inputs.read_record(rec)
+    assert FittedModel.load(m).record(checked.frame).source == rec
+
+
 def test_a_soc_outside_the_models_range_is_warned_not_given_quietly(tmp_path, capsys):
     """A record 0.5 V below the model's OCV ended at SOC −0.86 ± 0.0006 with exit 0 and no word:
     now one warning line, and the summary says where it left the range."""
