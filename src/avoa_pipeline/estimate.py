@@ -618,8 +618,8 @@ def outside_range(fitted, frame: pd.DataFrame) -> dict | None:
     """Where the estimate leaves the model's SOC range (:func:`soc_range`) by more than
     :data:`RANGE_SD` of its own sd, after the first :data:`CONVERGENCE_S` (a wrong start's
     transient; the whole record if it is shorter): its farthest sample (time, SOC, sd, the
-    range), or None. A record whose voltage lies outside the model's OCV (0.5 V below it gave a
-    final SOC of −0.86 ± 0.0006) ends there: no SOC of the cell, and no sd says so."""
+    range), or None. A record whose voltage lies outside the model's OCV (in issue 38's probe,
+    0.5 V below it gave a final SOC of −0.86 ± 0.0006) ends there: no SOC of the cell."""
     lo, hi = soc_range(fitted)
     t, soc, sd = (frame[c].to_numpy() for c in ("time_s", "soc", "soc_sd"))
     late = (t - t[0]) >= CONVERGENCE_S
@@ -637,7 +637,7 @@ def bias_limit_a(fitted, current_a: np.ndarray) -> float:
     |current| of the record, since a sensor's range covers what it reads and its offset is a
     fraction of that range (:data:`BIAS_SD_OF_RANGE`); on a record that only rests, the current
     the model was trained at (``current_scale_a``), else 1C of its capacity. 1e6 A on a 2 A
-    record ran without a word before, its innovations 599 V RMS."""
+    record ran without a word before, its innovations 599 V RMS (issue 38's probe)."""
     peak = float(np.max(np.abs(current_a))) if np.size(current_a) else 0.0
     if peak > 0:
         return peak
