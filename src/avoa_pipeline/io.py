@@ -13,7 +13,7 @@ Faults of the machine, not of the input, are handled here, once (docs/inputs.md,
   its traceback;
 - every temporary carries its run's pid and host in its name (:func:`_run_tag`), so a later run
   on the same output removes those of runs that no longer live (:func:`sweep_temporaries`, called
-  under the lock): a run killed mid-write leaves them for one run only;
+  by the lock and by every writer): a run killed mid-write leaves them for one run only;
 - a CSV still being written is told by two signals (:func:`read_csv`): a last line without its
   line end (the row is dropped, with a warning) and a size, modification time or inode that
   changes while the file is read (refused).
@@ -127,9 +127,11 @@ def sweep_temporaries(folder: str | Path) -> list[Path]:
         if m is None or m["host"] != host or _alive(int(m["pid"])):
             continue
         path = Path(folder) / name
-        with contextlib.suppress(FileNotFoundError):
+        try:
             os.unlink(path)
-            removed.append(path)
+        except OSError:  # removed meanwhile, or another user's in a sticky folder: not ours
+            continue
+        removed.append(path)
     return removed
 
 

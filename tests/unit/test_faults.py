@@ -359,6 +359,23 @@ def test_every_writer_sweeps_the_folder_it_writes_into(tmp_path):
     assert _names(tmp_path) == sorted([other_ns.name, "r.json"])
 
 
+def test_a_temporary_that_cannot_be_removed_is_left_without_a_word(tmp_path, monkeypatch):
+    """Another user's in a sticky folder (``/tmp``): not ours to remove, and no reason to fail."""
+    theirs = tmp_path / f".r.json.{_dead_pid()}@{io._host()}.a1b2c3d4.tmp"
+    theirs.write_text("{")
+    real = os.unlink
+
+    def unlink(path, *args, **kwargs):
+        if Path(path) == theirs:
+            raise PermissionError(errno.EPERM, os.strerror(errno.EPERM), str(path))
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "unlink", unlink)
+    assert io.sweep_temporaries(tmp_path) == []
+    io.write_json({"a": 1}, tmp_path / "r.json")
+    assert _names(tmp_path) == sorted([theirs.name, "r.json"])
+
+
 def test_temporaries_are_named_by_their_run(tmp_path):
     with io.atomic_paths(tmp_path / "x.csv") as (tmp,):
         m = io._TMP_NAME.match(tmp.name)
