@@ -182,10 +182,12 @@ def refit(ctx: Context, cand: Candidate, effects) -> Candidate:
 def reduce(ctx: Context, verdict: Candidate, accuracy_a: float):
     """The verdict's model with every element removed that fails a hand-over condition (with
     those that need it), refitted and checked again until every element left passes (at most as
-    many rounds as elements). Returns (the reduced candidate, element → why it was removed)."""
-    cand, removed = verdict, {}
+    many rounds as elements). Returns (the reduced candidate, element → why it was removed, the
+    warnings of the fits checked)."""
+    cand, removed, warnings = verdict, {}, []
     for _ in range(len(verdict.effects) + 1):
-        failed, _, _ = failures(ctx, cand, accuracy_a)
+        failed, _, said = failures(ctx, cand, accuracy_a)
+        warnings += said
         if not failed:
             break
         gone = _requiring(cand.effects, set(failed))
@@ -193,7 +195,7 @@ def reduce(ctx: Context, verdict: Candidate, accuracy_a: float):
             removed[e] = failed.get(e) or [f"needs {ecm.REQUIRES[e]}, which was removed"]
         cand = refit(ctx, cand, tuple(e for e in cand.effects if e not in gone))
         ctx.say(f"hand-over: {', '.join(sorted(gone))} removed from the verdict's model")
-    return cand, removed
+    return cand, removed, warnings
 
 
 def with_second_rc(ctx: Context, ref: Candidate) -> Candidate:
@@ -252,10 +254,11 @@ def forward(ctx: Context, cand: Candidate, cut: float):
 
 def candidates(ctx: Context, lad: selection.Ladder, accuracy_a: float):
     """The rule's candidates in order (base, 2rc, the verdict reduced, the reduced one with a
-    second RC), each structure once, and the verdict's elements removed by the reduction."""
+    second RC), each structure once, the verdict's elements removed by the reduction and its
+    warnings."""
     base = lad.base
     two = lad.candidates.get(SECOND_RC) or with_second_rc(ctx, base)
-    reduced, removed = reduce(ctx, lad.selected, accuracy_a)
+    reduced, removed, warnings = reduce(ctx, lad.selected, accuracy_a)
     out = [Entry("base", base), Entry("2rc", two), Entry("verdict, reduced", reduced)]
     if (
         SECOND_RC not in reduced.effects
@@ -272,14 +275,14 @@ def candidates(ctx: Context, lad: selection.Ladder, accuracy_a: float):
         if key not in seen:
             seen.add(key)
             entries.append(entry)
-    return entries, reduced, removed
+    return entries, reduced, removed, warnings
 
 
 def hand_over(ctx: Context, lad: selection.Ladder, accuracy_a: float | None = None) -> HandOver:
     """The model handed over (docs/handover-rule.md): the candidates, each checked and scored,
     and the eligible one with the lowest score (an exact tie: fewer parameters)."""
     acc = current_accuracy(ctx.recs, accuracy_a)
-    entries, reduced, removed = candidates(ctx, lad, acc)
+    entries, reduced, removed, said = candidates(ctx, lad, acc)
 
     def check(entry: Entry) -> None:
         entry.failed, entry.iv, entry.warnings = failures(ctx, entry.cand, acc)
@@ -289,7 +292,7 @@ def hand_over(ctx: Context, lad: selection.Ladder, accuracy_a: float | None = No
     eligible = [e for e in entries if e.eligible]  # the base always (it has no elements)
     chosen = min(eligible, key=lambda e: (e.score, e.cand.k))
     ctx.say(f"hand-over: {model_name(chosen.effects)} handed over")
-    warnings = list(dict.fromkeys(w for e in entries for w in e.warnings))
+    warnings = list(dict.fromkeys([*said, *(w for e in entries for w in e.warnings)]))
     kind = ("leave one record out" if ctx.layout.by_record else
             "forward stretches after " + " and ".join(f"{c:.0%}" for c in FORWARD_CUTS)
             + " of the record")  # fmt: skip
@@ -303,9 +306,11 @@ def _verdict_elements(verdict: Candidate, removed: dict, chosen: Entry, entries,
     out = []
     for el in verdict.effects:
         if el in chosen.effects:
-            out.append({"effect": el, "handed_over": True,
-                        "why": "passes the hand-over conditions; in the model with the lowest "
-                               "held-out error"})  # fmt: skip
+            why = "passes the hand-over conditions; in the model with the lowest held-out error"
+            if el in removed:  # the verdict's fit failed it, the chosen candidate's own passes
+                why = (f"in {chosen.name}, whose own fit passes the hand-over conditions (in the "
+                       f"verdict's fit: {'; '.join(removed[el])})")  # fmt: skip
+            out.append({"effect": el, "handed_over": True, "why": why})
         elif el in removed:
             out.append({"effect": el, "handed_over": False, "why": "; ".join(removed[el])})
         else:

@@ -115,9 +115,10 @@ def c20_fit_one(temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
 def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     """The diagnosis (``gap.diagnose``) of the training records (fitted together), with ``ocv``
     (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
-    ``out_dir``/diagnosis.json and model.json, as ``python -m avoa_pipeline diagnose`` writes
-    them (its figure left out; docs/real-data.md says why)."""
-    from .. import inputs
+    ``out_dir``/diagnosis.json and model.json (the handed-over model, docs/handover-rule.md), as
+    ``python -m avoa_pipeline diagnose`` writes them (its figure left out; docs/real-data.md
+    says why)."""
+    from .. import handover, inputs
     from ..gap import diagnose
     from ..io import write_json
     from ..model import heat
@@ -130,8 +131,9 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
-    write_log(log, f"{', '.join(map(str, train_csvs))}: selected {report['selected']['name']}; "
-                   f"{heat_line}; "
+    write_log(log, f"{', '.join(map(str, train_csvs))}: verdict's model "
+                   f"{report['selected']['name']}; "
+                   f"{handover.summary_line(report['handed_over'])} (model.json); {heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
                    f"{report['wall_s']:.0f} s")  # fmt: skip
 
@@ -297,8 +299,8 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
 
 def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
     """The cross-cycle diagnostic (``cross_cycle.fit_each_predict_all``) of the base circuit
-    ``c20_2rc_lowsoc`` and of the configuration the diagnosis selected (its elements and OCV
-    table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
+    ``c20_2rc_lowsoc`` and of the configuration the diagnosis handed over (its elements and
+    OCV table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
     import pandas as pd
 
     from ..io import atomic_path
