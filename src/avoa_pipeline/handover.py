@@ -228,6 +228,8 @@ def score(ctx: Context, entry: Entry) -> None:
     entry.held = selection.each(lambda cut: forward(ctx, entry.cand, cut), FORWARD_CUTS)
     sq = sum(float(np.sum(err**2)) for _, _, err in entry.held)
     entry.score = sq / sum(err.size for _, _, err in entry.held)
+    if not np.isfinite(entry.score):  # a prediction that left the finite numbers: the worst
+        entry.score = np.inf
 
 
 def forward(ctx: Context, cand: Candidate, cut: float):
@@ -367,13 +369,18 @@ def _row(e: Entry) -> dict:
             "why_not": [f"{el}: {w}" for el, ws in e.failed.items() for w in ws]}  # fmt: skip
 
 
+def _shown(mv) -> str:
+    """A held-out RMSE for a line (None in the JSON: not finite)."""
+    return "inf" if mv is None else f"{mv:.3g}"
+
+
 def summary_line(handed: dict) -> str:
     """``diagnose``'s one line: the model handed over, its held-out RMSE beside the 2RC's and the
     base's, and the verdict's elements left out with their reason."""
-    rmse = {c["candidate"]: c["heldout_rmse_mv"] for c in handed["candidates"]}
+    rmse = {c["candidate"]: _shown(c["heldout_rmse_mv"]) for c in handed["candidates"]}
     line = (
-        f"handed over {handed['name']}: held-out RMSE {handed['heldout_rmse_mv']:.3g} mV "
-        f"({handed['score']}; 2RC {rmse['2rc']:.3g} mV, base {rmse['base']:.3g} mV)"
+        f"handed over {handed['name']}: held-out RMSE {_shown(handed['heldout_rmse_mv'])} mV "
+        f"({handed['score']}; 2RC {rmse['2rc']} mV, base {rmse['base']} mV)"
     )
     left = [f"{v['effect']} ({v['why']})" for v in handed["verdict_elements"]
             if not v["handed_over"]]  # fmt: skip
