@@ -224,10 +224,10 @@ def score(ctx: Context, entry: Entry) -> None:
         e = entry.cand.ho - ctx.v
         entry.held = [(r, np.arange(o[r + 1] - o[r]), e[o[r] : o[r + 1]])
                       for r in range(len(ctx.recs))]  # fmt: skip
-        return
-    entry.held = selection.each(lambda cut: forward(ctx, entry.cand, cut), FORWARD_CUTS)
-    sq = sum(float(np.sum(err**2)) for _, _, err in entry.held)
-    entry.score = sq / sum(err.size for _, _, err in entry.held)
+    else:
+        entry.held = selection.each(lambda cut: forward(ctx, entry.cand, cut), FORWARD_CUTS)
+        sq = sum(float(np.sum(err**2)) for _, _, err in entry.held)
+        entry.score = sq / sum(err.size for _, _, err in entry.held)
     if not np.isfinite(entry.score):  # a prediction that left the finite numbers: the worst
         entry.score = np.inf
 
