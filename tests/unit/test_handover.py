@@ -212,3 +212,16 @@ def test_a_bad_current_accuracy_is_refused(tmp_path, capsys):
     assert err.count("\n") == 1
     assert "--current-accuracy-a" in err
     assert not out.exists()
+
+
+def test_the_rule_gives_the_same_on_one_thread_and_two(one, monkeypatch):
+    """The candidates are checked and scored side by side (``selection.each``): the scores are
+    the same to the bit whatever the number of threads, and so are the fits counted."""
+    ctx, base = one
+    got = {}
+    for threads in (1, 2):
+        monkeypatch.setattr(selection, "THREADS", threads)
+        fits = ctx.fits
+        ho = handover.hand_over(ctx, _ladder(base, base))
+        got[threads] = ([e.score for e in ho.entries], ho.name, ctx.fits - fits)
+    assert got[1] == got[2]
