@@ -406,7 +406,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     # 5. the model handed over (docs/handover-rule.md): its own rule, the verdict's model among
     # its candidates
     ho = handover.hand_over(ctx, lad, current_accuracy_a)
-    handed = handover.report(ho)
+    handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
     model = _handed_over_model(ctx, ho, selected["name"])
     notes += [w for w in ho.warnings if w not in notes]
 

@@ -333,7 +333,10 @@ def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
 def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> None:
     """``out_csv``: per diagnosis (label → its diagnosis.json), the selected model's RMSE and
     largest error on the unseen record ``unseen_csv`` (its validation entry), with what trained
-    it and its temperature laws' parameters (issue 28 on the Samsung 30Q)."""
+    it and its temperature laws' parameters (issue 28 on the Samsung 30Q). The selected model is
+    the one handed over (model.json, docs/handover-rule.md; its validation rows ``handed_over``),
+    the verdict's beside it (``verdict_model``); a report written before the hand-over rule gave
+    the verdict's model as model.json, and it is the selected one there."""
     import json
 
     import pandas as pd
@@ -347,14 +350,17 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
     target, rows = Path(unseen_csv).resolve(), []
     for label, path in diagnoses.items():
         report = json.loads(Path(path).read_text())
-        name = report["selected"]["name"]
+        chosen = report.get("handed_over") or report["selected"]
+        name = chosen["name"]
+        row_name = "handed_over" if "handed_over" in report else name
         hit = [v for v in report.get("validation") or []
-               if v["model"] == name and Path(v["record"]).resolve() == target]  # fmt: skip
+               if v["model"] == row_name and Path(v["record"]).resolve() == target]  # fmt: skip
         if len(hit) != 1:
             raise ValueError(f"{path}: no one validation entry of {name} on {unseen_csv}")
-        laws = {k: v for k, v in report["selected"]["parameters"].items() if k in law_names}
+        laws = {k: v for k, v in chosen["parameters"].items() if k in law_names}
         trained = "+".join(Path(r["source"]).stem for r in report["records"])
         rows.append({"fit": label, "trained_on": trained, "selected": name,
+                     "verdict_model": report["selected"]["name"],
                      "rmse_mv": hit[0]["rmse_mv"], "max_err_mv": hit[0]["max_err_mv"],
                      "floor_rmse_mv": hit[0].get("floor_rmse_mv"),
                      "laws": json.dumps(laws, sort_keys=True)})  # fmt: skip
