@@ -102,7 +102,7 @@ def _checked(items, source) -> list[Checked]:
 
 
 def check_options(train: list[Checked], validate: list[Checked], capacity_ah, soc0,
-                  ocv_table) -> None:  # fmt: skip
+                  ocv_table, current_accuracy_a=None) -> None:  # fmt: skip
     """What the diagnosis needs of its checked inputs together, before any fit: long enough
     training records, the same columns everywhere, options in range, a capacity and an OCV that
     the records allow (``records.check_capacity``). One-line DataError/UserError."""
@@ -123,6 +123,10 @@ def check_options(train: list[Checked], validate: list[Checked], capacity_ah, so
                             "records leave it out (each record's is fitted)")  # fmt: skip
         if not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
             raise UserError(f"--soc0 must lie in [0, 1], got {soc0}")
+    if current_accuracy_a is not None and not (np.isfinite(current_accuracy_a)
+                                               and current_accuracy_a > 0):  # fmt: skip
+        raise UserError(f"--current-accuracy-a must be a positive current (A), got "
+                        f"{current_accuracy_a}")  # fmt: skip
     every = [*train, *validate]
     swing = max(records.charge_swing_ah(c.frame["time_s"], c.frame["current_a"]) for c in every)
     scale = max(records.current_scale(c.frame["current_a"]) for c in train)
@@ -370,11 +374,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     t_start = time.perf_counter()
     train = _checked(train, source)
     validate = _checked(validate, "<validate>") if validate is not None and len(validate) else []
-    check_options(train, validate, capacity_ah, soc0, ocv_table)
-    if current_accuracy_a is not None and not (np.isfinite(current_accuracy_a)
-                                               and current_accuracy_a > 0):  # fmt: skip
-        raise UserError(f"--current-accuracy-a must be a positive current (A), got "
-                        f"{current_accuracy_a}")  # fmt: skip
+    check_options(train, validate, capacity_ah, soc0, ocv_table, current_accuracy_a)
     sources = [c.source for c in train]
     vframes = {c.source: c.frame for c in validate}
     notes = list(dict.fromkeys([*warnings, *(w for c in (*train, *validate) for w in c.warnings)]))
