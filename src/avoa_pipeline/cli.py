@@ -170,6 +170,13 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--capacity-ah", type=_float("capacity-ah"), default=None)
     d.add_argument("--soc0", type=_float("soc0"), default=None, help="initial SOC in [0, 1]")
     d.add_argument(
+        "--current-accuracy-a",
+        type=_float("current-accuracy-a"),
+        default=None,
+        help="the cycler channel's current accuracy (A) a fitted current offset is judged by "
+        "(default: 0.1 %% of the largest current; docs/handover-rule.md)",
+    )
+    d.add_argument(
         "--current-sign",
         choices=CURRENT_SIGNS,
         default=CURRENT_SIGNS[0],
@@ -450,7 +457,7 @@ def cmd_diagnose(args) -> None:
     import json
     from pathlib import Path
 
-    from . import inputs
+    from . import handover, inputs
     from .gap import diagnose
     from .io import atomic_paths, check_output
     from .model import heat
@@ -465,9 +472,9 @@ def cmd_diagnose(args) -> None:
     read = inputs.read_inputs(args.data, args.validate, args.ocv, cycler=args.cycler,
                               current_sign=args.current_sign)  # fmt: skip
     heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
-    report, arrays, model = diagnose.diagnose_records(read.train, args.capacity_ah, args.soc0,
-                                                      ocv_table=read.ocv, validate=read.validate,
-                                                      warnings=read.warnings)  # fmt: skip
+    report, arrays, model = diagnose.diagnose_records(
+        read.train, args.capacity_ah, args.soc0, ocv_table=read.ocv, validate=read.validate,
+        warnings=read.warnings, current_accuracy_a=args.current_accuracy_a)  # fmt: skip
     text = json.dumps(report, indent=1, allow_nan=False) + "\n"
     # all three files or none: the figure is drawn into its temporary first; a failure there
     # leaves no JSON either, and a failed rename puts back the files renamed before it
@@ -487,11 +494,13 @@ def cmd_diagnose(args) -> None:
         f"not identify it; would decide it: {u['would_decide']}"
         for u in report.get("undecided", ())
     )
+    inputs.warn(f"{out / 'diagnosis.json'}: {w}" for w in report["handed_over"]["warnings"])
     v = report["verdict"]
     print(
         f"{', '.join(args.data)}: verdict {v['effect']}"
         + (f" (held-out shrink {v['shrink']:.1%})" if v["effect"] != "none" else "")
-        + f"; selected {report['selected']['name']}; {heat_line}; wrote "
+        + f"; selected {report['selected']['name']}; "
+        f"{handover.summary_line(report['handed_over'])}; {heat_line}; wrote "
         f"{out / 'diagnosis.json'}, {out / 'diagnosis.png'}, {out / 'model.json'}"
     )
 
@@ -651,7 +660,20 @@ def cmd_simulate(args) -> None:
         dt = out["temperature_c_model"] - out["temperature_c"]
         line += (f"; temperature {float(np.sqrt(np.mean(dt**2))):.2f} K RMS, "
                  f"{float(dt.abs().max()):.2f} K at most against the measured one")  # fmt: skip
-    print(f"{line}; wrote {args.out}")
+    print(f"{line}; {_expected_line(model)}; wrote {args.out}")
+
+
+def _expected_line(model) -> str:
+    """``simulate``'s words on the error to expect (model.json's ``expected_error``), beside its
+    own error on the record."""
+    ee = model.expected_error
+    if ee is None:
+        return "no expected error in the model (written before it, or not by diagnose)"
+    return (
+        f"expected {ee['rms_mv']:.2f} mV RMS on a profile unlike the training records "
+        f"(its held-out training data, {ee['held_out']}; error correlated over "
+        f"{ee['correlation_time_s']:.3g} s)"
+    )
 
 
 EXPORT_TARGETS = ("pybamm", "table")

@@ -345,7 +345,10 @@ def test_cli_takes_several_training_records_and_validation(tmp_path):
     # each record its own start (SOC itself is not identifiable with a free rational OCV)
     assert per[0]["soc0"] - per[1]["soc0"] > 0.1
     rungs = 1 + len(report["ladder"])
-    assert len(report["validation"]) == rungs
+    # and one row of the handed-over model (docs/handover-rule.md), named so
+    assert len(report["validation"]) == rungs + 1
+    assert report["validation"][-1]["model"] == "handed_over"
+    assert report["validation"][-1]["effects"] == report["handed_over"]["effects"]
     assert report["validation"][0]["rmse_mv"] < 3.0  # the same cell, noise-free record
     # whole records held out: each predicted from the fit to the other
     assert report["method"]["held_out"] == "whole records (leave one out)"

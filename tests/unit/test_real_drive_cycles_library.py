@@ -136,6 +136,24 @@ def test_diagnosis_record_has_every_rung_and_the_selected_one():
         dc.diagnosis_record("25degC", {**_report(), "validation": []}, "x")
 
 
+def test_diagnosis_record_takes_the_handed_over_model_as_selected():
+    """docs/handover-rule.md: ``<prefix>_selected`` is the model.json a user gets, the verdict's
+    model ``<prefix>_verdict`` beside it."""
+    report = _report()
+    rows = [{**r, "model": "handed_over", "effects": ["second_rc", "thermal"], "rmse_mv": 1.0}
+            for r in report["validation"] if r["model"] == "base"]  # fmt: skip
+    report = {**report, "validation": report["validation"] + rows,
+              "handed_over": {"name": "second_rc+thermal", "heldout_rmse_mv": 3.0}}  # fmt: skip
+    rec = dc.diagnosis_record("25degC", report, "d", {"a.csv": "us06", "b.csv": "hwfet"})
+    assert rec["selected"] == "second_rc+thermal"
+    assert rec["verdict_selected"] == "second_rc"
+    assert rec["selected_heldout_rmse_mv"] == 3.0
+    assert set(rec["models"]) == {"d_base", "d_second_rc", "d_second_rc+thermal",
+                                  "d_selected", "d_verdict"}  # fmt: skip
+    assert rec["models"]["d_verdict"] == rec["models"]["d_second_rc"]
+    assert rec["models"]["d_selected"]["cycles"]["us06"]["rmse_mv"] == 1.0
+
+
 def test_jobs_names_validation_records_by_their_cycle(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "d").mkdir()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -40,6 +41,23 @@ def test_the_selected_model_on_the_unseen_record(tmp_path):
     assert df.loc["20degC", "max_err_mv"] == 32.0
     assert df.loc["joint", "selected"] == "thermal"
     assert json.loads(df.loc["joint", "laws"]) == {"thermal_theta_r0_k": 3000.0}
+
+
+def test_the_handed_over_model_is_the_selected_one(tmp_path):
+    """docs/handover-rule.md: the model a user gets (its rows ``handed_over``), the verdict's
+    model beside it."""
+    unseen = tmp_path / "samsung_hppc_30degC.csv"
+    path = _diagnosis(tmp_path, "joint", "thermal", 5.0, unseen)
+    report = json.loads(Path(path).read_text())
+    report["handed_over"] = {"name": "second_rc", "parameters": {"r0_ohm": 0.02}}
+    report["validation"].append({"record": str(unseen), "model": "handed_over", "rmse_mv": 3.0,
+                                 "max_err_mv": 9.0})  # fmt: skip
+    Path(path).write_text(json.dumps(report))
+    out = tmp_path / "table.csv"
+    selected_on({"joint": path}, unseen, out)
+    row = pd.read_csv(out).iloc[0]
+    assert (row["selected"], row["verdict_model"], row["rmse_mv"]) == ("second_rc", "thermal", 3.0)
+    assert json.loads(row["laws"]) == {}
 
 
 def test_a_diagnosis_without_the_unseen_record_is_refused(tmp_path):

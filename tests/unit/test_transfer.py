@@ -91,17 +91,21 @@ def test_fixed_circuits_fit_the_training_records_and_predict_a_drive(quick):
 
 
 def test_summary_takes_medians_and_ratios():
-    pairs = [(4.0, 8.0), (6.0, 2.0), (30.0, 4.0)]  # (selected, 2RC) per unseen record
-    rows = [{"cell": "c", "split": "s", "record": f"r{k}", "selected_model": "m",
-             "selected_mv": sel, "base_mv": 10.0, "fixed_1rc_mv": 10.0, "fixed_2rc_mv": two,
+    # the "selected" model is the handed-over one (docs/handover-rule.md); the verdict's beside it
+    pairs = [(4.0, 8.0), (6.0, 2.0), (30.0, 4.0)]  # (handed over, 2RC) per unseen record
+    rows = [{"cell": "c", "split": "s", "record": f"r{k}", "handed_over_model": "m",
+             "handed_over_mv": sel, "verdict_model": "v", "verdict_mv": 2 * sel,
+             "base_mv": 10.0, "fixed_1rc_mv": 10.0, "fixed_2rc_mv": two,
              "floor_mv": 1.0} for k, (sel, two) in enumerate(pairs)]  # fmt: skip
     s = T.summarize(rows).iloc[0]
-    assert s["selected_mv"] == 6.0
+    assert s["handed_over_mv"] == 6.0
+    assert s["verdict_mv"] == 12.0
     assert s["fixed_2rc_mv"] == 4.0
     assert s["n_unseen"] == 3
-    assert s["selected_over_2rc"] == pytest.approx(1.5)
-    assert s["selected_over_base"] == pytest.approx(0.6)
-    assert "| c | s | m | 3 | 6.00 |" in T.markdown(T.summarize(rows))
+    assert s["handed_over_over_2rc"] == pytest.approx(1.5)
+    assert s["handed_over_over_base"] == pytest.approx(0.6)
+    assert s["verdict_over_2rc"] == pytest.approx(3.0)
+    assert "| c | s | m | 3 | 6.00 | v | 12.00 |" in T.markdown(T.summarize(rows))
 
 
 def test_unknown_profile_is_refused():
@@ -120,11 +124,12 @@ def test_quick_benchmark_end_to_end(tmp_path):
     rows = pd.read_csv(out / "transfer.csv")
     assert list(rows["record"]) == ["nmc_la92_25C"]
     r = rows.iloc[0]
-    # the floor is the selected configuration fitted to the unseen record itself
-    assert r["floor_mv"] <= r["selected_mv"] + 1e-6
+    # the floor is the handed-over configuration fitted to the unseen record itself
+    assert r["floor_mv"] <= r["handed_over_mv"] + 1e-6
     summary = pd.read_csv(out / "summary.csv").iloc[0]
-    assert summary["selected_over_2rc"] == pytest.approx(r["selected_mv"] / r["fixed_2rc_mv"],
-                                                         rel=1e-3)  # fmt: skip
+    assert summary["handed_over_over_2rc"] == pytest.approx(
+        r["handed_over_mv"] / r["fixed_2rc_mv"], rel=1e-3)  # fmt: skip
     diagnosis = json.loads((out / "nmc" / "hppc" / "diagnosis.json").read_text())
-    assert diagnosis["selected"]["name"] == r["selected_model"]
+    assert diagnosis["handed_over"]["name"] == r["handed_over_model"]
+    assert diagnosis["selected"]["name"] == r["verdict_model"]
     assert (out / "summary.md").read_text().startswith("| cell |")

@@ -10,8 +10,11 @@ and their reasons: docs/gap-diagnosis.md).
    the residual's sample-to-sample differences where the current holds still.
 3. Which, how far, and the ladder: every element of ``ecm.EFFECTS`` that the data can show,
    judged on held-out data by the one selection method (``avoa_pipeline.selection``).
-4. The selected model (the ladder's last rung) is written as ``model.json``; records passed for
-   validation are predicted by every rung of the ladder and never enter any choice.
+4. The verdict's model (the ladder's last rung) is ``selected``; the model written as
+   ``model.json`` is the one the hand-over rule chooses (``avoa_pipeline.handover``,
+   docs/handover-rule.md), from candidates that include the verdict's model, with the error to
+   expect on other profiles. Records passed for validation are predicted by every rung of the
+   ladder and by the handed-over model, and never enter any choice.
 
 Long records (issue 25; 10⁶ samples, 28 h at 10 Hz). What was done, and why this and not a
 subset: the state (SOC, RC voltages, hysteresis) is a recursion through every sample, so every
@@ -42,7 +45,7 @@ import pandas as pd
 from scipy import stats
 from threadpoolctl import threadpool_limits
 
-from .. import __version__, records, selection
+from .. import __version__, handover, records, selection
 from ..errors import DataError, UserError
 from ..model import ecm, elements, fitting, intervals
 from ..model.ecm import Record
@@ -99,7 +102,7 @@ def _checked(items, source) -> list[Checked]:
 
 
 def check_options(train: list[Checked], validate: list[Checked], capacity_ah, soc0,
-                  ocv_table) -> None:  # fmt: skip
+                  ocv_table, current_accuracy_a=None) -> None:  # fmt: skip
     """What the diagnosis needs of its checked inputs together, before any fit: long enough
     training records, the same columns everywhere, options in range, a capacity and an OCV that
     the records allow (``records.check_capacity``). One-line DataError/UserError."""
@@ -120,6 +123,10 @@ def check_options(train: list[Checked], validate: list[Checked], capacity_ah, so
                             "records leave it out (each record's is fitted)")  # fmt: skip
         if not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
             raise UserError(f"--soc0 must lie in [0, 1], got {soc0}")
+    if current_accuracy_a is not None and not (np.isfinite(current_accuracy_a)
+                                               and current_accuracy_a > 0):  # fmt: skip
+        raise UserError(f"--current-accuracy-a must be a positive current (A), got "
+                        f"{current_accuracy_a}")  # fmt: skip
     every = [*train, *validate]
     swing = max(records.charge_swing_ah(c.frame["time_s"], c.frame["current_a"]) for c in every)
     scale = max(records.current_scale(c.frame["current_a"]) for c in train)
@@ -342,7 +349,8 @@ def samples_used(ctx: selection.Context, models: dict[str, selection.Candidate])
 
 
 def diagnose_records(train, capacity_ah=None, soc0=None, source="<data>", ocv_table=None,
-                     validate=(), warnings=(), progress=True):  # fmt: skip
+                     validate=(), warnings=(), progress=True,
+                     current_accuracy_a=None):  # fmt: skip
     """The diagnosis report (JSON-able dict), the arrays its figure needs, and the selected model.
 
     ``train``: the cell's checked training records (``records.Checked``, as ``inputs.py`` reads
@@ -351,19 +359,22 @@ def diagnose_records(train, capacity_ah=None, soc0=None, source="<data>", ocv_ta
     curve. ``validate``: checked records never used for any choice. ``warnings``: what the input
     layer found odd, carried into the report. Every option is checked before the first fit.
     ``progress``: where a long diagnosis says where it is (True: stderr; None or False: nowhere;
-    or a text stream). Runs with ``BLAS_THREADS`` BLAS threads (why: its docstring).
+    or a text stream). ``current_accuracy_a``: the cycler channel's current accuracy the
+    hand-over rule judges a current offset by (default: ``handover.CURRENT_ACCURACY_OF_IMAX`` of
+    the largest current). Runs with ``BLAS_THREADS`` BLAS threads (why: its docstring).
     """
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         return _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, warnings,
-                                 progress)  # fmt: skip
+                                 progress, current_accuracy_a)  # fmt: skip
 
 
-def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, warnings, progress):
+def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, warnings, progress,
+                      current_accuracy_a=None):  # fmt: skip
     """The body of :func:`diagnose_records`."""
     t_start = time.perf_counter()
     train = _checked(train, source)
     validate = _checked(validate, "<validate>") if validate is not None and len(validate) else []
-    check_options(train, validate, capacity_ah, soc0, ocv_table)
+    check_options(train, validate, capacity_ah, soc0, ocv_table, current_accuracy_a)
     sources = [c.source for c in train]
     vframes = {c.source: c.frame for c in validate}
     notes = list(dict.fromkeys([*warnings, *(w for c in (*train, *validate) for w in c.warnings)]))
@@ -390,8 +401,14 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     undecided = _undecided(final, iv, len(ctx.recs))
     verdict, rungs = _verdict(ctx, lad, rec, soc, gap, noise_v, undecided)
     remaining = float(np.sqrt(ctx.ho_mse(final))) / noise_v if noise_v > 0 else None
-    model = _selected_model(ctx, final, iv)
     selected = _selected(ctx, final)
+
+    # 5. the model handed over (docs/handover-rule.md): its own rule, the verdict's model among
+    # its candidates
+    ho = handover.hand_over(ctx, lad, current_accuracy_a)
+    handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
+    model = _handed_over_model(ctx, ho, selected["name"])
+    notes += [w for w in ho.warnings if w not in notes]
 
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
@@ -413,6 +430,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         "ladder": lad.rungs,
         "pruned": [{k: v for k, v in p.items() if k != "params"} for p in lad.pruned],
         "selected": selected,
+        "handed_over": handed,
         "final_heldout_rmse_to_noise": remaining,
         "signatures": sig,
         "method": _method(ctx),
@@ -424,7 +442,19 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         floor = selection.floors(ctx, final, vframes, capacity_ah)
         report["validation"] = selection.validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
+        _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
+
+
+def _validate_handed_over(ctx, report: dict, ho, final, vframes: dict, floor: dict,
+                          capacity_ah) -> None:  # fmt: skip
+    """The validation rows of the handed-over model (model name ``handed_over``), beside each
+    its own configuration's floor (the verdict's where the two configurations are one)."""
+    chosen = ho.chosen.cand
+    if frozenset(chosen.effects) != frozenset(final.effects):
+        floor = selection.floors(ctx, chosen, vframes, capacity_ah)
+        report["floors"] += [{"record": k, "model": "handed_over", **f} for k, f in floor.items()]
+    report["validation"] += selection.validation(ctx, {"handed_over": chosen}, vframes, floor)
 
 
 def _fit_base(ctx: selection.Context, sources, capacity_ah, soc0) -> selection.Candidate:
@@ -459,16 +489,20 @@ def _where(ctx: selection.Context, base: selection.Candidate):
     return rec, resid, soc, noise_v, regions, windows
 
 
-def _selected_model(ctx, final: selection.Candidate, iv: intervals.Intervals) -> FittedModel:
-    """The model.json of the selection, with its intervals (diagnosis.json carries the same)."""
+def _handed_over_model(ctx, ho, verdict_model: str) -> FittedModel:
+    """The model.json: the handed-over model, with its intervals (diagnosis.json carries the
+    same), the error to expect on other profiles, and the verdict's model named beside the
+    rule."""
     table = ctx.table
-    model = selection.fitted_model(ctx, final, provenance={
-        "selected_by": "avoa_pipeline gap diagnosis: the ladder's last rung",
+    model = selection.fitted_model(ctx, ho.chosen.cand, provenance={
+        "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}",
+        "verdict_model": verdict_model,
         "training": [{"source": r.source, "n_samples": r.n} for r in ctx.recs],
         "ocv": None if table is None else {"source": table.source, "how": table.how},
         "package_version": __version__,
     })  # fmt: skip
-    model.intervals = iv.report()
+    model.intervals = ho.chosen.iv.report()
+    model.expected_error = _jsonable(handover.expected_error(ctx, ho))
     return model
 
 

@@ -1,6 +1,8 @@
-"""Transfer benchmark: does the model the diagnosis selects predict a cell's unseen records better
-than plain constant-parameter circuits fitted to the same training records? (issue 26; the
-cells, profiles, protocol and measured table: docs/transfer-benchmark.md)
+"""Transfer benchmark: does the model the diagnosis hands over predict a cell's unseen records
+better than plain constant-parameter circuits fitted to the same training records? (issue 26; the
+cells, profiles, protocol and measured table: docs/transfer-benchmark.md). The model handed over
+(``model.json``, docs/handover-rule.md) is the "selected" one, the model a user gets; the
+verdict's model (the ladder's last rung, ``diagnosis.json``'s ``selected``) is reported beside it.
 
 Cells are simulated by PyBaMM's physics models with a lumped thermal model (:data:`CELLS`), so
 their physics is known and every choice of the selection rule may be tuned here; the real
@@ -370,18 +372,20 @@ def diagnose_split(paths: dict[str, Path], cell: str, split: str, out: Path, amb
         (out / f"model_{key}.json").write_text(
             json.dumps(fit.model.to_json(), indent=1, allow_nan=False) + "\n")  # fmt: skip
 
-    selected = report["selected"]["name"]
+    verdict = report["selected"]["name"]
     by = {(r["record"], r["model"]): r for r in report["validation"]}
     rows = []
     for c in read.validate:
         v = c.frame["voltage_v"].to_numpy()
-        sel, base = by[(c.source, selected)], by[(c.source, "base")]
+        sel, base = by[(c.source, "handed_over")], by[(c.source, "base")]
         side = json.loads(Path(c.source).with_suffix(".json").read_text())
         rows.append({
             "cell": cell, "split": split, "record": Path(c.source).stem,
             "profile": side["profile"], "ambient_c": side["ambient_c"],
-            "selected_model": selected,
-            "selected_mv": sel["rmse_mv"], "base_mv": base["rmse_mv"],
+            "handed_over_model": report["handed_over"]["name"],
+            "handed_over_mv": sel["rmse_mv"],
+            "verdict_model": verdict, "verdict_mv": by[(c.source, verdict)]["rmse_mv"],
+            "base_mv": base["rmse_mv"],
             "fixed_1rc_mv": _rmse_mv(fixed["1rc"].simulate(c.frame), v),
             "fixed_2rc_mv": _rmse_mv(fixed["2rc"].simulate(c.frame), v),
             "floor_mv": sel["floor_rmse_mv"],
@@ -392,19 +396,23 @@ def diagnose_split(paths: dict[str, Path], cell: str, split: str, out: Path, amb
     return rows
 
 
-SUMMARY_COLUMNS = ("selected_mv", "base_mv", "fixed_1rc_mv", "fixed_2rc_mv", "floor_mv")
+SUMMARY_COLUMNS = ("handed_over_mv", "verdict_mv", "base_mv", "fixed_1rc_mv", "fixed_2rc_mv",
+                   "floor_mv")  # fmt: skip
 TRAIN_COLUMNS = ("base_train_mv", "fixed_1rc_train_mv", "fixed_2rc_train_mv")
 
 
 def summarize(rows: list[dict], by=("cell", "split")) -> pd.DataFrame:
-    """Per cell and split (or ``by``): each model's median unseen RMSE and the two ratios."""
+    """Per cell and split (or ``by``): each model's median unseen RMSE and the ratios of the
+    handed-over model (and of the verdict's) to the 2RC and the base."""
     df = pd.DataFrame(rows)
     g = df.groupby(list(by), sort=False)
     out = g[list(SUMMARY_COLUMNS)].median()
-    out.insert(0, "selected_model", g["selected_model"].first())
-    out.insert(1, "n_unseen", g.size())
-    out["selected_over_2rc"] = out["selected_mv"] / out["fixed_2rc_mv"]
-    out["selected_over_base"] = out["selected_mv"] / out["base_mv"]
+    out.insert(0, "handed_over_model", g["handed_over_model"].first())
+    out.insert(1, "verdict_model", g["verdict_model"].first())
+    out.insert(2, "n_unseen", g.size())
+    out["handed_over_over_2rc"] = out["handed_over_mv"] / out["fixed_2rc_mv"]
+    out["handed_over_over_base"] = out["handed_over_mv"] / out["base_mv"]
+    out["verdict_over_2rc"] = out["verdict_mv"] / out["fixed_2rc_mv"]
     for col in TRAIN_COLUMNS:  # one value per split (absent in rows of an older run)
         if col in df.columns:
             out[col] = g[col].first()
@@ -414,16 +422,19 @@ def summarize(rows: list[dict], by=("cell", "split")) -> pd.DataFrame:
 def markdown(summary: pd.DataFrame, by=("cell", "split")) -> str:
     """The summary as a markdown table, and the training RMSEs of the same fits below it."""
     keys = [str(k).replace("_c", " °C").replace("_", " ") for k in by]
-    head = " | ".join([*keys, "selected", "n unseen", "selected mV", "base mV", "1RC mV",
-                       "2RC mV", "floor mV", "sel/2RC", "sel/base"])  # fmt: skip
-    lines = [f"| {head} |", "|" + "---|" * (len(by) + 9)]
+    head = " | ".join([*keys, "handed over", "n unseen", "handed-over mV", "verdict's model",
+                       "verdict mV", "base mV", "1RC mV", "2RC mV", "floor mV", "h.o./2RC",
+                       "h.o./base", "verdict/2RC"])  # fmt: skip
+    lines = [f"| {head} |", "|" + "---|" * (len(by) + 12)]
     for r in summary.itertuples(index=False):
         key = " | ".join(f"{getattr(r, k):g}" if isinstance(getattr(r, k), float)
                          else str(getattr(r, k)) for k in by)  # fmt: skip
         lines.append(
-            f"| {key} | {r.selected_model} | {r.n_unseen} | {r.selected_mv:.2f} | "
+            f"| {key} | {r.handed_over_model} | {r.n_unseen} | {r.handed_over_mv:.2f} | "
+            f"{r.verdict_model} | {r.verdict_mv:.2f} | "
             f"{r.base_mv:.2f} | {r.fixed_1rc_mv:.2f} | {r.fixed_2rc_mv:.2f} | {r.floor_mv:.2f} | "
-            f"{r.selected_over_2rc:.2f} | {r.selected_over_base:.2f} |"
+            f"{r.handed_over_over_2rc:.2f} | {r.handed_over_over_base:.2f} | "
+            f"{r.verdict_over_2rc:.2f} |"
         )
     if tuple(by) == ("cell", "split") and set(TRAIN_COLUMNS) <= set(summary.columns):
         lines += ["", "Training RMSE (mV) of the same fits (base: the training records joined; "

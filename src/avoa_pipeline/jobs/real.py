@@ -115,9 +115,10 @@ def c20_fit_one(temp, train_csv, tests, ocv_csv, out_json, log=None) -> None:
 def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     """The diagnosis (``gap.diagnose``) of the training records (fitted together), with ``ocv``
     (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
-    ``out_dir``/diagnosis.json and model.json, as ``python -m avoa_pipeline diagnose`` writes
-    them (its figure left out; docs/real-data.md says why)."""
-    from .. import inputs
+    ``out_dir``/diagnosis.json and model.json (the handed-over model, docs/handover-rule.md), as
+    ``python -m avoa_pipeline diagnose`` writes them (its figure left out; docs/real-data.md
+    says why)."""
+    from .. import handover, inputs
     from ..gap import diagnose
     from ..io import write_json
     from ..model import heat
@@ -130,8 +131,9 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     out = Path(out_dir)
     write_json(report, out / "diagnosis.json")
     model.save(out / "model.json")
-    write_log(log, f"{', '.join(map(str, train_csvs))}: selected {report['selected']['name']}; "
-                   f"{heat_line}; "
+    write_log(log, f"{', '.join(map(str, train_csvs))}: verdict's model "
+                   f"{report['selected']['name']}; "
+                   f"{handover.summary_line(report['handed_over'])} (model.json); {heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
                    f"{report['wall_s']:.0f} s")  # fmt: skip
 
@@ -297,8 +299,8 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
 
 def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:
     """The cross-cycle diagnostic (``cross_cycle.fit_each_predict_all``) of the base circuit
-    ``c20_2rc_lowsoc`` and of the configuration the diagnosis selected (its elements and OCV
-    table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
+    ``c20_2rc_lowsoc`` and of the configuration the diagnosis handed over (its elements and
+    OCV table, from its ``model_json``), each fitted to every drive cycle of ``cycles`` in turn."""
     import pandas as pd
 
     from ..io import atomic_path
@@ -331,7 +333,10 @@ def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
 def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> None:
     """``out_csv``: per diagnosis (label → its diagnosis.json), the selected model's RMSE and
     largest error on the unseen record ``unseen_csv`` (its validation entry), with what trained
-    it and its temperature laws' parameters (issue 28 on the Samsung 30Q)."""
+    it and its temperature laws' parameters (issue 28 on the Samsung 30Q). The selected model is
+    the one handed over (model.json, docs/handover-rule.md; its validation rows ``handed_over``),
+    the verdict's beside it (``verdict_model``); a report written before the hand-over rule gave
+    the verdict's model as model.json, and it is the selected one there."""
     import json
 
     import pandas as pd
@@ -345,14 +350,17 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
     target, rows = Path(unseen_csv).resolve(), []
     for label, path in diagnoses.items():
         report = json.loads(Path(path).read_text())
-        name = report["selected"]["name"]
+        chosen = report.get("handed_over") or report["selected"]
+        name = chosen["name"]
+        row_name = "handed_over" if "handed_over" in report else name
         hit = [v for v in report.get("validation") or []
-               if v["model"] == name and Path(v["record"]).resolve() == target]  # fmt: skip
+               if v["model"] == row_name and Path(v["record"]).resolve() == target]  # fmt: skip
         if len(hit) != 1:
             raise ValueError(f"{path}: no one validation entry of {name} on {unseen_csv}")
-        laws = {k: v for k, v in report["selected"]["parameters"].items() if k in law_names}
+        laws = {k: v for k, v in chosen["parameters"].items() if k in law_names}
         trained = "+".join(Path(r["source"]).stem for r in report["records"])
         rows.append({"fit": label, "trained_on": trained, "selected": name,
+                     "verdict_model": report["selected"]["name"],
                      "rmse_mv": hit[0]["rmse_mv"], "max_err_mv": hit[0]["max_err_mv"],
                      "floor_rmse_mv": hit[0].get("floor_rmse_mv"),
                      "laws": json.dumps(laws, sort_keys=True)})  # fmt: skip

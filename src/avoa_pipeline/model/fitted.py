@@ -22,6 +22,11 @@ A model may carry a ``heat`` block (``model/heat.py``: the lumped thermal state 
 the cell temperature from the ambient; ``diagnose`` writes it where its training records allow):
 checked like the rest (:func:`_heat_schema`, :func:`_check_heat`); a model.json without it
 loads, and then predicts no temperature.
+
+A model may carry an ``expected_error`` block (the error to expect on profiles unlike its
+training records, from its held-out training data: ``avoa_pipeline.handover``,
+docs/handover-rule.md): checked by the schema (:func:`_expected_error_schema`), read for
+``simulate`` to print; a model.json without it loads.
 """
 
 from __future__ import annotations
@@ -72,6 +77,7 @@ class FittedModel:
     current_scale_a: float | None = None  # the training's current (training_current_scale)
     intervals: dict | None = None  # model/intervals.py's report of the fit (read, not used)
     heat: heat_mod.Heat | None = None  # the lumped thermal state (model/heat.py), if fitted
+    expected_error: dict | None = None  # the error to expect on other profiles (handover.py)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -177,6 +183,7 @@ class FittedModel:
             "intervals": self.intervals,
             "provenance": self.provenance,
             **({} if self.heat is None else {"heat": self.heat.to_json()}),
+            **({} if self.expected_error is None else {"expected_error": self.expected_error}),
         }
 
     def physical_bounds(self, name: str) -> list[float]:
@@ -245,7 +252,8 @@ class FittedModel:
             raise DataError(f"{source}: field 'knots.step': the knots reach SOC "
                             f"{knots.grid()[-1]:.6g}, beyond {KNOTS_SOC_RANGE[1]:g}")  # fmt: skip
         model = cls(config, x, knots, float(d["tref_k"]), bounds, d["provenance"],
-                    d.get("current_scale_a"), d.get("intervals"))  # fmt: skip
+                    d.get("current_scale_a"), d.get("intervals"),
+                    expected_error=d.get("expected_error"))  # fmt: skip
         written = {**{k: params[k] for k in _derived_keys(config)},
                    "capacity_ah": d["capacity_ah"]}  # fmt: skip
         derived = {**model.parameters(), "capacity_ah": float(10.0 ** x[IDX["lq"]])}
@@ -475,11 +483,37 @@ def model_schema(config: Config) -> dict:
         "intervals": {**_intervals_schema(names), "type": ["null", "object"]},  # null: none
         "provenance": {"type": "object"},  # what made the model, for readers; never read
         "heat": {**_heat_schema(), "type": ["null", "object"]},  # null or absent: none
-    }, optional=("current_scale_a", "intervals", "heat"))  # fmt: skip
+        "expected_error": {**_expected_error_schema(), "type": ["null", "object"]},
+    }, optional=("current_scale_a", "intervals", "heat", "expected_error"))  # fmt: skip
 
 
 MAX_COUNT = 2**53
 """A count of samples is an integer a double holds exactly (beyond, it is no count)."""
+
+
+def _expected_error_schema() -> dict:
+    """``handover.expected_error``'s block: the RMS, the held-out layout, the operating-point
+    bins (each with its samples) and the correlation time."""
+    count = {"type": "integer", "minimum": 1, "maximum": MAX_COUNT}
+    rms = _number(0.0, None, "a root mean square")
+    bin_ = _object({
+        "mode": {"enum": ["rest", "discharge", "charge"]},
+        "current": {"enum": ["-", "low", "high"]},
+        "soc": {"enum": ["below 0.2", "0.2-0.8", "above 0.8"]},
+        "n": count,
+        "rms_mv": rms,
+    })  # fmt: skip
+    return _object({
+        "rms_mv": rms,
+        "held_out": {"type": "string"},
+        "samples": count,
+        "by_operating_point": _list(bin_),
+        "load_current_median_a": _nullable(_number(0.0, MAX_CELL_CURRENT_A, "a cell's current")),
+        "min_bin_samples": count,
+        "correlation_time_samples": _number(0.0, None, "a lag"),
+        "correlation_time_s": _number(0.0, None, "a lag"),
+        "correlation_time_lower_bound": {"type": "boolean"},
+    })  # fmt: skip
 
 
 def _intervals_schema(names: list[str]) -> dict:

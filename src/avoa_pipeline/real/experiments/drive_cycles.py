@@ -16,8 +16,10 @@ Models (docs/real-data.md says why each):
   offset, fitted by ``model.fitted.fit_model``: R0 and one RC; and with a second RC branch and
   resistances that rise at low SOC (``soc_resistance``).
 - ``<prefix>_<effects>``: the diagnosis (``avoa_pipeline.gap.diagnose``) of training records, one
-  row per rung of its ladder and ``<prefix>_selected`` (:func:`diagnosis_record`); the unseen
-  cycles are its validation records, used for no choice.
+  row per rung of its ladder, ``<prefix>_selected`` the model it hands over (its model.json,
+  docs/handover-rule.md: the model a user gets) and ``<prefix>_verdict`` the verdict's model
+  (the ladder's last rung) (:func:`diagnosis_record`); the unseen cycles are its validation
+  records, used for no choice.
 
 **Initial SOC.** Unknown for a measured record. Every model takes it from the record's first
 sample: the cell rests before each drive cycle, so its first voltage is the OCV less the ohmic
@@ -208,13 +210,18 @@ VALIDATION_ERRORS = ("rmse_mv", "max_err_mv", "rmse_in_training_soc_mv", "share_
 def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None = None,
                      source: str = "diagnosis.json") -> dict:  # fmt: skip
     """The table's record of a diagnosis report (``diagnosis.json``) with validation rows: one
-    model per rung of the ladder (``<prefix>_base``, ``<prefix>_<effects>``) and the selected
-    one again as ``<prefix>_selected``. ``cycle_of`` names the unseen cycle of each validation
-    record (default: the record's own name)."""
+    model per rung of the ladder (``<prefix>_base``, ``<prefix>_<effects>``), the handed-over
+    model (its rows named ``handed_over``, docs/handover-rule.md) as ``<prefix>_selected`` and
+    the verdict's model again as ``<prefix>_verdict``. A report written before the hand-over rule
+    (no ``handed_over``) gave the verdict's model as model.json: it is ``<prefix>_selected``
+    there. ``cycle_of`` names the unseen cycle of each validation record (default: the record's
+    own name)."""
     if not report.get("validation"):
         raise DataError(f"{source}: field 'validation': missing (a diagnosis without --validate "
                         "records predicts no unseen cycle)")  # fmt: skip
-    selected = report["selected"]["name"]
+    verdict = report["selected"]["name"]
+    handed = report.get("handed_over")
+    selected = handed["name"] if handed else verdict
     out = {
         "temperature": temp,
         "prefix": prefix,
@@ -224,7 +231,9 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
         "ladder": [{"effect": r["effect"], "heldout_rmse_mv": r["heldout_rmse_mv"]}
                    for r in report["ladder"]],
         "selected": selected,
-        "selected_heldout_rmse_mv": report["selected"]["heldout_rmse_mv"],
+        "verdict_selected": verdict,
+        "selected_heldout_rmse_mv": (handed or report["selected"])["heldout_rmse_mv"],
+        "verdict_heldout_rmse_mv": report["selected"]["heldout_rmse_mv"],
         "diagnose_wall_s": report["wall_s"],
         "models": {},
     }  # fmt: skip
@@ -233,12 +242,21 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
         if cycle is None:
             raise DataError(f"{source}: field 'validation.record': {row['record']!r} is none of "
                             "the unseen cycles")  # fmt: skip
-        names = [f"{prefix}_{row['model']}"] + [f"{prefix}_selected"] * (row["model"] == selected)
-        for name in names:
+        for name in _names(row["model"], prefix, verdict, handed is not None):
             m = out["models"].setdefault(name, {"effects": row["effects"], "cycles": {},
                                                 "train_rmse_mv": None})  # fmt: skip
             m["cycles"][cycle] = {k: row[k] for k in VALIDATION_ERRORS}
     return out
+
+
+def _names(model: str, prefix: str, verdict: str, handed: bool) -> list[str]:
+    """The table's names of a validation row's model (:func:`diagnosis_record`)."""
+    if model == "handed_over":
+        return [f"{prefix}_selected"]
+    names = [f"{prefix}_{model}"]
+    if model == verdict:
+        names.append(f"{prefix}_verdict" if handed else f"{prefix}_selected")
+    return names
 
 
 # --- the table ---------------------------------------------------------------------------------
