@@ -12,12 +12,19 @@ drive-cycle-like random current at 10 Hz for 200k. Prints measured times; assert
     ... --stages A.csv B.csv   # where each diagnosis's time goes (fits, held-out fits, Jacobians)
     ... --long 1000000 2000000   # issue 25's long records through the CLI, in a child process
     ... --thinned 1000000   # the simulator's CPU ns per sample-row, full and thinned passes
+    ... --long-ocv 200000 1000000   # issue 37: the long record diagnosed with its true OCV
 
 ``--long``: the issue's clean synthetic record (:func:`issue_record`: 10 Hz, current held 1-30 s
 at 0, ±0.5, ±1 or ±2 A with SOC kept in 0.2-0.9, OCV 3.0 + 0.7·s + 0.5·s² V, R0 30 mΩ, R1 15 mΩ,
 τ1 30 s, 2.9 Ah, 1 mV noise) written as a CSV and diagnosed by ``python -m avoa_pipeline
 diagnose`` in a child process; prints its wall and CPU seconds, its peak RSS (the whole process,
 from ``os.wait4``), the load average before and after, and what ``diagnosis.json`` says it did.
+
+``--long-ocv``: the same record diagnosed in this process with its true OCV as a table (the
+quadratic at 201 points, ``ocv.from_table``: no slow test, so the offset's prior is the named
+default ``ocv.OFFSET_SD_V``); prints CPU seconds, the verdict, the base's RMSE against the noise
+floor, its offset (95 % interval), capacity and initial SOC against the truth (0 V, 2.9 Ah,
+0.55), and the pairs the base's intervals cannot tell apart.
 """
 
 from __future__ import annotations
@@ -121,6 +128,29 @@ def issue_record(n: int, seed: int = 0, hz: float = 10.0) -> pd.DataFrame:
     v1 = lfilter([0.0, r1 * (1.0 - a1)], [1.0, -a1], cur)  # v1[k+1] = a·v1[k] + R1(1 − a)·i[k]
     v = 3.0 + 0.7 * s + 0.5 * s**2 - r0 * cur - v1 + 1e-3 * rng.standard_normal(n)
     return pd.DataFrame({"time_s": np.arange(n) / hz, "current_a": cur, "voltage_v": v})
+
+
+def long_with_ocv(sizes) -> None:
+    """Issue 37: :func:`issue_record` diagnosed with its true OCV table (module docstring)."""
+    from avoa_pipeline.model import ocv
+
+    s = np.linspace(0.0, 1.0, 201)
+    table = ocv.from_table(pd.DataFrame({"soc": s, "ocv_v": 3.0 + 0.7 * s + 0.5 * s**2}), "true")
+    print(f"{'samples':>9} {'cpu s':>7} {'verdict':>14} {'rmse/noise':>10} {'offset mV (95 %)':>24}"
+          f" {'Ah':>7} {'soc0':>7}  degenerate")  # fmt: skip
+    for n in sizes:
+        frame = issue_record(n)
+        c0 = time.process_time()
+        rep, _, _ = diagnose.diagnose_records(frame, ocv_table=table, progress=False)
+        cpu = time.process_time() - c0
+        b, iv = rep["base"], rep["intervals"]["parameters"]
+        p = b["parameters"]
+        off = iv.get("voltage_offset_v", {})
+        ends = (f"{1e3 * off['low95']:.1f}..{1e3 * off['high95']:.1f}"
+                if off.get("low95") is not None else "none")  # fmt: skip
+        print(f"{n:9d} {cpu:7.1f} {rep['verdict']['effect']:>14} {b['rmse_to_noise']:10.4f} "
+              f"{1e3 * p['voltage_offset_v']:7.2f} ({ends:>14}) {p['capacity_ah']:7.4f} "
+              f"{p['soc0']:7.4f}  {b['degenerate']}", flush=True)  # fmt: skip
 
 
 def long_records(sizes, timeout_s: float) -> None:
@@ -327,6 +357,14 @@ def main() -> None:
         "--timeout", type=float, default=1800.0, help="--long: seconds before the child is killed"
     )
     p.add_argument(
+        "--long-ocv",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="SAMPLES",
+        help="issue 37: the long record diagnosed with its true OCV table",
+    )
+    p.add_argument(
         "--thinned",
         type=int,
         default=0,
@@ -339,6 +377,9 @@ def main() -> None:
         return
     if args.long:
         long_records(args.long, args.timeout)
+        return
+    if args.long_ocv:
+        long_with_ocv(args.long_ocv)
         return
     if args.stages:
         diagnose.diagnose(record(2000, "none"))  # the numba cache, outside the timing

@@ -47,7 +47,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import __version__, handover, records, selection
 from ..errors import DataError, UserError
-from ..model import ecm, elements, fitting, intervals
+from ..model import ecm, elements, fitting, intervals, ocv
 from ..model.ecm import Record
 from ..model.elements.element import View
 from ..model.fitted import (
@@ -421,7 +421,10 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         "records": _records(ctx.recs, train),
         "warnings": notes,
         "ocv": _ocv(ctx.table),
-        "base": _base(ctx, base, rec.n, noise_v, capacity_ah, soc0),
+        "base": {
+            **_base(ctx, base, rec.n, noise_v, capacity_ah, soc0),
+            **_degeneracy(ctx, base, iv if final is base else None, capacity_ah),
+        },
         "localization": regions,
         "time_windows": windows,
         "gap_region": gap["region"],
@@ -621,6 +624,31 @@ def _base(ctx, base: selection.Candidate, n: int, noise_v: float, capacity_ah, s
     }
 
 
+def _degeneracy(ctx: selection.Context, base: selection.Candidate, iv, capacity_ah) -> dict:
+    """What decides the base's offset and capacity, and which of its parameters the records do
+    not tell apart (issue 37): the pairs of the base fit's intervals correlated beyond
+    ``intervals.CORR_LIMIT`` (``iv``: the base's intervals if already computed). Each record's
+    initial SOC is no free parameter but follows from the others by the opening rule, so a pair
+    of the capacity with the OCV's level (the offset, or Vnom and β) moves it along."""
+    iv = iv or intervals.of_fit(ctx.recs, base.st, base.X)
+    out = {"degenerate": [[ecm.PARAMS[a].report, ecm.PARAMS[b].report, c]
+                          for a, b, c in iv.pairs()]}  # fmt: skip
+    if ctx.table is not None:
+        sd, why = ocv.offset_prior(ctx.table)
+        k = base.st.shared.index("voff")
+        out["offset"] = {"prior_mean_v": 0.0, "prior_sd_v": sd, "why": why,
+                         "bounds_v": [float(base.st.lo[k]), float(base.st.hi[k])]}  # fmt: skip
+    cap = None if ctx.table is None else ocv.capacity_prior(ctx.table)
+    if capacity_ah is not None:
+        out["capacity"] = {"from": "given (--capacity-ah), held"}
+    elif cap is not None:
+        out["capacity"] = {"from": "the slow test's: start and Gaussian prior",
+                           "prior_ah": cap[0], "prior_sd_ah": cap[1]}  # fmt: skip
+    else:
+        out["capacity"] = {"from": "the records alone (free, no prior)"}
+    return out
+
+
 def _method(ctx: selection.Context) -> dict:
     return {
         "held_out": (
@@ -630,8 +658,9 @@ def _method(ctx: selection.Context) -> dict:
         "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
         "batches": len(ctx.layout.batches),
         "records_weighted_alike": True,
-        "initial_state": "SOC0 from the opening rest's last "
-        f"{ecm.OPENING_WINDOW_S:g} s (or the first sample under load), h0 = 0",
+        "initial_state": f"SOC0 from the opening rest's last {ecm.OPENING_WINDOW_S:g} s, or, "
+        "for a record that starts under load, the SOC that zeroes the model's mean residual "
+        f"over its first {ecm.OPENING_WINDOW_S:g} s; h0 = 0",
         "min_shrink": selection.MIN_SHRINK,
         "alpha_family": selection.ALPHA,
         "bic_max": selection.BIC_MAX,

@@ -58,6 +58,7 @@ from functools import cached_property
 import numba as nb
 import numpy as np
 import pandas as pd
+from scipy.interpolate import PchipInterpolator
 
 from ..records import at_rest, current_scale
 from . import elements, kernel
@@ -65,7 +66,15 @@ from .elements.element import FARADAY, GAS_R, N_KNOTS, Param, Physical
 
 T_DEFAULT_K = 298.15
 KELVIN_PER_TWO_RT_F = FARADAY / (2.0 * GAS_R)  # T = (2RT/F) × this: the loop reads T from 2RT/F
-TABLE_POINTS = 1001  # measured OCV tables are resampled onto this uniform SOC grid (0.1 % steps)
+TABLE_POINTS = 4001
+"""Measured OCV tables are resampled onto this uniform SOC grid (0.025 % steps) by a monotone
+cubic (:meth:`OcvTable.from_points`); the simulator interpolates linearly between its points.
+Why so fine (issue 37; 1001 points, linearly resampled, earlier): the model's voltage is then
+piecewise linear in SOC, and a fit's finite-difference Jacobian (steps of about 1e-6) reads each
+cell's slope, not the OCV's. Along the flat offset-capacity-initial-SOC valley that slope noise
+passed for information: on issue 37's clean record with its true OCV given at 201 points the
+offset's standard deviation came out 7.3 mV; with the monotone cubic at 4001 points 71 mV, near
+the smooth limit (84 mV at 100,001 points). 4001 doubles are 32 kB, inside a core's L2 cache."""
 
 EFFECTS = elements.NAMES
 """Elements a model may add to its base (the registry, ``model/elements/``, in its order)."""
@@ -292,17 +301,25 @@ class OcvTable:
     source: str = ""
     how: str = ""  # how it was made (which branches, why)
     notes: tuple[str, ...] = ()  # what is odd about it (warnings for the user)
+    # how far the table may lie from the cell's OCV (V, one standard deviation) and why; None:
+    # not measured (``ocv.offset_prior`` then gives the default)
+    offset_sd_v: float | None = None
+    offset_why: str = ""
+    capacity_sd_ah: float | None = None  # the slow test's capacity's uncertainty (ocv.py)
 
     @classmethod
     def from_points(cls, soc, ocv_v, capacity_ah=None, source="", how="") -> OcvTable:
+        """The table of points (soc, ocv_v) in any order, resampled onto TABLE_POINTS by the
+        monotone cubic (scipy's PCHIP: it passes through the points, rises where they rise and
+        has no overshoot; points at one SOC averaged), then made strictly increasing (the
+        initial-SOC rule inverts it) by at most 1 µV."""
         soc = np.asarray(soc, dtype=float)
         v = np.asarray(ocv_v, dtype=float)
-        order = np.argsort(soc)
-        soc, v = soc[order], v[order]
+        soc, where = np.unique(soc, return_inverse=True)
+        v = np.bincount(where, weights=v) / np.bincount(where)
         grid = np.linspace(soc[0], soc[-1], TABLE_POINTS)
-        vals = np.interp(grid, soc, v)
-        # strictly increasing: the initial-SOC rule inverts the table
-        vals = np.maximum.accumulate(vals) + np.arange(grid.size) * 1e-9
+        vals = PchipInterpolator(soc, v)(grid) if soc.size > 2 else np.interp(grid, soc, v)
+        vals = np.maximum.accumulate(vals) + np.linspace(0.0, 1e-6, grid.size)
         step = (soc[-1] - soc[0]) / (TABLE_POINTS - 1)
         return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source, how)
 
@@ -375,21 +392,34 @@ THERMAL_MIN_RANGE_C = 2.0
 less, an Arrhenius factor is a constant that R0 and R1 already absorb."""
 
 OPENING_WINDOW_S = 60.0
-"""The initial state is read from the last 60 s of a record's opening rest: at 1 Hz sixty
-samples, so the logger's noise enters √60 times less than through one sample, and the end of the
-rest is its most relaxed part (docs/gap-diagnosis.md, "Selection judged like prediction")."""
+"""The initial state is read from 60 s of a record's opening: the last 60 s of its opening rest
+(at 1 Hz sixty samples, so the logger's noise enters √60 times less than through one sample, and
+the end of the rest is its most relaxed part; docs/gap-diagnosis.md, "Selection judged like
+prediction"), or the first 60 s of a record that starts under load (issue 37: the model is
+simulated over them, :func:`soc0_rows`; one sample left the initial SOC, and with it the offset
+and capacity that trade along it, at the mercy of one sample's noise)."""
 
 
 def opening(t: np.ndarray, i: np.ndarray, v: np.ndarray) -> tuple[float, float, int]:
     """(voltage, current, samples) that start a record: their means over the last
-    OPENING_WINDOW_S of the opening rest (the leading samples ``records.at_rest``),
-    or the first sample if the record starts under load."""
+    OPENING_WINDOW_S of the opening rest (the leading samples ``records.at_rest``), or, if the
+    record starts under load, over its first OPENING_WINDOW_S (at least one sample; the rule
+    then simulates the model over those samples, :func:`load_window`)."""
     moving = np.flatnonzero(~at_rest(i, max(current_scale(i), 1e-6)))
     end = int(moving[0]) if moving.size else i.size
     if end == 0:
-        return float(v[0]), float(i[0]), 1
+        w = load_window(t, i)
+        return float(np.mean(v[:w])), float(np.mean(i[:w])), w
     first = int(np.searchsorted(t[:end], t[end - 1] - OPENING_WINDOW_S, side="left"))
     return float(np.mean(v[first:end])), float(np.mean(i[first:end])), end - first
+
+
+def load_window(t: np.ndarray, i: np.ndarray) -> int:
+    """Samples of the opening window of a record that starts under load (the first
+    OPENING_WINDOW_S, at least one), or 0 if it starts at rest (``records.at_rest``)."""
+    if i.size == 0 or at_rest(float(i[0]), max(current_scale(i), 1e-6)):
+        return 0
+    return max(int(np.searchsorted(t, t[0] + OPENING_WINDOW_S, side="left")), 1)
 
 
 @dataclass(frozen=True)
@@ -408,6 +438,7 @@ class Record:
     source: str = "<data>"
     v_open: float = np.nan  # what starts the record (:func:`opening`)
     i_open: float = 0.0
+    n_load_open: int = 0  # starts under load: samples of its opening window (:func:`load_window`)
 
     @property
     def n(self) -> int:
@@ -440,7 +471,7 @@ class Record:
             tref_k=float(tref_k), dinv_t=np.ascontiguousarray(1.0 / tk - 1.0 / tref_k),
             two_rt_f=np.ascontiguousarray(2.0 * GAS_R * tk / FARADAY),
             source=str(source if source is not None else frame.attrs.get("source", "<data>")),
-            v_open=v_open, i_open=i_open,
+            v_open=v_open, i_open=i_open, n_load_open=load_window(t, i),
         )  # fmt: skip
 
     @classmethod
@@ -484,6 +515,15 @@ class Record:
         np.maximum.accumulate(src, out=src)
         return (np.ascontiguousarray(self.dinv_t[src]),
                 np.ascontiguousarray(self.two_rt_f[src]))  # fmt: skip
+
+    @cached_property
+    def opening_record(self) -> Record:
+        """The record's first ``n_load_open`` samples (what :func:`soc0_rows` simulates for a
+        record that starts under load)."""
+        k = max(self.n_load_open, 1)
+        cut = {f: getattr(self, f)[:k] for f in ("t", "i", "v", "dt", "dinv_t", "two_rt_f")}
+        temp = None if self.temp_c is None else self.temp_c[:k]
+        return replace(self, temp_c=temp, uniform=self.uniform, n_load_open=0, **cut)
 
     def charge_ah(self) -> np.ndarray:
         """Charge removed since the start (Ah) at each sample (discharge positive)."""
@@ -878,16 +918,29 @@ def starts_at_rest(rec: Record) -> bool:
 
 
 def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None = None,
-              iterations: int = 60) -> np.ndarray:  # fmt: skip
-    """The library's one initial-SOC rule, for every physical row of ``P``: the SOC whose OCV
-    equals the record's opening voltage corrected for the ohmic drop (:func:`opening`: the mean
-    over the last OPENING_WINDOW_S of the opening rest, or the first sample under load),
-    OCV(s0) + M·h0 = V_open + R0(s0)·f0·(I_open + b), R0(s0) with its SOC factors, no RC
-    voltage. Solved on [0, 1] (the table's range for a table OCV) by the Illinois method
-    (bracketed false position) on all rows at once (the two sides cross once: the OCV rises with
-    SOC, the ohmic term falls or stays); clipped to the range's end when the voltage lies beyond
-    it. Closed form for the plain rational curve (:func:`rational_soc0`)."""
+              iterations: int = 60, load_ohm: float | None = None) -> np.ndarray:  # fmt: skip
+    """The library's one initial-SOC rule, for every physical row of ``P``.
+
+    A record that starts at rest: the SOC whose OCV equals the record's opening voltage
+    corrected for the ohmic drop (:func:`opening`: the mean over the last OPENING_WINDOW_S of
+    the opening rest), OCV(s0) + M·h0 = V_open + R0(s0)·f0·(I_open + b), R0(s0) with its SOC
+    factors, no RC voltage. Closed form for the plain rational curve (:func:`rational_soc0`).
+
+    A record that starts under load (issue 37): the SOC at which the model's mean voltage over
+    the record's first OPENING_WINDOW_S (simulated, every element and ``load_ohm`` included,
+    RC voltages 0 and h = h0 at the start) equals the measured mean there (``V_open``), i.e. the
+    model's mean residual over the window is zero: the least-squares initial SOC of the window
+    where the residual is linear in it, whose noise is the window mean's (√n times less than
+    one sample's; one sample left the initial SOC 0.8 mV/OCV slope off at 1 mV noise, and with
+    it the offset and capacity that trade along it).
+
+    Solved on [0, 1] (the table's range for a table OCV) by the Illinois method (bracketed false
+    position) on all rows at once (the two sides cross once: the OCV rises with SOC, the ohmic
+    term falls or stays); clipped to the range's end when the voltage lies beyond it."""
     P = np.atleast_2d(np.asarray(P, dtype=float))
+    lo_s, hi_s = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
+    if rec.n_load_open > 0 and not np.isnan(rec.v_open):
+        return _soc0_under_load(P, rec, knots, table, load_ohm, (lo_s, hi_s), iterations)
     v_open = float(rec.v[0]) if np.isnan(rec.v_open) else rec.v_open
     i0 = rec.i_open + P[:, IOFF]
     f0 = np.exp(P[:, TH0] * rec.dinv_t[0]) * np.where(i0 < 0.0, np.exp(P[:, RHO]), 1.0)
@@ -919,35 +972,98 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
             g = g * np.exp(at_knots(s, L0))
         return e + P[:, VOFF] - (v0 + P[:, R0] * g * f0 * i0)
 
-    lo_s, hi_s = (0.0, 1.0) if table is None else (table.lo, table.grid()[-1])
-    a, b = np.full(P.shape[0], lo_s), np.full(P.shape[0], hi_s)
-    g_lo, g_hi = gap(a), gap(b)
+    return _illinois(gap, P.shape[0], lo_s, hi_s, iterations)
+
+
+def _soc0_under_load(P, rec: Record, knots: Knots, table, load_ohm, span, iterations):
+    """:func:`soc0_rows` for a record that starts under load: the SOC at which the model's
+    mean voltage over the opening window (``Record.opening_record``) is the measured mean.
+
+    Each evaluation simulates the window (about 0.2 ms of call overhead however short it is), so
+    the solve starts near the root: the OCV's inverse at the window's mean voltage corrected by
+    R0 at its mean current (the rest rule's formula without the elements; no RC voltage), then
+    ±LOAD_BRACKET_SOC around it in one call of both ends, widened to the range's end only where
+    the root lies outside; on issue 37's record 6 evaluations instead of 10 from the range's
+    ends."""
+    win = rec.opening_record
+    m = P.shape[0]
+    lo_s, hi_s = span
+
+    def gap(s):  # mean model voltage over the window − the measured mean, per row (stacked)
+        Q = np.tile(P, (s.size // m, 1))
+        Q[:, SOC0] = s
+        return np.mean(simulate_physical(win, Q, knots, table, load_ohm), axis=0) - rec.v_open
+
+    target = rec.v_open + P[:, R0] * (rec.i_open + P[:, IOFF]) - P[:, VOFF] - P[:, HM] * P[:, H0]
+    if table is None:
+        guess = rational_soc0(P[:, VNOM], P[:, OMB], target)
+    else:
+        guess = np.interp(target, table.values, table.grid())
+    a = np.clip(guess - LOAD_BRACKET_SOC, lo_s, hi_s)
+    b = np.clip(guess + LOAD_BRACKET_SOC, lo_s, hi_s)
+    fa, fb = np.split(gap(np.concatenate([a, b])), 2)
+    below, above = (fa >= 0) & (a > lo_s), (fb <= 0) & (b < hi_s)  # the root outside [a, b]
+    if np.any(below | above):
+        f_lo, f_hi = np.split(gap(np.concatenate([np.full(m, lo_s), np.full(m, hi_s)])), 2)
+        b, fb = np.where(below, a, b), np.where(below, fa, fb)
+        a, fa = np.where(below, lo_s, a), np.where(below, f_lo, fa)
+        a, fa = np.where(above, b, a), np.where(above, fb, fa)
+        b, fb = np.where(above, hi_s, b), np.where(above, f_hi, fb)
+    return _illinois(gap, m, lo_s, hi_s, iterations, LOAD_RULE_TOL_V, start=(a, b, fa, fb))
+
+
+LOAD_BRACKET_SOC = 0.05
+"""Half the under-load rule's first bracket around the rest formula's SOC: the formula leaves out
+the RC voltage built up over the window (R1·I, 30 mV on issue 37's record, 0.024 of SOC there);
+0.05 holds that on curves of 1 V per unit SOC and more, and a root outside still gets found (the
+bracket widens to the range's end)."""
+LOAD_RULE_TOL_V = 1e-14
+"""The under-load rule's voltage tolerance (V): a fit's finite-difference step of the offset is
+about 1e-9 V, and along the offset-capacity-SOC valley the residuals move by a tenth of it, so a
+1e-12 V tolerance (the rest rule's) put 1e-3 of noise into that Jacobian column, as much as the
+column's own information there. 1e-14 V is about 20 rounding errors of a mean of 600 voltages
+near 4 V; an iteration that no longer moves the SOC also stops."""
+
+
+def _illinois(gap, m: int, lo_s: float, hi_s: float, iterations: int, tol: float = 1e-12,
+              start=None) -> np.ndarray:  # fmt: skip
+    """The root in [lo_s, hi_s] of the rising ``gap`` (one SOC per row of m), by Illinois
+    (false position, the stale end's value halved): bracketed like bisection, superlinear; it
+    stops once the voltage gap is below ``tol`` V in every row (or no row's SOC moved). A row
+    whose gap has one sign over the whole range gets that end. ``start``: a bracket (a, b,
+    gap(a), gap(b)) per row instead of the range's ends (an end of the range where the root
+    does not lie inside it)."""
+    if start is None:
+        a, b = np.full(m, lo_s), np.full(m, hi_s)
+        g_lo, g_hi = gap(a), gap(b)
+    else:
+        a, b, g_lo, g_hi = start
+    a0, b0 = a, b
     fa, fb = g_lo.copy(), g_hi.copy()
     inside = (g_lo < 0) & (g_hi > 0)
-    # Illinois (false position, the stale end's value halved): bracketed like bisection,
-    # superlinear; it stops once the voltage gap is below 1e-12 V in every row
-    side = np.zeros(P.shape[0])
-    c = 0.5 * (a + b)
+    side = np.zeros(m)
+    c = c_last = 0.5 * (a + b)
     for _ in range(iterations):
         c = (a * fb - b * fa) / np.where(inside, fb - fa, 1.0)
         c = np.where(inside, c, 0.5 * (a + b))
         fc = gap(c)
-        if np.all(np.abs(fc[inside]) < 1e-12):
+        if np.all(np.abs(fc[inside]) < tol) or np.array_equal(c, c_last):
             break
+        c_last = c
         left = fc < 0  # the root lies above c
         fb = np.where(left & (side == 1), 0.5 * fb, fb)
         fa = np.where(~left & (side == -1), 0.5 * fa, fa)
         a, fa = np.where(left, c, a), np.where(left, fc, fa)
         b, fb = np.where(left, b, c), np.where(left, fb, fc)
         side = np.where(left, 1, -1)
-    s = np.where(g_lo >= 0, lo_s, c)
-    return np.where(g_hi <= 0, hi_s, s)
+    s = np.where(g_lo >= 0, a0, c)
+    return np.where(g_hi <= 0, b0, s)
 
 
-def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots,
-                      table: OcvTable | None = None) -> float:  # fmt: skip
+def soc0_from_voltage(P_row: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None = None,
+                      load_ohm: float | None = None) -> float:  # fmt: skip
     """:func:`soc0_rows` for one physical row."""
-    return float(soc0_rows(P_row, rec, knots, table)[0])
+    return float(soc0_rows(P_row, rec, knots, table, load_ohm=load_ohm)[0])
 
 
 def rational_soc0(vnom, omb, target) -> np.ndarray:

@@ -98,7 +98,8 @@ class FittedModel:
     def initial_soc(self, rec: Record) -> float:
         x = self.x.copy()
         x[IDX["h0"]] = 0.0
-        return ecm.soc0_from_voltage(ecm.to_physical(x)[0], rec, self.knots, self.config.table)
+        return ecm.soc0_from_voltage(ecm.to_physical(x)[0], rec, self.knots, self.config.table,
+                                     self.config.load_ohm)  # fmt: skip
 
     def simulate(self, frame: pd.DataFrame, soc0: float | None = None, traces: bool = False):
         """Model voltage for ``frame`` (a record of the same cell); with ``traces`` also the
@@ -445,7 +446,11 @@ def _table_schema() -> dict:
         "capacity_ah": _nullable(_number(qlo, qhi, "the library's range of capacity_ah")),
         "source": {"type": "string"},
         "how": {"type": "string"},
-    })  # fmt: skip
+        # issue 37; optional, so that files written before load
+        "offset_sd_v": _nullable(_number(0.0, 0.3, "an OCV table's offset uncertainty", True)),
+        "offset_why": {"type": "string"},
+        "capacity_sd_ah": _nullable(_number(0.0, qhi, "a capacity's uncertainty")),
+    }, optional=("offset_sd_v", "offset_why", "capacity_sd_ah"))  # fmt: skip
 
 
 def model_schema(config: Config) -> dict:
@@ -897,7 +902,7 @@ def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bo
     held at its value), the records' reference temperature and current scale."""
     from . import fitting
 
-    b = fitting.bounds_for(recs)
+    b = fitting.bounds_for(recs, config.table)
     bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
     if fix_capacity:
         bounds["lq"] = (X[0, IDX["lq"]],) * 2

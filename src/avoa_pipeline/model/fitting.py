@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
-from . import ecm, elements
+from . import ecm, elements, ocv
 from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
 
 MAX_FIT_POINTS = 20000
@@ -70,9 +70,12 @@ def internal_limits(name: str) -> tuple[float, float]:
     return lo, hi
 
 
-def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
+def bounds_for(recs: list[Record],
+               table: ecm.OcvTable | None = None) -> dict[str, tuple[float, float]]:  # fmt: skip
     """Wide, physically plausible bounds (internal coordinates) for a cell's records: the
-    library's physical range (``ecm.LIMITS``), narrowed where the records say more."""
+    library's physical range (``ecm.LIMITS``), narrowed where the records say more, and with a
+    measured OCV ``table`` the offset within ``ocv.OFFSET_BOUND_SDS`` of its uncertainty
+    (``ocv.offset_prior``)."""
     s = _stats(recs)
     imax = s["imax"]
     tau_lo = np.log10(max(s["dt"], 0.05))  # a time constant below the step is an R0
@@ -85,17 +88,36 @@ def bounds_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
         elif p.scaled is not None:
             out[n] = (_by_current(p.scaled[0], p, imax), _by_current(p.scaled[1], p, imax))
     out["lq"] = (np.log10(q_lo), np.log10(max(1000.0, 10 * q_lo)))
+    if table is not None:
+        reach = ocv.OFFSET_BOUND_SDS * ocv.offset_prior(table)[0]
+        out["voff"] = (max(out["voff"][0], -reach), min(out["voff"][1], reach))
     return out
 
 
-def priors_for(recs: list[Record]) -> dict[str, tuple[float, float]]:
+def priors_for(recs: list[Record],
+               table: ecm.OcvTable | None = None) -> dict[str, tuple[float, float]]:  # fmt: skip
     """Weak Gaussian priors (mean, sd; internal coordinates) centred on each element's neutral
     value. They matter only where the data say nothing about a parameter — a hysteresis state at
     the start of a block held out, an efficiency without charge in the training blocks — and
-    there they keep it neutral instead of letting the trust region wander to a bound."""
+    there they keep it neutral instead of letting the trust region wander to a bound.
+
+    With a measured OCV ``table`` two are measured ones (issue 37): the offset at 0 with the
+    table's own uncertainty (``ocv.offset_prior``: from its slow test's branches, else a C/20
+    overpotential plus half a hysteresis loop), and the capacity at the slow test's, with its
+    uncertainty (``ocv.capacity_prior``; none for a table given as is). Over the records the
+    initial SOC, the capacity and the offset trade along a valley the OCV's curvature alone
+    barely bends (issue 37's clean record: 0.1 µV of RMSE from offset 0 to 0.1 V), and one
+    prior row (PRIOR_SCALE_V: a sample at 1 mV noise) decides where in it the fit lands; where
+    the records do tell them apart the prior weighs like one sample against thousands."""
     imax = _stats(recs)["imax"]
-    return {n: (p.neutral, _by_current(p.prior_sd, p, imax)) for n, p in ecm.PARAMS.items()
-            if p.prior_sd is not None}  # fmt: skip
+    out = {n: (p.neutral, _by_current(p.prior_sd, p, imax)) for n, p in ecm.PARAMS.items()
+           if p.prior_sd is not None}  # fmt: skip
+    if table is not None:
+        out["voff"] = (0.0, ocv.offset_prior(table)[0])
+        cap = ocv.capacity_prior(table)
+        if cap is not None:  # internal log10: sd of log10(Q) = sd(Q)/(Q ln 10)
+            out["lq"] = (float(np.log10(cap[0])), cap[1] / (cap[0] * np.log(10.0)))
+    return out
 
 
 def _by_current(value: float, p, imax: float) -> float:
@@ -154,10 +176,8 @@ def structure(recs: list[Record], config: Config, knots: Knots | None = None,
     shared = [n for n in names if not ecm.PARAMS[n].per_record]
     if fix_capacity:
         shared.remove("lq")
-    b = bounds_for(recs)
-    pr = priors_for(recs)
-    if config.table is not None:  # a table's offset is part of its base: no pull towards 0
-        pr.pop("voff")
+    b = bounds_for(recs, config.table)
+    pr = priors_for(recs, config.table)
     lo = np.array([b[n][0] for n in shared])
     hi = np.array([b[n][1] for n in shared])
     prior = np.array([pr.get(n, (0.0, np.inf)) for n in shared])
@@ -172,11 +192,12 @@ def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
     if not st.soc0_rule:
         return X
     if len(recs) == 1 and X.ndim == 2:
-        X[:, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X), recs[0], st.knots, st.config.table)
+        X[:, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X), recs[0], st.knots, st.config.table,
+                                          load_ohm=st.config.load_ohm)  # fmt: skip
         return X
     for r, rec in enumerate(recs):
-        X[r, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X[r]), rec, st.knots,
-                                          st.config.table)[0]  # fmt: skip
+        X[r, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X[r]), rec, st.knots, st.config.table,
+                                          load_ohm=st.config.load_ohm)[0]  # fmt: skip
     return X
 
 

@@ -46,6 +46,22 @@ smaller still)."""
 BRANCH_CHARGE_TOLERANCE = 0.02
 """The branches are averaged only if their charges agree within 2 % (slow-rate coulombic
 efficiency is above 99 %, so a larger difference means they did not span the same SOC range)."""
+OFFSET_SD_V = 0.015
+"""How far a table not measured against the cell's own branches (one slow branch, or a table
+given as is) may lie from the cell's OCV, one standard deviation: a slow branch lies off the OCV
+by its overpotential (about 50 mΩ × C/20 of a 3 Ah cell ≈ 8 mV) plus half a hysteresis loop
+(graphite cells 5-20 mV wide, LFP up to 30 mV): about 5-20 mV, so 15 mV."""
+OFFSET_SD_FLOOR_V = 0.002
+"""The least a table's offset is uncertain: the slow test's voltage channel and the records'
+are each accurate to about ±1 mV (±0.02 % of a 5 V range), so they may differ by 2 mV."""
+OFFSET_BOUND_SDS = 5.0
+"""A fit's offset from a table stays within five of its standard deviations: farther, the table
+is not this cell's OCV, and the fit stops at the bound and says so (``at_bounds``) instead of
+absorbing it (the library's range, ±0.3 V, still caps it)."""
+CAPACITY_SD_FLOOR = 0.01
+"""The least a slow test's capacity is uncertain, relative: its charge between the voltage limits
+at ≤ C/10 is the cell's to about 1 % (the overpotential left at the cut-offs holds back a little
+of the knee's charge; a cycler's current gain is within ±0.1 % of full scale)."""
 GRID = 401
 MIN_BRANCH_SAMPLES = 20
 MIN_TABLE_SPAN = 0.5
@@ -171,6 +187,7 @@ def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
         ocv = curves[name]
         how = f"{name} branch alone (the test has no other slow branch)"
     cap = branches.get("discharge", branches.get("charge"))[3]
+    offset_sd, offset_why, cap_sd = _uncertainties(branches, curves, cap)
     how += "; " + ", ".join(
         f"{n}: {b[3]:.4g} Ah at median {b[4]:.3g} A" for n, b in branches.items()
     )
@@ -189,7 +206,46 @@ def from_slow_test(frame: pd.DataFrame, source: str) -> OcvTable:
     table = OcvTable.from_points(
         np.linspace(0.0, 1.0, GRID), ocv, capacity_ah=cap, source=str(source), how=how
     )
-    return dataclasses.replace(table, notes=tuple(notes))
+    return dataclasses.replace(table, notes=tuple(notes), offset_sd_v=offset_sd,
+                               offset_why=offset_why, capacity_sd_ah=cap_sd)  # fmt: skip
+
+
+def _uncertainties(branches: dict, curves: dict, cap: float) -> tuple[float, str, float]:
+    """(offset sd V, its reason, capacity sd Ah) of a slow test's table. With both branches:
+    half their median gap over SOC 10-90 % (each branch lies off the OCV by its overpotential
+    plus half the hysteresis, together half the gap; the mean of the two lies off by the
+    difference of the two sides' overpotentials, at most that), and the capacity to the
+    difference of the branches' charges; else OFFSET_SD_V. Floors: OFFSET_SD_FLOOR_V and
+    CAPACITY_SD_FLOOR."""
+    cap_sd = CAPACITY_SD_FLOOR * cap
+    if len(branches) < 2:
+        return OFFSET_SD_V, (f"one slow branch: {1e3 * OFFSET_SD_V:g} mV, a C/20 overpotential "
+                             "plus half a hysteresis loop"), cap_sd  # fmt: skip
+    grid = np.linspace(0.0, 1.0, GRID)
+    mid = (grid >= 0.1) & (grid <= 0.9)
+    half = 0.5 * float(np.median(curves["charge"][mid] - curves["discharge"][mid]))
+    sd = max(abs(half), OFFSET_SD_FLOOR_V)
+    why = (f"half the median charge-discharge branch gap over SOC 10-90 %: {1e3 * half:.3g} mV"
+           + (f" (floor {1e3 * OFFSET_SD_FLOOR_V:g} mV)" if sd > abs(half) else ""))  # fmt: skip
+    cap_sd = max(cap_sd, abs(branches["charge"][3] - branches["discharge"][3]))
+    return sd, why, cap_sd
+
+
+def offset_prior(table: OcvTable) -> tuple[float, str]:
+    """(sd V, why) of a table's offset from the cell's OCV: the one measured from its slow test
+    (:func:`_uncertainties`), else OFFSET_SD_V."""
+    if table.offset_sd_v is not None:
+        return float(table.offset_sd_v), table.offset_why
+    return OFFSET_SD_V, (f"not measured: {1e3 * OFFSET_SD_V:g} mV, a C/20 overpotential plus "
+                         "half a hysteresis loop")  # fmt: skip
+
+
+def capacity_prior(table: OcvTable) -> tuple[float, float] | None:
+    """(capacity Ah, sd Ah) the table's slow test measured, or None (a table given as is)."""
+    if not table.capacity_ah:
+        return None
+    sd = table.capacity_sd_ah or CAPACITY_SD_FLOOR * table.capacity_ah
+    return float(table.capacity_ah), float(sd)
 
 
 def from_table(frame: pd.DataFrame, source: str) -> OcvTable:
@@ -222,6 +278,9 @@ def to_json(table: OcvTable) -> dict:
         "capacity_ah": table.capacity_ah,
         "source": table.source,
         "how": table.how,
+        "offset_sd_v": table.offset_sd_v,
+        "offset_why": table.offset_why,
+        "capacity_sd_ah": table.capacity_sd_ah,
     }
 
 
@@ -233,4 +292,7 @@ def from_json(d: dict) -> OcvTable:
         d.get("capacity_ah"),
         d.get("source", ""),
         d.get("how", ""),
+        offset_sd_v=d.get("offset_sd_v"),  # absent from files written before issue 37
+        offset_why=d.get("offset_why", ""),
+        capacity_sd_ah=d.get("capacity_sd_ah"),
     )
