@@ -104,7 +104,7 @@ def main(argv=None) -> int:
     print(f"fit back: {args.seeds} seeds, rests logged every {args.rest_log_s:g} s after "
           f"their first 10 s, {args.noise_mv:g} mV voltage noise, "
           f"{1e3 * args.current_noise_a:g} mA current noise")  # fmt: skip
-    for case in args.cases:
+    for case in args.cases if args.seeds > 0 else ():  # --seeds 0: the issue-25 record alone
         t0 = time.perf_counter()
         results = [F.run(case, s, noise_mv=args.noise_mv, rest_log_s=args.rest_log_s,
                          current_noise_a=args.current_noise_a) for s in seeds]  # fmt: skip

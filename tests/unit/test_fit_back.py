@@ -11,6 +11,8 @@ removed.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -24,19 +26,46 @@ SEED = 0
 
 BASIN = (
     "the base fit without the element lands where the table's offset is tens of mV and the "
-    "rule's initial SOC is clipped at the table's top (or τ1 at its bound); the element's starts "
-    "are that base, and its fit stays there (from the truth it reaches the noise)"
+    "rule's initial SOC sits at the table's top (or τ1 at its bound); the element's starts are "
+    "that base, and its fit stays there (started from the truth, thermal's and current_offset's "
+    "worst seeds reach the noise)"
 )
 RULE = (
     "the initial-SOC rule reads the opening rest's last minute, one or two samples when a rest "
-    "is logged every 60 s: the SOC error moves the whole record, and the fit leaves 1-12 % above "
-    "the noise on over a third of the seeds (0 of 10 with rests logged every second)"
+    "is logged every 60 s: the SOC error moves the whole record, and the fit ends 1-12 % above "
+    "the noise on over a third of the seeds (none of 40 with rests logged every second)"
+)
+CURRENT_NOISE = (
+    "the logged current's 1 mA noise at rest drives the model as if it flowed: hysteresis's "
+    "sgn(I) relaxes |h| during rests (M fitted 0.5 % high, R1 and τ1 low), Butler-Volmer's "
+    "zero-current slope (2RT/F)/(2 i0) ≈ 0.2 Ω turns it into 0.2 mV (the truth itself is 2 % "
+    "above the noise); without current noise both meet the goals"
+)
+KNOTS = (
+    "ocv_shape's knots follow the base fit's SOC range, not the truth's: its coordinates are "
+    "compared on other knots, and the capacity and the offset absorb the difference"
 )
 EXPECTED_FAST = {
-    "ocv_shape": BASIN,
+    "ocv_shape": f"{BASIN}; {KNOTS}",
     "current_offset": BASIN,
 }
 """Cases whose seed-0 fit misses issue 37's RMSE goal on main (measured: docs/gap-diagnosis.md)."""
+EXPECTED_SLOW_RMSE = {c: RULE for c in F.CASES} | {
+    "butler_volmer": f"{RULE}; {CURRENT_NOISE}",
+    **{c: f"{RULE}; {BASIN}" for c in ("thermal", "ocv_shape", "current_offset")},
+}
+"""Over 20 seeds, every case misses the RMSE goal on some seeds on main."""
+EXPECTED_SLOW_COVERAGE = {
+    "hysteresis": CURRENT_NOISE,
+    "thermal": BASIN,
+    "ocv_shape": f"{KNOTS}; {BASIN}",
+}
+"""Cases with a parameter whose 95 % interval holds the truth on fewer than 88 % of 20 seeds."""
+
+
+def _expected(cases, reasons):
+    return [pytest.param(c, marks=pytest.mark.xfail(reason=reasons[c], strict=True))
+            if c in reasons else c for c in cases]  # fmt: skip
 
 
 def test_magnitudes_are_the_withheld_grids_largest(cfg):
@@ -101,11 +130,7 @@ def test_coverage_verdicts():
     assert F.coverage_verdict(1000, 1000) == "high"
 
 
-@pytest.mark.parametrize(
-    "case",
-    [pytest.param(c, marks=pytest.mark.xfail(reason=EXPECTED_FAST[c], strict=True))
-     if c in EXPECTED_FAST else c for c in F.CASES],
-)  # fmt: skip
+@pytest.mark.parametrize("case", _expected(F.CASES, EXPECTED_FAST))
 def test_fit_back_leaves_the_noise(case):
     r = F.run(case, SEED)
     assert r.ratio <= F.RATIO_MAX, f"{case}: RMSE {r.rmse_mv:.3f} mV, noise {r.noise_mv:.3f} mV"
@@ -116,21 +141,26 @@ def test_fit_back_leaves_the_noise(case):
 
 SLOW_SEEDS = 20
 """Seeds per case: a 95 % coverage falls below 88 % on a one-sided binomial test at 5 % with
-probability 0.2 % at 20 seeds (a coverage of 70 % is caught with probability 0.9)."""
+probability 0.03 % at 20 seeds (14 or fewer of 20); a coverage of 70 % is caught with
+probability 0.58."""
+
+
+@functools.cache
+def _results(case: str) -> tuple[F.FitBack, ...]:
+    """Each case's fits over the seeds, shared by the two slow tests."""
+    return tuple(F.run(case, s) for s in range(SLOW_SEEDS))
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(reason=RULE, strict=True))
-                                  for c in F.CASES])  # fmt: skip
+@pytest.mark.parametrize("case", _expected(F.CASES, EXPECTED_SLOW_RMSE))
 def test_fit_back_leaves_the_noise_on_every_seed(case):
-    ratios = [F.run(case, s).ratio for s in range(SLOW_SEEDS)]
+    ratios = [r.ratio for r in _results(case)]
     assert max(ratios) <= F.RATIO_MAX, f"{case}: RMSE/noise up to {max(ratios):.4f}"
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case", F.CASES)
+@pytest.mark.parametrize("case", _expected(F.CASES, EXPECTED_SLOW_COVERAGE))
 def test_intervals_cover_the_truth(case):
-    results = [F.run(case, s) for s in range(SLOW_SEEDS)]
-    bad = {name: f"{hits}/{n}" for name, (hits, n) in F.coverage(results).items()
+    bad = {name: f"{hits}/{n}" for name, (hits, n) in F.coverage(_results(case)).items()
            if F.coverage_verdict(hits, n) != "ok"}  # fmt: skip
     assert not bad, f"{case}: coverage outside 88-99 % for {bad}"
