@@ -8,6 +8,7 @@ over the seeds) and, per parameter, how often its 95 % interval holds the truth;
     ... --cases base second_rc --seeds 10 --rest-log-s 1   # rests logged every second
     ... --cases hysteresis butler_volmer --current-noise-a 0  # no current sensor noise
     ... --issue 1000000          # also bench_diagnose's issue-25 record, its OCV as a table
+    ... --from-truth             # also each structure fitted from the truth
     ... --csv rows.csv           # one row per (case, seed, parameter)
 
 Columns: ``rmse/noise`` is the fit's RMSE over the injected noise as drawn (the RMS of logged −
@@ -16,7 +17,9 @@ noise-free voltage), median and max over the seeds, and ``>1.02`` how many seeds
 estimate (medians); ``truth/noise`` the truth's own RMSE on the logged record (its noisy current
 and temperature) and ``rule/noise`` the same started by the initial-SOC rule (medians).
 Coverage: seeds whose interval holds the truth / seeds, ``none`` of them without an interval (a
-parameter at a bound), and the verdict against 88-99 % (``fit_back.coverage_verdict``).
+parameter at a bound), and the verdict against 88-99 % (``fit_back.coverage_verdict``). With
+``--from-truth``: the RMSE the same structure reaches started from the truth (started by the
+rule), and on how many seeds the diagnosis's path ended worse (another basin).
 """
 
 from __future__ import annotations
@@ -47,6 +50,16 @@ def rows_of(r: F.FitBack) -> list[dict]:
              "covered": bool(c)}
             for name, t, v, lo, hi, c in zip(r.reports(), r.truth, r.value, r.low, r.high,
                                              r.covered(), strict=True)]  # fmt: skip
+
+
+def from_truth(cases: list[F.Case], results: list[F.FitBack]) -> None:
+    """The same structures fitted from the truth (``fit_back.refit_from_truth``)."""
+    pairs = zip(cases, results, strict=True)
+    ratio = np.array([F.refit_from_truth(c) / r.noise_mv for c, r in pairs])
+    worse = int(np.sum([r.ratio > x * (1 + 1e-3) for r, x in zip(results, ratio, strict=True)]))
+    print(f"  from the truth: rmse/noise median {np.median(ratio):.4f} max {ratio.max():.4f} "
+          f"(>{F.RATIO_MAX}: {int(np.sum(ratio > F.RATIO_MAX))}/{ratio.size}); the path's fit "
+          f"worse by > 0.1 % on {worse}")  # fmt: skip
 
 
 def summary(results: list[F.FitBack]) -> None:
@@ -97,6 +110,11 @@ def main(argv=None) -> int:
     ap.add_argument("--current-noise-a", type=float, default=F.withheld.CURRENT_NOISE_A)
     ap.add_argument("--issue", type=int, default=0, metavar="N",
                     help="also fit back the issue-25 record of N samples")  # fmt: skip
+    ap.add_argument(
+        "--from-truth",
+        action="store_true",
+        help="also fit each case from the truth (its starts or its structure?)",
+    )
     ap.add_argument("--csv", default=None)
     args = ap.parse_args(argv)
     rows = []
@@ -106,10 +124,13 @@ def main(argv=None) -> int:
           f"{1e3 * args.current_noise_a:g} mA current noise")  # fmt: skip
     for case in args.cases if args.seeds > 0 else ():  # --seeds 0: the issue-25 record alone
         t0 = time.perf_counter()
-        results = [F.run(case, s, noise_mv=args.noise_mv, rest_log_s=args.rest_log_s,
-                         current_noise_a=args.current_noise_a) for s in seeds]  # fmt: skip
+        cases = [F.make_case(case, s, noise_mv=args.noise_mv, rest_log_s=args.rest_log_s,
+                             current_noise_a=args.current_noise_a) for s in seeds]  # fmt: skip
+        results = [F.fit_case(c) for c in cases]
         print(f"{case} ({time.perf_counter() - t0:.0f} s)")
         summary(results)
+        if args.from_truth:
+            from_truth(cases, results)
         rows += [row for r in results for row in rows_of(r)]
     if args.issue:
         t0 = time.perf_counter()

@@ -12,8 +12,8 @@ registry (``gap.EFFECTS``). Per seed:
   0.1-1 in 0.5 % steps, read by ``model.ocv.from_table`` as an ``--ocv`` table is); the table's
   offset is 0.
 - **Element.** The withheld-effect check's parameters at its grid's largest magnitude
-  (:data:`MAGNITUDES`, config/config.yaml ``gap.magnitudes``; 2.9-17× the noise after a base
-  refit, so every parameter should be identified), drawn by ``withheld.effect_params`` and
+  (:data:`MAGNITUDES`, config/config.yaml ``gap.magnitudes``: well above the noise, so every
+  parameter should be identified), drawn by ``withheld.effect_params`` and
   mapped onto the library's parameters (:func:`element_truth`). Two are not the generator's:
   ``ocv_shape`` (the generator's tanh steps are outside the library's family: its four shape
   coordinates are drawn instead) and ``voltage_offset`` (with a table the offset is the base's
@@ -56,7 +56,7 @@ import pandas as pd
 from scipy import stats
 
 from .. import records, seeds, selection
-from ..model import ecm, intervals
+from ..model import ecm, fitting, intervals
 from ..model import ocv as ocv_mod
 from ..model.ecm import IDX, Knots, Record
 from ..model.fitted import reference_temperature
@@ -102,7 +102,9 @@ MAGNITUDES = {
 }
 """Per element, the largest magnitude of the withheld grid (config/config.yaml
 ``gap.magnitudes``, in ``withheld.UNITS``; ``tests/unit/test_fit_back.py`` holds them equal):
-each then leaves 2.9-17× the noise after a base refit, so its parameters should be identified."""
+on the withheld check's own records they leave 2.9-17× the 1 mV noise after a base refit (the
+comment on config.yaml ``gap.pairs``; thermal's middle one 3-6×), so the element's parameters
+should be identified."""
 OCV_SHAPE_U_V = 0.01
 """ocv_shape's coordinates are drawn in ±10 mV each (a correction of 10-30 mV at the knots, the
 size of a staging step between a slow test and a cell's relaxed OCV); ``MAGNITUDES`` does not
@@ -238,8 +240,6 @@ def make_case(case: str, seed: int, noise_mv: float = NOISE_MV, rest_log_s: floa
 def _knots(current, idx, x) -> Knots:
     """ocv_shape's knots over the SOC range the true model visits (``fitting.knots_for``'s rule
     on the truth; the fit sets its own from its base)."""
-    from ..model import fitting
-
     t = idx * withheld.TS
     frame = pd.DataFrame({"time_s": t, "current_a": current, "voltage_v": 0.0})
     return fitting.knots_for([Record.from_frame(frame)], x[None, :])
@@ -281,12 +281,18 @@ class FitBack:
         return tuple(ecm.PARAMS[n].report for n in self.names)
 
 
-def fit_case(c: Case) -> FitBack:
-    """Fit ``c`` back along the diagnosis's path (module docstring) and measure it."""
+def _context(c: Case) -> selection.Context:
+    """The selection's context of ``c``'s record, checked and prepared as the diagnosis does."""
     checked = records.check(c.frame, c.source)
     tref = reference_temperature([checked.frame])
-    recs = [Record.from_frame(checked.frame, tref_k=tref, source=c.source)]
-    ctx = selection.Context(recs, c.table)
+    return selection.Context([Record.from_frame(checked.frame, tref_k=tref, source=c.source)],
+                             c.table)  # fmt: skip
+
+
+def fit_case(c: Case) -> FitBack:
+    """Fit ``c`` back along the diagnosis's path (module docstring) and measure it."""
+    ctx = _context(c)
+    recs = ctx.recs
     cand = selection.fit_base(ctx)
     for e in c.effects:  # the ladder's first rung: the element on the fitted base
         cand = selection.try_effects(ctx, cand, [e], cv=False)[e]
@@ -304,13 +310,26 @@ def fit_case(c: Case) -> FitBack:
     return FitBack(
         c.case, c.seed,
         rmse_mv=_rms_mv(resid),
-        noise_mv=_rms_mv(checked.frame["voltage_v"].to_numpy() - c.v_clean),
+        noise_mv=_rms_mv(ctx.v - c.v_clean),
         injected_mv=c.noise_mv,
         floor_mv=1e3 * diagnose.noise_floor(recs[0], resid),
         names=iv.names, truth=truth, value=value, low=low, high=high,
         soc0_fit=float(cand.X[0, IDX["soc0"]]), soc0_true=float(c.x[IDX["soc0"]]),
         truth_mv=truth_mv[0], truth_rule_mv=truth_mv[1], swapped=swapped,
     )  # fmt: skip
+
+
+def refit_from_truth(c: Case) -> float:
+    """RMSE (mV) of the structure that made ``c`` (its knots the truth's) fitted from the truth,
+    each record started by the rule as every fit is: what the structure reaches near the truth.
+    Against :func:`fit_case`'s RMSE it tells a fit that stopped in another basin (its starts)
+    from a structure or a rule that cannot do better."""
+    ctx = _context(c)
+    st = ctx.structure(c.effects, c.knots)
+    x0 = fitting.complete(st, ctx.recs, c.x[None, :])
+    idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
+    fit = fitting.fit_structure(ctx.recs, st, x0, idx)
+    return _rms_mv(ctx.simulate(st, fit.X) - ctx.v)
 
 
 def _rms_mv(e) -> float:
