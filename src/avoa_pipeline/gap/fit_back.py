@@ -44,7 +44,14 @@ noise: the realised injected noise (RMS of logged − noise-free voltage; the fi
 at the optimum of a family that holds the truth is at or below it, up to what the current and
 temperature noise add), the nominal sd, and the diagnosis's noise floor estimate
 (``diagnose.noise_floor`` on the fit's residual). Per free parameter: whether the truth lies in
-its 95 % interval; a parameter at a bound of its fit has no interval and counts as missed.
+its 95 % interval; a parameter at a bound of its fit has no interval and counts as missed; two RC
+branches are compared in time-constant order (the model is the same with them swapped).
+:func:`refit_from_truth` fits the same structure from the truth, which tells a fit in another
+basin from a structure or rule that cannot do better.
+
+Nothing here is numerics of its own: the records are the library's simulator on the withheld
+check's cell, temperature and sensors, and the fit is the diagnosis's; only the profile, the
+logging and the bookkeeping are written here.
 """
 
 from __future__ import annotations
