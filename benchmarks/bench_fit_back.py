@@ -134,9 +134,12 @@ def main(argv=None) -> int:
         rows += [row for r in results for row in rows_of(r)]
     if args.issue:
         t0 = time.perf_counter()
-        r = F.fit_case(issue_case(args.issue))
+        c = issue_case(args.issue)
+        r = F.fit_case(c)
         print(f"issue-25 record, {args.issue} samples ({time.perf_counter() - t0:.0f} s)")
         summary([r])
+        if args.from_truth:
+            from_truth([c], [r])
         rows += [{**row, "case": "issue25"} for row in rows_of(r)]
     if args.csv:
         pd.DataFrame(rows).to_csv(args.csv, index=False)
