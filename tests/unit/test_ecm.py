@@ -192,6 +192,23 @@ def test_the_opening_state_is_the_opening_rests_mean():
     assert rec.n_load_open == 0  # the rest rule, as before
 
 
+def test_an_opening_rest_logged_coarsely_is_read_from_enough_samples():
+    """A rest logged every 60 s holds one or two samples in its last 60 s: the window then takes
+    the last MIN_OPENING_SAMPLES samples of the opening rest (issue 37, the fit-back cases), and
+    a rest with fewer samples is read whole."""
+    frame = with_voltage(profile_frame(), TRUTH)
+    rest, load = frame.iloc[:300], frame.iloc[300:]
+    coarse = pd.concat([rest.iloc[::60], load], ignore_index=True)  # 5 rest samples, 60 s apart
+    rec = ecm.Record.from_frame(coarse)
+    assert rec.v_open == pytest.approx(float(rest["voltage_v"].iloc[::60].mean()), abs=1e-12)
+    long_rest = pd.DataFrame({"time_s": np.arange(40) * 60.0, "current_a": 0.0,
+                              "voltage_v": 3.7 + 1e-3 * np.arange(40)})  # fmt: skip
+    shifted = load.assign(time_s=load["time_s"] - load["time_s"].iloc[0] + 40 * 60.0)
+    rec = ecm.Record.from_frame(pd.concat([long_rest, shifted], ignore_index=True))
+    last = long_rest["voltage_v"].iloc[-ecm.MIN_OPENING_SAMPLES :]
+    assert rec.v_open == pytest.approx(float(last.mean()), abs=1e-12)
+
+
 @pytest.mark.parametrize("extra", [{}, {**ACTIVE["hysteresis"], "hysteresis_h0": -0.5},
                                    ACTIVE["second_rc"]])  # fmt: skip
 def test_a_record_that_starts_under_load_is_started_by_its_opening_window(extra):

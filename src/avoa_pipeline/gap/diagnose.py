@@ -660,7 +660,8 @@ def _method(ctx: selection.Context) -> dict:
         "records_weighted_alike": True,
         "initial_state": f"SOC0 from the opening rest's last {ecm.OPENING_WINDOW_S:g} s, or, "
         "for a record that starts under load, the SOC that zeroes the model's mean residual "
-        f"over its first {ecm.OPENING_WINDOW_S:g} s; h0 = 0",
+        f"over its first {ecm.OPENING_WINDOW_S:g} s (each window at least "
+        f"{ecm.MIN_OPENING_SAMPLES} samples where the record has them); h0 = 0",
         "min_shrink": selection.MIN_SHRINK,
         "alpha_family": selection.ALPHA,
         "bic_max": selection.BIC_MAX,
