@@ -37,7 +37,10 @@ selection is the same, bit for bit, with any number of threads
 docs/real-data.md "Time of the joint fit"): 1,802 s before (commit ce0cda2), 1,420 s with this,
 one BLAS thread (``diagnose.BLAS_THREADS``) and the rests' held temperature
 (``ecm.Record.rest_held``), on a loaded machine; the goal (300 s) is not met: the simulator's
-passes in the held-out fits remain.
+passes in the held-out fits remain. Every fit to all training records is checked
+(``fitting.check_fit``, issue 37; the held-out refits are not): on the transfer benchmark's nmc
+HPPC record a diagnosis took twice the CPU time with the same selection (docs/gap-diagnosis.md,
+"Fit check").
 """
 
 from __future__ import annotations
@@ -357,8 +360,12 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
     def one(e: str) -> Candidate:
         st = ctx.structure((*ref.effects, e), ref.st.knots)
         c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
-        if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
-            c = ctx.evaluate(st, fitting.neutralise(ref.X, (e,)))
+        if c.rss > ref.rss:  # a nested model cannot fit worse: fit again from the reference's
+            # optimum, the element neutral (as fitted.fit_model); if still worse, keep that
+            neutral = fitting.neutralise(ref.X, (e,))
+            c = ctx.fit(st, [neutral])
+            if c.rss > ref.rss:
+                c = ctx.evaluate(st, neutral)
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
         done.append(e)
