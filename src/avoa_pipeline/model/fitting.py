@@ -404,9 +404,10 @@ def check_fit(recs, st: Structure, fit: Fit, masks=None, max_nfev_coarse=60,
     Cost: per round, one residual and one Jacobian on the fitted samples, 2·CHECK_DIRECTIONS
     coarse fits (≤ ``max_nfev_coarse`` evaluations each; in the first round also up to
     ``len(TAU_STARTS_S)`` per time constant), and one refinement on the fitted samples
-    (≤ ``max_nfev``) only when a restart landed lower. Measured on the
-    transfer benchmark's LFP record (1RC, a table; 5,715 samples): one round moved the fit from
-    14.9 to 5.9 mV, a second found nothing, 0.9 s in all (docs/gap-diagnosis.md, "Fit check").
+    (≤ ``max_nfev``) only when a restart landed lower. Measured on the transfer benchmark's LFP
+    record (1RC, a table; 5,715 samples): the first round (7 restarts) moved the fit from 7.2 to
+    5.9 mV, a second (4) found nothing, 341 evaluations in all; a whole diagnosis took 2 to 6
+    times the CPU time (docs/gap-diagnosis.md, "Fit check").
     """
     if st.k == 0:
         return fit
@@ -466,7 +467,8 @@ def restart_points(recs, st: Structure, X: np.ndarray, idxs,
     out = []
     for k in range(1, min(CHECK_DIRECTIONS, sv.size) + 1):
         v = vt[-k] * np.sign(vt[-k][np.argmax(np.abs(vt[-k]))])  # one sign, whatever LAPACK's
-        d = np.sqrt(2.0 * sd_cost) / max(sv[-k], 1e-300) * v / norms
+        # Gauss–Newton: a step t along v raises the cost by ½ (s·t)²
+        d = np.sqrt(2.0 * CHECK_STEP_SD * sd_cost) / max(sv[-k], 1e-300) * v / norms
         d *= min(1.0, CHECK_BOX_SHARE / max(float(np.max(np.abs(d) / span)), 1e-300))
         out += [np.clip(z + d, st.lo, st.hi), np.clip(z - d, st.lo, st.hi)]
     for j, name in enumerate(st.shared if taus else ()):
