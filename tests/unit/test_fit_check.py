@@ -53,14 +53,17 @@ def test_the_check_moves_a_stalled_fit_to_a_better_optimum(flat):
     _, rec, _, st, plain = flat
     idx = fitting.indices([rec], None, fitting.MAX_FIT_POINTS)
     # the multi-start's fit is where the solver stops: fitted again from there, it gains less
-    # than 0.1 % (the check: 2 % and more)
+    # than 0.1 %
     again = fitting.fit_structure([rec], st, plain.X, idx)
-    assert again.cost_fit > plain.cost_fit * (1 - 1e-3)
+    gain_again = 1 - again.cost_fit / plain.cost_fit
+    assert gain_again < 1e-3
     checked = fitting.check_fit([rec], st, plain)
     (check,) = checked.checks
     assert check.improved >= 1
-    # a better optimum, not the solver's scatter: 2 % of the sum of squares and more
-    assert checked.cost_fit < 0.98 * plain.cost_fit
+    # a lower optimum, not the solver's scatter: 0.3 % of the sum of squares and more (300 times
+    # CHECK_RTOL), ten times what the solver finds from the stall (measured: 4.5 % at this
+    # branch's base, 0.5 % with main's offset prior and initial-SOC rule of issue 37)
+    assert check.rss_gain > max(3e-3, 10 * gain_again)
     assert check.rss_gain == pytest.approx(1 - checked.cost_fit / plain.cost_fit)
     assert check.cost_before == plain.cost_fit
     assert check.cost_after == checked.cost_fit
