@@ -37,7 +37,10 @@ selection is the same, bit for bit, with any number of threads
 docs/real-data.md "Time of the joint fit"): 1,802 s before (commit ce0cda2), 1,420 s with this,
 one BLAS thread (``diagnose.BLAS_THREADS``) and the rests' held temperature
 (``ecm.Record.rest_held``), on a loaded machine; the goal (300 s) is not met: the simulator's
-passes in the held-out fits remain.
+passes in the held-out fits remain. Every fit to all training records is checked
+(``fitting.check_fit``, issue 37; the held-out refits are not): on the transfer benchmark's nmc
+HPPC record a diagnosis took twice the CPU time with the same selection (docs/gap-diagnosis.md,
+"Fit check").
 """
 
 from __future__ import annotations
@@ -198,6 +201,7 @@ class Candidate:
     rss: float
     ho: np.ndarray | None = None  # held-out voltage (each sample from the fit without its fold)
     fold_X: list = field(default_factory=list)
+    check: fitting.Check | None = None  # what the fit check did to its fit (``fitting.check_fit``)
 
     @property
     def k(self) -> int:
@@ -257,8 +261,11 @@ class Context:
         return Candidate(st, np.array(X), v, self.sse(v))
 
     def fit(self, st, starts) -> Candidate:
+        """``st`` fitted to all training records from ``starts``, then checked
+        (``fitting.check_fit``; the check's restarts are not counted among the fits)."""
         self.count(len(starts))
-        return self.evaluate(st, fitting.best_of(self.recs, st, starts).X)
+        res = fitting.best_of(self.recs, st, starts)
+        return replace(self.evaluate(st, res.X), check=res.checks[-1])
 
     def cross_validate(self, cand: Candidate) -> Candidate:
         """Each held-out part predicted from a fit that did not see it, warm-started from the
@@ -353,8 +360,12 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
     def one(e: str) -> Candidate:
         st = ctx.structure((*ref.effects, e), ref.st.knots)
         c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
-        if c.rss > ref.rss:  # a nested model cannot fit worse; keep the reference's optimum
-            c = ctx.evaluate(st, fitting.neutralise(ref.X, (e,)))
+        if c.rss > ref.rss:  # a nested model cannot fit worse: fit again from the reference's
+            # optimum, the element neutral (as fitted.fit_model); if still worse, keep that
+            neutral = fitting.neutralise(ref.X, (e,))
+            c = ctx.fit(st, [neutral])
+            if c.rss > ref.rss:
+                c = ctx.evaluate(st, neutral)
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
             ctx.cross_validate(c)
         done.append(e)
@@ -506,6 +517,9 @@ class Ladder:
     chosen: list[Candidate]  # one per rung; the last is the climb's end
     pruned: list[dict] = field(default_factory=list)  # elements dropped after the climb
     final: Candidate | None = None  # the selected model: the climb's end, pruned
+    repolished: list[str] = field(default_factory=list)  # first-rung elements that, set back to
+    # neutral, fitted better than the base (the base refitted from there; empty when the fit
+    # check found the base's optimum)
 
     @property
     def selected(self) -> Candidate:
@@ -545,10 +559,7 @@ def _without(ctx: Context, final: Candidate, e: str) -> tuple[str, Candidate, di
     """One trial of :func:`prune`: ``final`` refitted with ``e`` neutral, held out, and judged
     against ``final``."""
     st = ctx.structure(tuple(x for x in final.effects if x != e), final.st.knots)
-    start = fitting.neutralise(final.X, (e,))
-    idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
-    reduced = ctx.evaluate(st, fitting.fit_structure(ctx.recs, st, start, idx).X)
-    ctx.count(1)
+    reduced = ctx.fit(st, [fitting.neutralise(final.X, (e,))])
     ctx.cross_validate(reduced)
     (row,) = judge(ctx, reduced, {e: final})
     return e, reduced, row
@@ -562,12 +573,15 @@ def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
     cands = try_effects(ctx, base, tried, cv=False)
     # a candidate whose element, set back to neutral, fits better than the base found a better
     # base optimum: refit the base from there (the base must be at its best, or a candidate
-    # "wins" by better optimisation alone)
+    # "wins" by better optimisation alone). The fit check (fitting.check_fit) should leave
+    # nothing to find here; ``Ladder.repolished`` says where it did not
+    repolished = []
     for e, c in cands.items():
         rb = ctx.evaluate(base.st, fitting.neutralise(c.X, (e,)))
         if rb.rss < base.rss * (1 - 1e-9):
-            idx = fitting.indices(ctx.recs, None, fitting.MAX_FIT_POINTS)
-            base = ctx.evaluate(base.st, fitting.fit_structure(ctx.recs, base.st, rb.X, idx).X)
+            res = fitting.best_of(ctx.recs, base.st, [rb.X])
+            base = replace(ctx.evaluate(base.st, res.X), check=base.check.then(res.checks[-1]))
+            repolished.append(e)
     # only a candidate whose full fit can pay is held out (as on the later rungs): one whose
     # ΔBIC ≥ BIC_MAX fails the criterion whatever its held-out error (against a re-polished,
     # better base its ΔBIC only rises), so holding it out would change no verdict
@@ -588,7 +602,7 @@ def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
                for e in effects if e not in cands]  # fmt: skip
     rungs, chosen = climb(ctx, base, winner, cands[winner], effects) if winner else ([], [])
     final, pruned = prune(ctx, chosen[-1]) if chosen else (base, [])
-    return Ladder(base, cands, rows, skipped, winner, rungs, chosen, pruned, final)
+    return Ladder(base, cands, rows, skipped, winner, rungs, chosen, pruned, final, repolished)
 
 
 # ----------------------------------------------------------------------------------------------

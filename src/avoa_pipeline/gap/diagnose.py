@@ -621,6 +621,7 @@ def _base(ctx, base: selection.Candidate, n: int, noise_v: float, capacity_ah, s
         "n_params": base.k,
         "capacity_given": capacity_ah is not None,
         "soc0_given": soc0 is not None,
+        "fit_check": base.check.report() if base.check else None,  # fitting.check_fit
     }
 
 

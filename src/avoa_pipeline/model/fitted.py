@@ -865,11 +865,14 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
               soc0: float | None = None, provenance: dict | None = None):  # fmt: skip
     """Fit ``config`` to one or several records of one cell: the base by multi-start least
     squares, then the configuration's elements one at a time, each started from the previous
-    fit (as the diagnosis's ladder adds them). Shared cell parameters, each record started by
-    the library's rule (``fitting.structure``) and counting alike; one reference temperature
-    (the mean over all records). The training RMSE is the records-alike one (the root of the
-    mean over records of each record's mean squared error). The model carries its parameters'
-    intervals (``model/intervals.py``). Returns a ``fitting.Fit``."""
+    fit (as the diagnosis's ladder adds them); every fit checked (``fitting.check_fit``, reported
+    in ``Fit.checks``), and an element whose fit ends above the fit without it fitted again from
+    that one with the element neutral (a nested model cannot fit worse; the selection's
+    ``try_effects`` keeps the reference's optimum so). Shared cell parameters, each record
+    started by the library's rule (``fitting.structure``) and counting alike; one reference
+    temperature (the mean over all records). The training RMSE is the records-alike one (the
+    root of the mean over records of each record's mean squared error). The model carries its
+    parameters' intervals (``model/intervals.py``). Returns a ``fitting.Fit``."""
     from . import fitting, intervals
 
     frames = [frames] if isinstance(frames, pd.DataFrame) else list(frames)
@@ -879,12 +882,16 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     st = fitting.structure(recs, base_cfg, None, fix_q, fix_s)
     res = fitting.best_of(recs, st, fitting.base_starts(recs, base_cfg, capacity_ah, soc0))
     knots = fitting.knots_for(recs, res.X)
-    nfev, X, now = res.nfev, res.X, base_cfg
+    nfev, X, now, checks = res.nfev, res.X, base_cfg, res.checks
     for e in config.effects:
         now = now.with_effect(e)
         st = fitting.structure(recs, now, knots, fix_q, fix_s)
-        res = fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
-        nfev, X = nfev + res.nfev, res.X
+        ref, res = res, fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
+        if res.cost_fit > ref.cost_fit:  # a nested model cannot fit worse (as the selection's
+            # try_effects): fit again from the reference's optimum with the element neutral
+            nfev += res.nfev
+            res = fitting.best_of(recs, st, [fitting.neutralise(X, (e,))])
+        nfev, X, checks = nfev + res.nfev, res.X, checks + res.checks
     st = fitting.structure(recs, config, knots, fix_q, fix_s)
     X = fitting.complete(st, recs, X)
     mse = [float(np.mean((ecm.simulate_rows(rec, X[r], knots, config.table,
@@ -892,7 +899,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
            for r, rec in enumerate(recs)]  # fmt: skip
     model = model_of(recs, config, X, knots, fix_q, provenance)
     model.intervals = intervals.of_fit(recs, st, X).report()
-    return fitting.Fit(X, res.cost_fit, nfev, model, 1e3 * float(np.sqrt(np.mean(mse))))
+    return fitting.Fit(X, res.cost_fit, nfev, model, 1e3 * float(np.sqrt(np.mean(mse))), checks)
 
 
 def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bool,
