@@ -30,12 +30,6 @@ BASIN = (
     "that base, and its fit stays there (started from the truth, thermal's and current_offset's "
     "worst seeds reach the noise)"
 )
-RULE = (
-    "the initial-SOC rule reads the opening rest's last minute, one or two samples when a rest "
-    "is logged every 60 s: the SOC error moves the whole record, and the fit ends up to 13 % "
-    "above the noise on over a third of the seeds (fitted from the truth too; base, second_rc "
-    "and coulombic_efficiency: none of 40 with rests logged every second)"
-)
 CURRENT_NOISE = (
     "the logged current's 1 mA noise at rest drives the model as if it flowed: hysteresis's "
     "sgn(I) relaxes |h| during rests (M fitted 0.5 % high, R1 and τ1 low), Butler-Volmer's "
@@ -46,16 +40,26 @@ KNOTS = (
     "ocv_shape's knots follow the base fit's SOC range, not the truth's: its coordinates are "
     "compared on other knots, and the capacity and the offset absorb the difference"
 )
+OFFSET_PRIOR = (
+    "the case's table lies ±50 mV off the cell, 3.3 sd out in a measured table's offset prior "
+    "(15 mV without a slow test's own branches, docs/gap-diagnosis.md): the prior pulls the "
+    "offset back on some seeds, as it should for a table that far off"
+)
 EXPECTED_FAST = {
     "ocv_shape": f"{BASIN}; {KNOTS}",
-    "current_offset": BASIN,
 }
-"""Cases whose seed-0 fit misses issue 37's RMSE goal on main (measured: docs/gap-diagnosis.md)."""
-EXPECTED_SLOW_RMSE = {c: RULE for c in F.CASES} | {
-    "butler_volmer": f"{RULE}; {CURRENT_NOISE}",
-    **{c: f"{RULE}; {BASIN}" for c in ("thermal", "ocv_shape", "current_offset")},
+"""Cases whose seed-0 fit misses issue 37's RMSE goal (measured: docs/gap-diagnosis.md). Since the
+fit check and the opening window of at least 25 samples, current_offset's seed 0 meets it."""
+EXPECTED_SLOW_RMSE = {
+    "hysteresis": CURRENT_NOISE,
+    "thermal": BASIN,
+    "ocv_shape": f"{KNOTS}; {BASIN}",
+    "voltage_offset": OFFSET_PRIOR,
 }
-"""Over 20 seeds, every case misses the RMSE goal on some seeds on main."""
+"""Over 20 seeds, the cases that miss the RMSE goal on some seed. Before the fit check and the
+opening window of at least 25 samples every case did (the rule read one or two samples of a
+rest logged every 60 s; BASIN); since, base, second_rc,
+butler_volmer, current_offset and coulombic_efficiency meet it on every seed."""
 EXPECTED_SLOW_COVERAGE = {
     "hysteresis": CURRENT_NOISE,
     "thermal": BASIN,
