@@ -176,7 +176,7 @@ def refit(ctx: Context, cand: Candidate, effects) -> Candidate:
     ``cand``'s parameters with the others set back to neutral."""
     st = ctx.structure(effects, cand.st.knots)
     start = fitting.neutralise(cand.X, [e for e in cand.effects if e not in effects])
-    return ctx.fit(st, [start])
+    return ctx.fit(st, [start], taus=())  # nested in the verdict's checked fit
 
 
 def reduce(ctx: Context, verdict: Candidate, accuracy_a: float):
@@ -202,7 +202,8 @@ def with_second_rc(ctx: Context, ref: Candidate) -> Candidate:
     """``ref`` plus a second RC branch, by the ladder's own way of adding an element (its starts;
     a nested model that fits worse keeps the reference's optimum)."""
     st = ctx.structure((*ref.effects, SECOND_RC), ref.st.knots)
-    c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, SECOND_RC))
+    c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, SECOND_RC),
+                taus=ecm.element_params(SECOND_RC))  # fmt: skip
     if c.rss > ref.rss:
         c = ctx.evaluate(st, fitting.neutralise(ref.X, (SECOND_RC,)))
     return c
@@ -243,7 +244,8 @@ def forward(ctx: Context, cand: Candidate, cut: float):
     st = cand.st
     if "ocv_shape" in st.effects:  # the correction spans the fitted samples' SOC
         st = replace(st, knots=fitting.knots_for(ctx.recs, cand.X, [mask]))
-    fit = fitting.best_of(ctx.recs, st, [cand.X], masks=[mask], max_nfev=100)
+    # a held-out refit, not checked (as the selection's own held-out refits)
+    fit = fitting.best_of(ctx.recs, st, [cand.X], masks=[mask], max_nfev=100, check=False)
     ctx.count(1)
     v = ecm.simulate_rows(rec, fit.X[0], st.knots, st.config.table, st.config.load_ohm)[:, 0]
     after = np.arange(n0, rec.n)

@@ -260,11 +260,12 @@ class Context:
         v = self.simulate(st, X)
         return Candidate(st, np.array(X), v, self.sse(v))
 
-    def fit(self, st, starts) -> Candidate:
+    def fit(self, st, starts, taus=None) -> Candidate:
         """``st`` fitted to all training records from ``starts``, then checked
-        (``fitting.check_fit``; the check's restarts are not counted among the fits)."""
+        (``fitting.check_fit``, restarting the time constants ``taus``, None: all; the check's
+        restarts are not counted among the fits)."""
         self.count(len(starts))
-        res = fitting.best_of(self.recs, st, starts)
+        res = fitting.best_of(self.recs, st, starts, taus=taus)
         return replace(self.evaluate(st, res.X), check=res.checks[-1])
 
     def cross_validate(self, cand: Candidate) -> Candidate:
@@ -359,11 +360,12 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
 
     def one(e: str) -> Candidate:
         st = ctx.structure((*ref.effects, e), ref.st.knots)
-        c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
+        own = ecm.element_params(e)  # the reference's time constants were checked in its fit
+        c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e), taus=own)
         if c.rss > ref.rss:  # a nested model cannot fit worse: fit again from the reference's
             # optimum, the element neutral (as fitted.fit_model); if still worse, keep that
             neutral = fitting.neutralise(ref.X, (e,))
-            c = ctx.fit(st, [neutral])
+            c = ctx.fit(st, [neutral], taus=own)
             if c.rss > ref.rss:
                 c = ctx.evaluate(st, neutral)
         if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
@@ -559,7 +561,7 @@ def _without(ctx: Context, final: Candidate, e: str) -> tuple[str, Candidate, di
     """One trial of :func:`prune`: ``final`` refitted with ``e`` neutral, held out, and judged
     against ``final``."""
     st = ctx.structure(tuple(x for x in final.effects if x != e), final.st.knots)
-    reduced = ctx.fit(st, [fitting.neutralise(final.X, (e,))])
+    reduced = ctx.fit(st, [fitting.neutralise(final.X, (e,))], taus=())  # nested in a checked fit
     ctx.cross_validate(reduced)
     (row,) = judge(ctx, reduced, {e: final})
     return e, reduced, row

@@ -329,9 +329,10 @@ def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
 
 
 def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60, max_nfev=200,
-            check: bool = True) -> Fit:  # fmt: skip
+            check: bool = True, taus=None) -> Fit:  # fmt: skip
     """Multi-start: each start on thinned records, the best refined on the fitted samples; then,
-    with ``check``, the fit check (:func:`check_fit`)."""
+    with ``check``, the fit check (:func:`check_fit`; ``taus``: the time constants it restarts,
+    None for every one)."""
     idx_full = indices(recs, masks, MAX_FIT_POINTS)
     if len(starts) == 1:
         fit = fit_structure(recs, st, starts[0], idx_full, max_nfev=max_nfev)
@@ -340,7 +341,7 @@ def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60, max_nfe
         trials = [fit_structure(recs, st, x0, idx_c, max_nfev=max_nfev_coarse) for x0 in starts]
         best = min(trials, key=lambda r: r.cost_fit)
         fit = fit_structure(recs, st, best.X, idx_full, max_nfev=max_nfev)
-    return check_fit(recs, st, fit, masks, max_nfev_coarse, max_nfev) if check else fit
+    return check_fit(recs, st, fit, masks, max_nfev_coarse, max_nfev, taus) if check else fit
 
 
 # ----------------------------------------------------------------------------------------------
@@ -412,7 +413,7 @@ class Check:
 
 
 def check_fit(recs, st: Structure, fit: Fit, masks=None, max_nfev_coarse=60,
-              max_nfev=200) -> Fit:  # fmt: skip
+              max_nfev=200, taus=None) -> Fit:  # fmt: skip
     """The fit check: is ``fit`` at its structure's optimum, or stalled short of it?
 
     Restarts from the fit perturbed along its least-constrained directions and from other time
@@ -421,6 +422,12 @@ def check_fit(recs, st: Structure, fit: Fit, masks=None, max_nfev_coarse=60,
     refined on the fitted samples and replaces the fit if it ends lower; repeated while a round
     improves, at most ``CHECK_ROUNDS``. The fit returned is never worse than ``fit``, and
     carries the :class:`Check` in ``checks``.
+
+    ``taus``: the time constants restarted at ``TAU_STARTS_S`` (parameter names; None: every one
+    of the structure). A model that adds an element to a checked reference restarts only the
+    element's own (the reference's were checked in its fit, and the element starts from the
+    reference's optimum); a model nested in a checked one, none. The least-constrained
+    directions are always restarted: they move every parameter at once.
 
     Cost: per round, one residual and one Jacobian on the fitted samples, 2·CHECK_DIRECTIONS
     coarse fits (≤ ``max_nfev_coarse`` evaluations each; in the first round also up to
@@ -437,7 +444,8 @@ def check_fit(recs, st: Structure, fit: Fit, masks=None, max_nfev_coarse=60,
     restarts = improved = nfev = 0
     best = fit
     for round_ in range(CHECK_ROUNDS):
-        points, sd_cost = restart_points(recs, st, best.X, idx_full, taus=round_ == 0)
+        points, sd_cost = restart_points(recs, st, best.X, idx_full,
+                                         taus=taus if round_ == 0 else ())  # fmt: skip
         nfev += 2  # the residual and the Jacobian at the fit
         trials = [fit_structure(recs, st, st.rows(z, best.X), idx_c, max_nfev=max_nfev_coarse)
                   for z in points]  # fmt: skip
@@ -465,10 +473,11 @@ def _cost(prob: Problem, z: np.ndarray) -> float:
 
 
 def restart_points(recs, st: Structure, X: np.ndarray, idxs,
-                   taus: bool = True) -> tuple[list[np.ndarray], float]:  # fmt: skip
+                   taus=None) -> tuple[list[np.ndarray], float]:  # fmt: skip
     """The fit check's restarts from fitted rows ``X`` (free vectors z): along the
-    ``CHECK_DIRECTIONS`` least-constrained directions, both signs, and (``taus``) each time
-    constant moved to each of ``TAU_STARTS_S`` not near its value; and the standard deviation
+    ``CHECK_DIRECTIONS`` least-constrained directions, both signs, and each time constant named
+    in ``taus`` (None: every one) moved to each of ``TAU_STARTS_S`` not near its value; and the
+    standard deviation
     of the cost at ``X``.
 
     The directions are the right singular vectors of the smallest singular values of the
@@ -492,8 +501,8 @@ def restart_points(recs, st: Structure, X: np.ndarray, idxs,
         d = np.sqrt(2.0 * CHECK_STEP_SD * sd_cost) / max(sv[-k], 1e-300) * v / norms
         d *= min(1.0, CHECK_BOX_SHARE / max(float(np.max(np.abs(d) / span)), 1e-300))
         out += [np.clip(z + d, st.lo, st.hi), np.clip(z - d, st.lo, st.hi)]
-    for j, name in enumerate(st.shared if taus else ()):
-        if ecm.PARAMS[name].scale != "tau":
+    for j, name in enumerate(st.shared):
+        if ecm.PARAMS[name].scale != "tau" or (taus is not None and name not in taus):
             continue
         for tau in TAU_STARTS_S:
             lt = float(np.clip(np.log10(tau), st.lo[j], st.hi[j]))
