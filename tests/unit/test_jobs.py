@@ -3,6 +3,7 @@ package with what the rule passes, a job stops when its
 Snakemake dies, and a killed run's locks are cleared only when no Snakemake works there."""
 
 import ast
+import contextlib
 import importlib
 import inspect
 import json
@@ -267,6 +268,115 @@ def test_a_job_stops_when_its_snakemake_is_killed(tmp_path):
         parent.kill()
         parent.wait()
     assert jobguard.snakemake_ancestor() is None  # pytest has no Snakemake above it
+
+
+def _descendants_named(pid: int, word: str, timeout: float = 30.0) -> list:
+    """The descendants of ``pid`` whose command line holds ``word`` (waiting for one)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = []
+        for p in psutil.Process(pid).children(recursive=True):
+            with contextlib.suppress(psutil.Error):
+                if word in " ".join(p.cmdline()):
+                    found.append(p)
+        if found:
+            return found
+        time.sleep(0.1)
+    raise AssertionError(f"no descendant of {pid} runs {word!r}")
+
+
+linux_only = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG) is Linux's"
+)
+
+
+@linux_only
+@pytest.mark.parametrize("announced", [True, False])
+def test_a_direct_child_of_snakemake_is_killed_by_the_kernel(tmp_path, announced):
+    """A job that Snakemake starts itself (bash execs a script rule's command) is tied to it by
+    PR_SET_PDEATHSIG, not by the poll: it dies with it while it spins on the CPU. Snakemake is
+    known by the PID it announces (common.smk) or, without one, by its command line."""
+    how = tmp_path / "how.txt"
+    child = tmp_path / "child.py"
+    child.write_text(
+        "import sys\nfrom pathlib import Path\nfrom avoa_pipeline import jobguard\n"
+        f"jobguard.watch()\nPath({str(how)!r}).write_text(jobguard.how())\n"
+        "while True: pass\n"
+    )
+    announce = "from avoa_pipeline import jobguard; jobguard.announce()" if announced else ""
+    fake = _fake_snakemake(tmp_path, f"""
+        import subprocess, sys, time
+        {announce}
+        subprocess.Popen([sys.executable, {str(child)!r}])
+        time.sleep(60)
+    """)  # fmt: skip
+    parent = subprocess.Popen([sys.executable, str(fake)], start_new_session=True)
+    try:
+        kids = _descendants_named(parent.pid, "child.py")
+        deadline = time.monotonic() + 30
+        while not how.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert how.read_text() == "kernel"
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait()
+        _, alive = psutil.wait_procs(kids, timeout=5)
+        assert not alive
+    finally:
+        parent.kill()
+        parent.wait()
+
+
+@linux_only
+@pytest.mark.parametrize("announced", [True, False])
+def test_the_guard_and_every_descendant_die_with_snakemake(tmp_path, announced):
+    """``python -m avoa_pipeline.jobguard --log FILE CMD`` started by Snakemake itself, from a
+    worker thread as Snakemake does: after a kill -9 of Snakemake the guard, CMD and CMD's own
+    child (as papermill's kernel) are gone, and the guard failed nowhere (its signal comes once
+    for each of Snakemake's threads)."""
+    cmd_py = tmp_path / "cmd.py"
+    cmd_py.write_text(
+        "import subprocess, sys, time\n"
+        "subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)  # grandchild'])\n"
+        "print('started', flush=True)\ntime.sleep(60)\n"
+    )
+    log, err = tmp_path / "cmd.log", tmp_path / "guard.err"
+    announce = "from avoa_pipeline import jobguard; jobguard.announce()" if announced else ""
+    fake = _fake_snakemake(tmp_path, f"""
+        import subprocess, sys, threading, time
+        {announce}
+        def work():
+            subprocess.Popen([sys.executable, "-m", "avoa_pipeline.jobguard", "--log",
+                              {str(log)!r}, sys.executable, {str(cmd_py)!r}],
+                             stderr=open({str(err)!r}, "w"))
+            time.sleep(60)
+        threading.Thread(target=work).start()
+        time.sleep(60)
+    """)  # fmt: skip
+    parent = subprocess.Popen([sys.executable, str(fake)], start_new_session=True)
+    try:
+        _descendants_named(parent.pid, "grandchild")
+        kids = psutil.Process(parent.pid).children(recursive=True)
+        assert len(kids) == 3  # the guard, CMD, CMD's child
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait()
+        _, alive = psutil.wait_procs(kids, timeout=5)
+        assert not alive, [p.pid for p in alive]
+        assert log.read_text() == "started\n"  # the command's output, written by the guard
+        assert err.read_text() == ""
+    finally:
+        parent.kill()
+        parent.wait()
+
+
+@linux_only
+def test_a_job_whose_parent_died_before_it_set_the_signal_stops():
+    """The race: the parent that started the job is gone when the job sets its parent-death
+    signal (the job has another parent by then), so the signal would never come; it stops."""
+    code = "import os, sys\nfrom avoa_pipeline import jobguard\n"
+    wrong = code + "jobguard.die_with_parent(parent=os.getppid() + 1)\nsys.exit(0)\n"
+    right = code + "assert jobguard.die_with_parent(parent=os.getppid())\n"
+    assert subprocess.run([sys.executable, "-c", wrong], timeout=60).returncode == 137
+    assert subprocess.run([sys.executable, "-c", right], timeout=60).returncode == 0
 
 
 def test_stale_locks_are_cleared_only_without_a_live_snakemake_here(tmp_path):

@@ -1,5 +1,8 @@
 """Raw cycler exports (Arbin, Maccor, Neware, BioLogic, Basytec) → the record ``diagnose`` reads.
 
+Binary files (Neware ``.nda``/``.ndax``, BioLogic ``.mpr``, Arbin ``.res``) are read by their own
+libraries in :mod:`.binary` into the same columns; everything after reading is this module's.
+
 **Reading is PyProBE's.** ``pyprobe-data`` (Imperial College London, BSD-3-Clause) reads the five
 cyclers' exports into one column set, with their header lines, time columns and unit prefixes.
 A cycler may have several column layouts (Arbin: the newer ``Test Time (s)`` one PyProBE maps,
@@ -66,6 +69,7 @@ from ... import records
 from ...errors import DataError, UserError
 from ...io import regular_file, sha256
 from ...names import CURRENT_FROM
+from . import binary
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)
 UNIT_FACTOR_LIMIT = math.sqrt(1000.0)  # counters' vs channel's current; a unit slip is ≥ 1000×
@@ -380,6 +384,9 @@ def sniff(path: str | Path, exclude: str = "") -> str:
     """The cycler (other than ``exclude``) one of whose layouts' time, current, voltage and
     step columns a header row of the file holds, or ""."""
     path = Path(path)
+    own = binary.cycler_of(path)
+    if own:  # a binary file: its extension says whose
+        return "" if own == exclude else own
     try:
         rows = _header_rows(path)
     except Exception:  # an unreadable workbook: nothing to say about it
@@ -573,9 +580,16 @@ def read_columns(path: str | Path, cycler_name: str,
     cycler = CYCLERS[cycler_name]
     path = Path(path)
     regular_file(path, f"{cycler_name}'s export")
+    own = binary.cycler_of(path)
+    if own == cycler_name:
+        return binary.read_columns(path, cycler_name)
+    if own:
+        raise DataError(f"{path}: {path.suffix} is {CYCLERS[own].label}'s binary file, not "
+                        f"{cycler.article} {cycler.label} export: use --cycler {own}")  # fmt: skip
     if path.suffix.lower() not in cycler.extensions:
+        exts = cycler.extensions + binary.extensions(cycler_name)
         raise DataError(
-            f"{path}: {cycler.article} {cycler.label} export is {' or '.join(cycler.extensions)}, "
+            f"{path}: {cycler.article} {cycler.label} export is {' or '.join(exts)}, "
             f"not {path.suffix or 'without extension'!r}" + _hint(path, cycler_name)
         )
     if sheet is None and path.suffix.lower() == ".xlsx":
@@ -1093,8 +1107,9 @@ def convert(
         "source_file": str(path),
         "source_sha256": sha256(path),
         "cycler": cycler_name,
-        "reader": f"pyprobe-data {_pyprobe_version()} ({cycler.reader.split(':')[1]})",
-        "columns": {k: c for k, c in columns.items() if k not in ("notes", "sheet")},
+        "reader": columns.get("reader")
+        or f"pyprobe-data {_pyprobe_version()} ({cycler.reader.split(':')[1]})",
+        "columns": {k: c for k, c in columns.items() if k not in ("notes", "sheet", "reader")},
         **({"sheets": sheets_info} if sheets_info else {}),
         "sign": {
             "cycler_convention": CONVENTION,
