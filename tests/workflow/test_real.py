@@ -96,14 +96,18 @@ def test_diagnosis_selects_on_training_data_and_saves_its_model(workdir):
                                                         "panasonic_25degC_hppc.csv"]  # fmt: skip
     assert "panasonic_25degC_ocv_c20.csv" in report["ocv"]["source"]
     assert model.config.ocv_kind == "table"
-    assert list(model.config.effects) == report["selected"]["effects"]
-    # the table's diagnosis_selected row is the selected rung's validation row
-    sel = report["selected"]["name"]
-    row = next(r for r in report["validation"] if r["model"] == sel)
+    # model.json is the handed-over model (docs/handover-rule.md), not necessarily the verdict's
+    assert list(model.config.effects) == report["handed_over"]["effects"]
+    # the table's diagnosis_selected row is the handed-over model's validation row, and
+    # diagnosis_verdict (and diagnosis_<name>) the verdict's model's
+    row = next(r for r in report["validation"] if r["model"] == "handed_over")
     assert Path(row["record"]).name == "panasonic_25degC_us06.csv"
     rmse = pd.read_csv(workdir / "results/real/drive_cycle_rmse.csv").set_index("model")["rmse_mv"]
     assert rmse["diagnosis_selected"] == pytest.approx(row["rmse_mv"], rel=1e-12)
-    assert rmse[f"diagnosis_{sel}"] == rmse["diagnosis_selected"]
+    sel = report["selected"]["name"]
+    vrow = next(r for r in report["validation"] if r["model"] == sel)
+    assert rmse["diagnosis_verdict"] == pytest.approx(vrow["rmse_mv"], rel=1e-12)
+    assert rmse[f"diagnosis_{sel}"] == rmse["diagnosis_verdict"]
 
 
 def test_cross_cycle_fits_each_cycle_and_runs_all(workdir):
