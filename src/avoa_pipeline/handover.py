@@ -202,8 +202,7 @@ def with_second_rc(ctx: Context, ref: Candidate) -> Candidate:
     """``ref`` plus a second RC branch, by the ladder's own way of adding an element (its starts;
     a nested model that fits worse keeps the reference's optimum)."""
     st = ctx.structure((*ref.effects, SECOND_RC), ref.st.knots)
-    c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, SECOND_RC),
-                taus=ecm.element_params(SECOND_RC))  # fmt: skip
+    c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, SECOND_RC))
     if c.rss > ref.rss:
         c = ctx.evaluate(st, fitting.neutralise(ref.X, (SECOND_RC,)))
     return c

@@ -385,10 +385,11 @@ def _stamp(path: Path) -> tuple[int, int, int, int]:
     return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
-def _partial_tail(path: Path) -> bytes | None:
+def _partial_tail(path: Path) -> tuple[bytes, list[bytes]] | None:
     """The last line of ``path`` if it has no line end and follows one that has (a row still
-    being written, ``2556.0,2.0,3.``); None if the file ends with a line end (or blanks after
-    one), or has a single line (the header alone: pandas reads no row)."""
+    being written, ``2556.0,2.0,3.``), with the whole lines before it in the same block (up to
+    :data:`HEADER_BYTES`); None if the file ends with a line end (or blanks after one), or has a
+    single line (the header alone: pandas reads no row)."""
     with open(path, "rb") as f:
         size = f.seek(0, os.SEEK_END)
         tail, pos = b"", size
@@ -400,8 +401,25 @@ def _partial_tail(path: Path) -> bytes | None:
             cut = max(tail.rfind(b"\n"), tail.rfind(b"\r"))
             if cut >= 0:
                 line = tail[cut + 1 :]
-                return line if line.strip() else None
+                before = tail[:cut].splitlines()[1:]  # the block's first line may be cut
+                return (line, before) if line.strip() else None
     return None
+
+
+def _cut_short(line: bytes, before: list[bytes], n_columns: int) -> bool:
+    """Whether a last line without its line end is a row cut short by a writer that had not
+    finished it: fewer fields than the header, an empty last field, or a last field shorter than
+    every value of that column in the lines before it. Why the last: a writer writes a row left
+    to right, so a cut falls in its last field or leaves fields out; and a logger writes a
+    column at one precision, so a value cut short (``3.`` of ``3.8547``) is shorter than all
+    its column's others. A file merely saved without its last line end (a row of full length)
+    is kept: dropping it lost a real row (the NASA B0005 index's last discharge)."""
+    fields = line.decode("utf-8", "replace").strip().split(",")
+    if len(fields) < n_columns or not fields[-1].strip():
+        return True
+    rows = [b.decode("utf-8", "replace").strip().split(",") for b in before]
+    widths = [len(r[-1].strip()) for r in rows if len(r) == len(fields)]
+    return bool(widths) and len(fields[-1].strip()) < min(widths)
 
 
 def _changed(path: Path, before) -> None:
@@ -448,7 +466,8 @@ def read_csv(path: str | Path) -> pd.DataFrame:
     A file still being written (docs/inputs.md, "A file still being written"): a file whose
     size, modification time or inode changes while it is read is refused; a last line without
     its line end is dropped, with a warning in ``attrs[READ_NOTES]`` (the row of a cycler that
-    had not finished writing it, ``2556.0,2.0,3.`` read as 3.0 V otherwise)."""
+    had not finished writing it, ``2556.0,2.0,3.`` read as 3.0 V otherwise) when it is cut short
+    (:func:`_cut_short`); a complete one (a file saved without its last line end) is kept."""
     path = Path(path)
     _header(path)
     try:
@@ -471,12 +490,11 @@ def read_csv(path: str | Path) -> pd.DataFrame:
         raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
     df.columns = [str(c).strip() for c in df.columns]
     notes = []
-    if tail is not None and len(df):
-        shown = tail.decode("utf-8", "replace")
+    if tail is not None and len(df) and _cut_short(tail[0], tail[1], df.shape[1]):
+        shown = tail[0].decode("utf-8", "replace")
         shown = shown if len(shown) <= SHOWN_CHARS else shown[:SHOWN_CHARS] + "..."
         notes.append(f"{path}: line {len(df) + 1} ({shown!r}) has no line end: a row still being "
-                     "written (or a file saved without its last line end); that row was "
-                     "dropped")  # fmt: skip
+                     "written, cut short; that row was dropped")  # fmt: skip
         df = df.iloc[:-1].copy()
     df.attrs[READ_NOTES] = tuple(notes)
     return df

@@ -416,15 +416,21 @@ def test_an_unterminated_last_row_is_dropped_with_a_warning(cell, capsys, tmp_pa
     pd.testing.assert_frame_equal(got, want)
 
 
-def test_a_complete_last_row_without_its_line_end_is_dropped_too(tmp_path):
-    """Whether a last line without its line end is complete cannot be told (``3.`` is a number
-    too): it is dropped either way, with its warning (docs/inputs.md says why)."""
+def test_a_complete_last_row_without_its_line_end_is_kept(tmp_path):
+    """A last line without its line end whose last field is as long as its column's others is a
+    file saved without its last line end: kept, no warning; one cut short (``3.`` where the
+    column holds ``3.70``) or missing a field is dropped with its warning (docs/inputs.md)."""
     path = tmp_path / "r.csv"
-    path.write_text("time_s,current_a,voltage_v\n0,1,3.7\n1,1,3.69")
+    path.write_text("time_s,current_a,voltage_v\n0,1,3.70\n1,1,3.69")
     frame = io.read_csv(path)
-    assert frame["time_s"].tolist() == [0]
-    (note,) = frame.attrs[io.READ_NOTES]
-    assert "line 3 ('1,1,3.69') has no line end" in note
+    assert frame["time_s"].tolist() == [0, 1]
+    assert not frame.attrs[io.READ_NOTES]
+    for cut in ("1,1,3.", "1,1", "1,1,"):
+        path.write_text(f"time_s,current_a,voltage_v\n0,1,3.70\n{cut}")
+        frame = io.read_csv(path)
+        assert frame["time_s"].tolist() == [0], cut
+        assert "cut short" in frame.attrs[io.READ_NOTES][0]
+        assert f"line 3 ({cut!r}) has no line end" in frame.attrs[io.READ_NOTES][0]
     path.write_text("time_s,current_a,voltage_v\r\n0,1,3.7\r\n1,1,3.69\r\n")
     assert io.read_csv(path).attrs[io.READ_NOTES] == ()
     assert len(io.read_csv(path)) == 2

@@ -886,12 +886,11 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     for e in config.effects:
         now = now.with_effect(e)
         st = fitting.structure(recs, now, knots, fix_q, fix_s)
-        own = ecm.element_params(e)  # the reference's time constants were checked in its fit
-        ref, res = res, fitting.best_of(recs, st, fitting.effect_starts(recs, X, e), taus=own)
+        ref, res = res, fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
         if res.cost_fit > ref.cost_fit:  # a nested model cannot fit worse (as the selection's
             # try_effects): fit again from the reference's optimum with the element neutral
             nfev += res.nfev
-            res = fitting.best_of(recs, st, [fitting.neutralise(X, (e,))], taus=own)
+            res = fitting.best_of(recs, st, [fitting.neutralise(X, (e,))])
         nfev, X, checks = nfev + res.nfev, res.X, checks + res.checks
     st = fitting.structure(recs, config, knots, fix_q, fix_s)
     X = fitting.complete(st, recs, X)
