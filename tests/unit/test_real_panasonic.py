@@ -353,8 +353,11 @@ def test_c20_circuit_is_a_library_configuration_that_fits_a_known_cell():
     fit = fit_model(frame, config)
     assert fit.train_rmse_mv < 1e-3
     got = fit.model.parameters()
-    for name in ("r0_ohm", "r1_ohm", "tau1_s", "voltage_offset_v"):
+    for name in ("r0_ohm", "r1_ohm", "tau1_s"):
         assert got[name] == pytest.approx(truth[name], rel=1e-3), name
+    # the table's offset prior (0 ± 15 mV, issue 37) pulls even a noise-free fit by tens of µV
+    # along the offset-capacity valley (measured: 24 µV); 0.1 mV is below any logger's step
+    assert got["voltage_offset_v"] == pytest.approx(truth["voltage_offset_v"], abs=1e-4)
 
 
 def test_table_takes_medians_over_seeds():
