@@ -440,3 +440,18 @@ def export(cycler: str, folder: Path, truth: Truth | None = None, **kw) -> tuple
     truth = simulate() if truth is None else truth
     writer, ext = WRITERS[cycler]
     return writer(truth, Path(folder) / f"{cycler}{ext}", **kw), truth
+
+
+def cli_error(tmp_path: Path, capsys, raw, name: str, word: str) -> str:
+    """``convert RAW --cycler NAME`` refused: exit 2, one stderr line naming the file and
+    ``word``, nothing written; returns the line."""
+    from avoa_pipeline.cli import main
+
+    out = tmp_path / "out" / "x.csv"
+    assert main(["convert", str(raw), "--cycler", name, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert str(raw) in err, err
+    assert word in err, err
+    assert not out.parent.exists() or not any(out.parent.iterdir())
+    return err

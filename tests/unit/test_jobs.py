@@ -250,15 +250,7 @@ def test_a_job_stops_when_its_snakemake_is_killed(tmp_path):
     """)  # fmt: skip
     parent = subprocess.Popen([sys.executable, str(fake)], start_new_session=True)
     try:
-        deadline = time.monotonic() + 30
-        kids = []
-        while time.monotonic() < deadline:
-            kids = [p for p in psutil.Process(parent.pid).children(recursive=True)
-                    if "child.py" in " ".join(p.cmdline())]  # fmt: skip
-            if kids:
-                break
-            time.sleep(0.1)
-        assert kids
+        kids = _descendants_named(parent.pid, "child.py")
         time.sleep(1.0)  # the guard is running
         os.kill(parent.pid, signal.SIGKILL)
         parent.wait()

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cycler_fixtures import cli_error
 
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError
@@ -60,17 +61,6 @@ def _charge_and_discharge(frame) -> tuple[float, float]:
     return float(np.sum(np.clip(-i, 0, None) * dt) / 3600), float(
         np.sum(np.clip(i, 0, None) * dt) / 3600
     )
-
-
-def _cli_error(tmp_path, capsys, raw, name, word) -> str:
-    out = tmp_path / "out" / "x.csv"
-    assert main(["convert", str(raw), "--cycler", name, "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1, err
-    assert str(raw) in err, err
-    assert word in err, err
-    assert not out.parent.exists() or not any(out.parent.iterdir())
-    return err
 
 
 @needs_samples
@@ -148,7 +138,7 @@ def test_neware_rest_only_file_is_refused_in_one_line(tmp_path, capsys):
     _, info = binary.read_columns(path, "neware")
     assert info["temperature"]["column"] == "T1"
     assert any("'T2' not" in n for n in info["notes"])
-    _cli_error(tmp_path, capsys, path, "neware", "no current flows")
+    cli_error(tmp_path, capsys, path, "neware", "no current flows")
 
 
 @needs_samples
@@ -231,7 +221,7 @@ def test_arbin_res_gives_galvani_s_charge_and_discharge(tmp_path, capsys):
     assert -dq[dq < 0].sum() == pytest.approx(lib_discharge, rel=CHARGE_REL)
     assert info["counters"]["columns"][0]["column"] == "Charge_Capacity"
     assert counted["restarts"] > 0  # MITS Pro restarts its counters at each cycle
-    _cli_error(tmp_path, capsys, path, "arbin", "'Voltage'")
+    cli_error(tmp_path, capsys, path, "arbin", "'Voltage'")
 
 
 @needs_samples
@@ -239,21 +229,21 @@ def test_arbin_res_without_mdbtools_is_refused_saying_how_to_install(tmp_path, c
                                                                        monkeypatch):  # fmt: skip
     monkeypatch.setattr(binary.shutil, "which", lambda _name: None)
     path = _res(tmp_path)
-    err = _cli_error(tmp_path, capsys, path, "arbin", "apt-get install mdbtools")
+    err = cli_error(tmp_path, capsys, path, "arbin", "apt-get install mdbtools")
     assert "mdb-export" in err
 
 
 @needs_samples
 def test_a_missing_library_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "NewareNDA", None)  # as if not installed
-    err = _cli_error(tmp_path, capsys, NEWARE / NEWARE_CYCLING[0], "neware", "pip install")
+    err = cli_error(tmp_path, capsys, NEWARE / NEWARE_CYCLING[0], "neware", "pip install")
     assert "NewareNDA" in err
 
 
 @needs_samples
 def test_binary_files_given_to_the_wrong_reader_or_damaged(tmp_path, capsys):
     nda = NEWARE / "TestFile.nda"
-    err = _cli_error(tmp_path, capsys, nda, "arbin", "use --cycler neware")
+    err = cli_error(tmp_path, capsys, nda, "arbin", "use --cycler neware")
     assert "Neware's binary file" in err
     assert cycler.looks_like(BIOLOGIC / "mb.issue_149.mpr") == (
         "this looks like a BioLogic export: add --cycler biologic"
@@ -266,4 +256,4 @@ def test_binary_files_given_to_the_wrong_reader_or_damaged(tmp_path, capsys):
                                                               "biologic")):  # fmt: skip
         cut = tmp_path / f"cut{src.suffix}"
         cut.write_bytes(src.read_bytes()[:2000])  # a copy that stopped short
-        _cli_error(tmp_path, capsys, cut, name, "not readable as")
+        cli_error(tmp_path, capsys, cut, name, "not readable as")

@@ -12,6 +12,7 @@ import pytest
 from cycler_fixtures import (
     CLASSIC_ARBIN_COLUMNS,
     WRITERS,
+    cli_error,
     counters_with_dips,
     export,
     from_frame,
@@ -170,16 +171,6 @@ def test_a_sign_against_the_cyclers_convention_is_refused(tmp_path, name, column
         cycler.convert(path, name)
 
 
-def _cli_error(tmp_path, capsys, raw, name, word):
-    out = tmp_path / "out" / "x.csv"
-    assert main(["convert", str(raw), "--cycler", name, "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1, err
-    assert str(raw) in err, err
-    assert word in err, err
-    assert not out.parent.exists() or not any(out.parent.iterdir())
-
-
 def test_bad_exports_are_one_line_errors_naming_file_and_column(tmp_path, capsys):
     arbin, _truth = export("arbin", tmp_path)
     base = pd.read_csv(arbin)
@@ -224,9 +215,9 @@ def test_bad_exports_are_one_line_errors_naming_file_and_column(tmp_path, capsys
     wrong_ext.write_text(arbin.read_text())
     cases.append((wrong_ext, "arbin", "'.dat'"))
     for raw, name, word in cases:
-        _cli_error(tmp_path, capsys, raw, name, word)
+        cli_error(tmp_path, capsys, raw, name, word)
     # a mixed-units message names both columns
-    _cli_error(tmp_path, capsys, tmp_path / "mixed.csv", "arbin", "'Charge Capacity (Ah)'")
+    cli_error(tmp_path, capsys, tmp_path / "mixed.csv", "arbin", "'Charge Capacity (Ah)'")
 
 
 def test_cli_convert_writes_csv_and_sidecar(tmp_path, capsys):
@@ -648,8 +639,8 @@ def test_a_temperature_in_kelvin(tmp_path, capsys):
     raw = raw.rename(columns={"Aux_Temperature_1(K)": "Temperature (C)_1"})
     raw.to_csv(path, index=False)
     # (named by the raw column, whether cycler.py or records.check_scale refuses it)
-    _cli_error(tmp_path, capsys, path, "arbin", "column 'Temperature (C)_1': ")
-    _cli_error(tmp_path, capsys, path, "arbin", "looks like kelvin")
+    cli_error(tmp_path, capsys, path, "arbin", "column 'Temperature (C)_1': ")
+    cli_error(tmp_path, capsys, path, "arbin", "looks like kelvin")
 
 
 def test_each_cyclers_export_is_recognised_by_its_header(tmp_path):
@@ -696,7 +687,7 @@ def test_a_reader_failure_names_the_cycler_expected_and_the_one_it_looks_like(tm
     'start_time_line'": one line instead, naming the file, the cycler and its look."""
     path, _ = export("arbin", tmp_path)
     label = cycler.CYCLERS[wrong].label
-    _cli_error(tmp_path, capsys, path, wrong, f"{cycler.CYCLERS[wrong].article} {label} export")
-    _cli_error(tmp_path, capsys, path, wrong, "it looks like an Arbin export: use --cycler arbin")
+    cli_error(tmp_path, capsys, path, wrong, f"{cycler.CYCLERS[wrong].article} {label} export")
+    cli_error(tmp_path, capsys, path, wrong, "it looks like an Arbin export: use --cycler arbin")
     main(["convert", str(path), "--cycler", wrong, "--out", str(tmp_path / "o.csv")])
     assert "start_time_line" not in capsys.readouterr().err
