@@ -408,7 +408,7 @@ def cmd_convert(args) -> None:
     from pathlib import Path
 
     from .io import unchanged_while_read
-    from .real.importers import cycler
+    from .importers import cycler
 
     out = Path(args.out)
     if out.suffix.lower() != ".csv":

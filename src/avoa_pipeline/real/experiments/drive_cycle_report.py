@@ -35,7 +35,7 @@ def demo(cfg: dict, out_dir=None) -> dict:
     circuits) written to ``out_dir``; the notebook's inputs when the workflow's are not given."""
     from ... import plan
     from ...jobs import real as jobs
-    from ..importers import panasonic
+    from ...importers import panasonic
     from . import drive_cycles as dc
 
     out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))

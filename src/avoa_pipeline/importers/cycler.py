@@ -65,10 +65,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import records
-from ...errors import DataError, UserError
-from ...io import regular_file, sha256
-from ...names import CURRENT_FROM
+from .. import records
+from ..errors import DataError, UserError
+from ..io import regular_file, sha256
+from ..names import CURRENT_FROM
 from . import binary
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)

@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import records
-from ...errors import ConfigError, DataError
-from ...io import read_csv
+from .. import records
+from ..errors import ConfigError, DataError
+from ..io import read_csv
 from .samsung import data_root, read_numeric_csv
 
 SOURCE_COLUMNS = ("voltage", "current", "temperature", "time")
