@@ -28,9 +28,9 @@ from test_ecm import TRUTH, profile_frame, with_voltage
 from avoa_pipeline import inputs, records
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError, UserError
+from avoa_pipeline.importers import cycler
 from avoa_pipeline.model import ecm
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.importers import cycler
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "avoa_pipeline"
 
