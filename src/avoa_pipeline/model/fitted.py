@@ -427,7 +427,14 @@ def _pair(items: dict) -> dict:
 def model_schema(config: Config) -> dict:
     """The JSON Schema of a model.json of ``config``: the schema file, with its parameters'
     names and ranges (``ecm.LIMITS``, each bound in its transform's domain), the values written
-    for readers, the OCV kind and table, and the interval entries of this configuration."""
+    for readers, the OCV kind and table, and the interval entries of this configuration. Built
+    once per configuration (shared: not to be edited)."""
+    return _schema_of(config.effects, config.table is not None)
+
+
+@functools.cache
+def _schema_of(effects: tuple[str, ...], table: bool) -> dict:
+    config = Config(effects, _STAND_IN_TABLE if table else None)
     s = copy.deepcopy(_library_schema())
     top, d = s["properties"], s["$defs"]
     top["ocv"]["const"] = config.ocv_kind
@@ -446,7 +453,19 @@ def model_schema(config: Config) -> dict:
     entries["required"] = reports
     pair = d["intervals"]["properties"]["correlated_pairs"]["items"]["properties"]
     pair["a"]["enum"] = pair["b"]["enum"] = reports
-    return s
+    return _inlined(s, d)
+
+
+def _inlined(node, defs: dict):
+    """``node`` with each ``$ref`` replaced by the definition it names: jsonschema resolves a
+    reference on every validation (a thermal model.json: 5.9 ms with them, 4.8 ms inlined)."""
+    if isinstance(node, dict):
+        if "$ref" in node:
+            return _inlined(defs[node["$ref"].removeprefix("#/$defs/")], defs)
+        return {k: _inlined(v, defs) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_inlined(v, defs) for v in node]
+    return node
 
 
 def _check_intervals(model: FittedModel, params: dict, source: str) -> None:
