@@ -407,8 +407,8 @@ def cmd_recovery(args) -> None:
 def cmd_convert(args) -> None:
     from pathlib import Path
 
+    from .importers import cycler
     from .io import unchanged_while_read
-    from .real.importers import cycler
 
     out = Path(args.out)
     if out.suffix.lower() != ".csv":

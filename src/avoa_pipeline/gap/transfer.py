@@ -150,7 +150,7 @@ def drive_c_rate(profile: str, root: Path, seconds: int) -> np.ndarray:
     (``real.importers.panasonic.read_mat``); each 1-s value is the exact mean of the logged
     current (held between its 0.1-s samples) over that second, so the replayed charge is the
     logged one."""
-    from ..real.importers import panasonic
+    from ..importers import panasonic
 
     df = panasonic.read_mat(root / PANASONIC_DRIVE[profile])
     t = df["Time"].to_numpy()

@@ -13,7 +13,7 @@ from ..plan import real_section
 
 
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
-    from ..real.importers import panasonic
+    from ..importers import panasonic
 
     side = panasonic.import_named(cfg, name, out_csv)
     write_log(log, f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah "
@@ -323,7 +323,7 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
 
 
 def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
-    from ..real.importers import samsung
+    from ..importers import samsung
 
     real_section(cfg, "samsung")
     frame, side = samsung.import_hppc(cfg, temperature, out_csv)
@@ -373,7 +373,7 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
 
 
 def nasa_import(cfg, out_csv, log=None) -> None:
-    from ..real.importers import nasa
+    from ..importers import nasa
 
     real_section(cfg, "nasa")
     frame, side = nasa.import_b0005(cfg, out_csv)

@@ -33,9 +33,9 @@ from ..errors import UserError
 
 def _drive_cycles(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
     from .. import plan
+    from ..importers import panasonic
     from ..jobs import real as jobs
     from .experiments import drive_cycles as dc
-    from .importers import panasonic
 
     exp = dc.experiment(cfg)
     temps = temps or dc.temperatures(cfg)
@@ -128,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
+        from ..importers import panasonic
         from ..jobs import real as jobs
-        from .importers import panasonic
 
         cfg = config_mod.load(args.config)
         if args.command == "list":
