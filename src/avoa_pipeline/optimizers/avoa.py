@@ -289,10 +289,9 @@ def avoa(
     S, P, D = runs.n, pop_size, runs.dim
     sigma = levy_sigma()
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    X, f = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
     best = BestTwo(S, D)
-    best.update((yield from runs.ask(X)), X)
-    runs.end_iteration()
+    best.update(f, X)
     T = runs.planned_iterations(P)
     draws = np.empty((S, 2 + 5 * P))
     normals = np.empty((S, 2, P, D))

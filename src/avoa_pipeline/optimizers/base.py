@@ -320,6 +320,17 @@ class Runs:
         (n, k, D)."""
         return np.stack([self.lb + rng.random((k, self.dim)) * (self.ub - self.lb) for rng in rngs])
 
+    def initial_population(
+        self, rngs: Sequence[np.random.Generator], k: int
+    ) -> Generator[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """``X, f = yield from runs.initial_population(rngs, k)``: a population method's start,
+        :meth:`random_uniform`'s ``k`` points per run, their values (:meth:`ask`) and iteration
+        0 of the history closed."""
+        X = self.random_uniform(rngs, k)
+        f = yield from self.ask(X)
+        self.end_iteration()
+        return X, f
+
     # --- clocks and results -------------------------------------------------------------------
     def charge_moves(self, seconds: float, runs: np.ndarray) -> None:
         """Split the algorithm's time of one step equally over the runs it moved."""

@@ -162,9 +162,7 @@ def ga(
     adaptive = mutation == "adaptfeasible"
     which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
-    score = yield from runs.ask(X)
-    runs.end_iteration()
+    X, score = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
     best_before, best_last = np.full(S, np.nan), score.min(axis=1)  # the last two generations'
     delta = np.ones(S)
     offset = np.empty(S)
