@@ -83,7 +83,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Runs, Steps, register
+from .base import Runs, Steps, register, uniform_in_box
 
 __all__ = [
     "NM_OPTIONS",
@@ -327,13 +327,11 @@ def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **se
     if unknown:
         raise TypeError(f"nelder_mead: unknown settings {sorted(unknown)}; known: {NM_OPTIONS}")
     search = Simplexes(runs.lb, runs.ub, runs.n, **settings)
-    span = runs.ub - runs.lb
 
     def restart(which: np.ndarray) -> None:
         s = np.flatnonzero(which)
-        # Runs.random_uniform's start, one draw of D doubles per seed when its search starts
-        u = np.stack([rngs[i].random((1, runs.dim))[0] for i in s])
-        search.restart(s, runs.lb + u * span)
+        # one draw of D doubles per seed when its search starts
+        search.restart(s, np.concatenate([uniform_in_box(rngs[i], runs.lb, runs.ub, 1) for i in s]))
 
     alive = ~runs.done
     restart(alive)

@@ -83,7 +83,7 @@ import numpy as np
 # private: scipy exposes no public reverse-communication L-BFGS-B; see the module docstring
 from scipy.optimize import _lbfgsb
 
-from .base import Runs, Steps, register
+from .base import Runs, Steps, register, uniform_in_box
 
 LBFGSB_DEFAULTS = {
     "ftol": 2.2204460492503131e-09,
@@ -237,9 +237,8 @@ class Restarts:
             return True
         if done:
             return False
-        lb, ub = self.core.lb, self.core.ub
-        x0 = lb + self.rngs[s].random((1, lb.size)) * (ub - lb)  # Runs.random_uniform
-        self.searches[s] = LbfgsbSearch(x0[0], self.core)
+        x0 = uniform_in_box(self.rngs[s], self.core.lb, self.core.ub, 1)[0]
+        self.searches[s] = LbfgsbSearch(x0, self.core)
         return True
 
     def tell(self, s: int, f: float, g: np.ndarray, has_nan: bool, done: bool) -> bool:
