@@ -167,7 +167,7 @@ class _Draws:
     a following run's are never used)."""
 
     def __init__(self, S: int, P: int, D: int):
-        self.P, self.D = P, D
+        self.P = P
         self.uniform = np.empty((S, 2 + 3 * P + P * D))
         self.idx = np.empty((S, P, 3), dtype=np.int64)
         self.choice = np.zeros((S, P))
@@ -175,9 +175,8 @@ class _Draws:
         self.q = np.zeros((S, P))
 
     def exploration(self, rngs: list[np.random.Generator], decay: float) -> np.ndarray:
-        """Draw the exploration's numbers of every run; its C (computed with ``math.cos`` run
-        by run, the one-run code's function: numpy's vectorised cosine is not promised to
-        round as libm's does on every CPU)."""
+        """Draw the exploration's numbers of every run; its C, with libm's ``math.cos`` run by
+        run (the module docstring says why)."""
         C = np.empty(len(rngs))
         for s, rng in enumerate(rngs):
             rng.random(out=self.uniform[s])
