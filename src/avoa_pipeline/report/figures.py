@@ -863,13 +863,13 @@ def _time_axis_and_grids(top, bottom) -> None:
     bottom.grid(True, color="0.9", lw=0.6)
 
 
-def _finish_before_after(fig, axes, ylabels, legend_loc: str, title: str, stem) -> None:
+def _finish_before_after(fig, axes, problem, ylabels, legend_loc: str, title: str, stem) -> None:
     """Figures 20-21's labels of the left column (top, bottom), the legend of the top-left
-    panel, the title; written to ``stem``."""
+    panel, the title over the problem's description; written to ``stem``."""
     axes[0, 0].set_ylabel(ylabels[0])
     axes[1, 0].set_ylabel(ylabels[1])
     axes[0, 0].legend(fontsize=8, loc=legend_loc)
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(title + "\n" + _subtitle(problem), fontsize=10)
     save(fig, stem)
 
 
@@ -900,10 +900,10 @@ def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
         _finish_before_after(
             fig,
             axes,
+            problem,
             ("voltage (V)", r"transient voltage $V_{tr}$ (mV)"),
             "lower left",
-            "Figure 20. Battery voltage characteristics before and after optimisation\n"
-            + _subtitle(problem),
+            "Figure 20. Battery voltage characteristics before and after optimisation",
             stem,
         )
     finally:
@@ -939,10 +939,10 @@ def fig21(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
         _finish_before_after(
             fig,
             axes,
+            problem,
             ("terminal voltage (V)", "error model − measured (mV)"),
             "lower right",
-            "Figure 21. Measured and model voltage before and after optimisation\n"
-            + _subtitle(problem),
+            "Figure 21. Measured and model voltage before and after optimisation",
             stem,
         )
     finally:
