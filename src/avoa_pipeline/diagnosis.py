@@ -191,11 +191,13 @@ def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | No
         warnings=read.warnings, progress=progress,
         current_accuracy_a=current_accuracy_a)  # fmt: skip
     heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
+    # the files read, never to be written over: paths, and checked records read from a file
     given = [str(p) for p in (*data, *validate, *([ocv] if ocv is not None else ()))
              if _is_path(p)]  # fmt: skip
+    given += [c.source for c in (*read.train, *read.validate) if c.origin.get("read_as") != "frame"]
     names = tuple(str(x) if _is_path(x) else c.source
                   for x, c in zip(data, read.train, strict=True))  # fmt: skip
-    return Diagnosis(report, model, arrays, read, names, heat_line, tuple(given))
+    return Diagnosis(report, model, arrays, read, names, heat_line, tuple(dict.fromkeys(given)))
 
 
 def flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:

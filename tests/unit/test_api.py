@@ -149,11 +149,12 @@ def test_simulate_needs_an_ambient_where_the_record_has_no_temperature(cell_file
         model.simulate(frame.to_numpy())
 
 
-def test_estimate_returns_what_the_command_writes(cell_files, tmp_path):
+def test_estimate_returns_what_the_command_writes(both, tmp_path):
+    path, cli_out, _, _ = both  # a model diagnose wrote: estimate needs its intervals
     out = tmp_path / "est.csv"
-    assert main(["estimate", str(cell_files / "model.json"), str(cell_files / "with_t.csv"),
-                 "--out", str(out), "--soc0", "0.9"]) == 0  # fmt: skip
-    result = load_model(cell_files / "model.json").estimate(cell_files / "with_t.csv", soc0=0.9)
+    assert main(["estimate", str(cli_out / "model.json"), str(path), "--out", str(out),
+                 "--soc0", "0.9"]) == 0  # fmt: skip
+    result = load_model(cli_out / "model.json").estimate(path, soc0=0.9)
     want = pd.read_csv(out)
     assert list(result.frame.columns) == list(want.columns)
     np.testing.assert_allclose(result.frame.to_numpy(), want.to_numpy(), rtol=1e-12, atol=0)
@@ -162,10 +163,11 @@ def test_estimate_returns_what_the_command_writes(cell_files, tmp_path):
     assert result.summary["soc0_guess"] == 0.9
 
 
-def test_export_returns_what_the_command_writes(cell_files, tmp_path):
-    model = load_model(cell_files / "model.json")
+def test_export_returns_what_the_command_writes(both, tmp_path):
+    _, cli_out, _, _ = both
+    model = load_model(cli_out / "model.json")
     csv = tmp_path / "table.csv"
-    assert main(["export", str(cell_files / "model.json"), "--to", "table", "--out",
+    assert main(["export", str(cli_out / "model.json"), "--to", "table", "--out",
                  str(csv)]) == 0  # fmt: skip
     table = model.export(to="table")
     np.testing.assert_allclose(table.to_numpy(), pd.read_csv(csv).to_numpy(), rtol=1e-9)
@@ -176,12 +178,13 @@ def test_export_returns_what_the_command_writes(cell_files, tmp_path):
         model.export(to="table", soc0=0.5)
 
 
-def test_export_to_pybamm_is_the_commands_module(cell_files, tmp_path):
+def test_export_to_pybamm_is_the_commands_module(both, tmp_path):
     pytest.importorskip("pybamm")
+    path, cli_out, _, _ = both
     py = tmp_path / "cell.py"
-    assert main(["export", str(cell_files / "model.json"), "--to", "pybamm", "--out",
-                 str(py)]) == 0  # fmt: skip
-    text = load_model(cell_files / "model.json").export(to="pybamm", file_name="cell.py")
+    assert main(["export", str(cli_out / "model.json"), "--to", "pybamm", "--out", str(py),
+                 "--record", str(path)]) == 0  # fmt: skip
+    text = load_model(cli_out / "model.json").export(to="pybamm", record=path, file_name="cell.py")
     assert text == py.read_text()
 
 
