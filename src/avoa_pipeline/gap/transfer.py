@@ -148,7 +148,7 @@ def default_panasonic_root() -> Path:
 def drive_c_rate(profile: str, root: Path, seconds: int) -> np.ndarray:
     """``seconds`` of a Panasonic drive cycle's current at 1 s, in C-rates of the Panasonic cell
     (positive = discharge). Read by the project's importer
-    (``real.importers.panasonic.read_mat``); each 1-s value is the exact mean of the logged
+    (``importers.panasonic.read_mat``); each 1-s value is the exact mean of the logged
     current (held between its 0.1-s samples) over that second, so the replayed charge is the
     logged one."""
     from ..importers import panasonic
