@@ -62,7 +62,8 @@ def mixes() -> dict[str, tuple[str, ...]]:
 
 def cases():
     """(name, record, rows X, table or None, load_ohm or None)."""
-    table = ecm.OcvTable.from_points(np.linspace(0, 1, 11), 3.2 + 0.9 * np.linspace(0, 1, 11) ** 0.8)
+    soc = np.linspace(0, 1, 11)
+    table = ecm.OcvTable.from_points(soc, 3.2 + 0.9 * soc**0.8)
     for rname, rec in records().items():
         for mname, effects in mixes().items():
             x = ecm.vector(BASE)
@@ -102,5 +103,9 @@ def simulate_all() -> tuple[dict[str, np.ndarray], dict[str, str]]:
 if __name__ == "__main__":
     full, digests = simulate_all()
     names = sorted(digests)
-    np.savez_compressed(sys.argv[1], **full, digest_names=np.array(names),
-                        digests=np.array([digests[n] for n in names]))
+    np.savez_compressed(
+        sys.argv[1],
+        **full,
+        digest_names=np.array(names),
+        digests=np.array([digests[n] for n in names]),
+    )

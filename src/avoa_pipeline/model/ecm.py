@@ -55,14 +55,22 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from functools import cached_property
 
-import numba as nb
 import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
 from ..records import at_rest, current_scale
-from . import elements, kernel
-from .elements.element import FARADAY, GAS_R, N_KNOTS, Param, Physical
+from . import _simulator, elements, kernel
+from .elements.element import FARADAY, GAS_R, N_KNOTS, Physical
+
+# isort: off
+from .layout import (  # noqa: F401 - the parameter table and layout, read as ecm's
+    BASE_PARAMS, BVG, BY_REPORT, D0, DUDT, ETA, EXTRAS_COLUMNS, GAM, H0, HM, IDX, IOFF, KD,
+    KLOW, KQ, L0, L1, LIMITS, N_SCALAR, NAMES, NEUTRAL, NP, NX, OMB, PARAMS, PHYS, R0, R1, R2,
+    R3, RHO, SIG, SOC0, TAU1, TAU2, TAU3, TAUD, TH0, TH1, THBV, THTAU, VECTORS, VNOM, VOFF, Q,
+    columns, element_params, to_physical,
+)  # fmt: skip
+# isort: on
 
 T_DEFAULT_K = 298.15
 KELVIN_PER_TWO_RT_F = FARADAY / (2.0 * GAS_R)  # T = (2RT/F) × this: the loop reads T from 2RT/F
@@ -79,129 +87,6 @@ the smooth limit (84 mV at 100,001 points). 4001 doubles are 32 kB, inside a cor
 EFFECTS = elements.NAMES
 """Elements a model may add to its base (the registry, ``model/elements/``, in its order)."""
 REQUIRES = {e.name: e.requires for e in elements.REGISTRY.values() if e.requires}
-
-_R_WHY = "0-2 Ω: above the resistance of any cell this library models (mΩ to about 1 Ω)"
-BASE_PARAMS: dict[str, Param] = {
-    "vnom": Param("vnom_v", "lin", 0.0, (1.5, 5.0), "a lithium-ion cell's voltage",
-                  element="rational"),
-    "lc": Param("beta", "log10_1m", 0.0, (-2.0, 0.9999), "β: the OCV rises with SOC",
-                element="rational"),
-    "lq": Param("capacity_ah", "log10", 0.0, (1e-3, 1e4),
-                "1 mAh to 100 A / records.MIN_C_RATE (the largest cells)", element="base"),
-    "soc0": Param("soc0", "lin", 0.0, (0.0, 1.0), "a state of charge", per_record=True,
-                  element="base"),
-    "r0": Param("r0_ohm", "lin", 0.0, (0.0, 2.0), _R_WHY, element="base"),
-    "r1": Param("r1_ohm", "lin", 0.0, (0.0, 2.0), _R_WHY, element="base"),
-    "ltau1": Param("tau1_s", "log10", 1.0, (0.05, 2e4),
-                   "50 ms (a logger's fastest useful step) to 5.6 h", scale="tau", element="base"),
-}  # fmt: skip
-"""The base model's parameters (the rational OCV's two, then the circuit's)."""
-
-
-def _params() -> dict[str, Param]:
-    """The base's parameters, then each element's scalars, then the vector elements' coordinates
-    (their physical values are N_KNOTS each, :data:`VECTORS`), each marked with its element."""
-    els = elements.REGISTRY.values()
-    scalars = {n: replace(p, element=e.name) for e in els if e.vector is None
-               for n, p in e.params.items()}  # fmt: skip
-    vectors = {n: replace(p, element=e.name) for e in els if e.vector is not None
-               for n, p in e.params.items()}  # fmt: skip
-    return {**BASE_PARAMS, **scalars, **vectors}
-
-
-PARAMS: dict[str, Param] = _params()
-"""The one table of parameters: report name, transform, neutral value, limits and their reason,
-element, and whether the value belongs to a record (initial state) rather than to the cell."""
-NAMES = tuple(PARAMS)
-
-LIMITS: dict[str, tuple[float, float]] = {n: p.limits for n, p in PARAMS.items()}
-"""The library's physical range of every parameter (report units), whatever the records: a
-fit's bounds (``fitting.bounds_for``) lie inside it, and a loaded ``model.json`` is judged
-against it, not against bounds read from the same file."""
-IDX = {n: k for k, n in enumerate(NAMES)}
-NX = len(NAMES)
-NEUTRAL = np.array([PARAMS[n].neutral for n in NAMES])
-BY_REPORT = {p.report: n for n, p in PARAMS.items()}
-
-# physical layout: the scalar names, then N_KNOTS values at the knots for each vector element:
-# the OCV correction (V), the log-multipliers of R0 and of R1. The compiled loop reads these
-# columns as constants; numba caches them with the loop and does not see a change made in
-# another file, so they are written out here and checked against the registry's layout below.
-_VECTOR_ELEMENTS = tuple(e.name for e in elements.REGISTRY.values() if e.vector is not None)
-N_SCALAR = NX - sum(len(elements.get(e).params) for e in _VECTOR_ELEMENTS)
-(VNOM, OMB, Q, SOC0, R0, R1, TAU1, R2, TAU2, R3, TAU3, KLOW, SIG, KD, TAUD, HM, GAM, H0, BVG,
- TH0, TH1, IOFF, VOFF, ETA, RHO, THBV, THTAU, DUDT, KQ) = range(N_SCALAR)  # fmt: skip
-_COLUMNS = ("vnom", "lc", "lq", "soc0", "r0", "r1", "ltau1", "r2", "ltau2", "r3", "ltau3", "klow",
-            "lsig", "kd", "ltaud", "hm", "lgamma", "h0", "bvg", "th0", "th1", "ioff", "voff",
-            "eta", "rho", "thbv", "thtau", "dudt", "kq")  # fmt: skip
-D0 = N_SCALAR
-L0 = D0 + N_KNOTS
-L1 = L0 + N_KNOTS
-NP = L1 + N_KNOTS
-if NAMES[:N_SCALAR] != _COLUMNS or _VECTOR_ELEMENTS != ("ocv_shape", "r0_soc", "r1_soc"):
-    raise RuntimeError("the element registry's layout differs from the compiled simulator's "
-                       "columns: update ecm's column constants and ecm._loop")  # fmt: skip
-PHYS = (*NAMES[:N_SCALAR], *(f"d{j}" for j in range(N_KNOTS)),
-        *(f"l0_{j}" for j in range(N_KNOTS)), *(f"l1_{j}" for j in range(N_KNOTS)))  # fmt: skip
-
-_LOG = np.array([PARAMS[n].transform == "log10" for n in NAMES[:N_SCALAR]])
-_LOG1M = np.array([PARAMS[n].transform == "log10_1m" for n in NAMES[:N_SCALAR]])
-_POW = np.flatnonzero(_LOG | _LOG1M)  # physical = 10**internal (for β the physical column is 1 − β)
-
-
-def element_params(element: str, ocv_kind: str = "rational") -> tuple[str, ...]:
-    """Internal names an element adds (``base``: the base model's, which depend on the OCV)."""
-    if element == "base":
-        base = ("lq", "soc0", "r0", "r1", "ltau1")
-        return ("vnom", "lc", *base) if ocv_kind == "rational" else (*base, "voff")
-    return tuple(elements.get(element).params)
-
-
-def _basis(lowest: int) -> np.ndarray:
-    """(N_KNOTS, N_KNOTS − lowest): discrete orthogonal polynomials over the knots of degree
-    ``lowest``..N_KNOTS − 1, scaled to a largest entry of 1."""
-    x = np.linspace(-1.0, 1.0, N_KNOTS)
-    q, _ = np.linalg.qr(np.vander(x, N_KNOTS, increasing=True))
-    b = q[:, lowest:]
-    return b / np.abs(b).max(axis=0)
-
-
-VECTORS = tuple(
-    (e, tuple(elements.get(e).params), _basis(elements.get(e).vector.lowest), D0 + j * N_KNOTS)
-    for j, e in enumerate(_VECTOR_ELEMENTS)
-)
-"""The elements whose coordinates map onto values at the N_KNOTS SOC knots: (element, internal
-names, basis, first physical column). ocv_shape's basis has no constant or linear part (those
-are in the base's reach: Vnom, β, capacity, SOC0, the table's offset; leaving them out keeps the
-fit well posed and keeps ocv_shape from mimicking a voltage offset); r0_soc's and r1_soc's has
-no constant (a constant factor is R0's or R1's own)."""
-_VEC_IDX = [np.array([NAMES.index(n) for n in names]) for _, names, _, _ in VECTORS]
-
-
-def columns(element) -> np.ndarray:
-    """An element's physical columns."""
-    for e, _, _, col in VECTORS:
-        if e == element.name:
-            return np.arange(col, col + N_KNOTS)
-    return np.array([IDX[n] for n in element.params])
-
-
-EXTRAS_COLUMNS = np.concatenate([columns(e) for e in elements.REGISTRY.values()
-                          if e.compiled == "extras"])  # fmt: skip
-"""The physical columns of the elements the "extras" version of the simulator carries
-(:func:`_kernel`): the version runs where any is not zero (their neutral value)."""
-
-
-def to_physical(X: np.ndarray) -> np.ndarray:
-    """Physical rows (m, NP) of internal rows (m, NX)."""
-    X = np.atleast_2d(np.asarray(X, dtype=float))
-    P = np.empty((X.shape[0], NP))
-    P[:, :N_SCALAR] = X[:, :N_SCALAR]
-    P[:, _POW] = 10.0 ** X[:, _POW]
-    for (_, _, basis, col), idx in zip(VECTORS, _VEC_IDX, strict=True):
-        P[:, col : col + N_KNOTS] = X[:, idx] @ basis.T
-    return P
-
 
 REST_BLIND = frozenset({"thermal", "butler_volmer", "bv_arrhenius"})
 """Elements whose every temperature term multiplies the current (R0's and the RC resistances'
@@ -547,307 +432,12 @@ class Record:
 
 
 # ----------------------------------------------------------------------------------------------
-# the compiled simulator
+# the compiled simulator: written by model/loopgen.py from the base's and the elements' statements
+# (model/_simulator.py), one compiled function per version; "extras" carries the elements
+# compiled only where a row uses one (``Element.compiled``)
 
 
-def _kernel(extras: bool):
-    """The compiled simulator, one version with and one without the issue-19 elements (R0/R1
-    by SOC, the charge R0, the Arrhenius exchange current): ``extras`` is a constant of the
-    compiled code, so without them their code is not compiled in and the base model costs what
-    it did before them (``benchmarks/bench_simulator.py``; a run-time flag cost 10-25 %)."""
-
-    @nb.njit(cache=True, nogil=True)
-    def simulate(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
-                 g_load, sel, out, tr):  # fmt: skip
-        return _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t,
-                     two_rt_f, g_load, sel, out, tr, extras)  # fmt: skip
-
-    return simulate
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _loop(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f,
-          g_load, sel, out, tr, extras):  # fmt: skip
-    """Terminal voltage of every physical row of ``P`` at the selected samples.
-
-    ``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
-    ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
-    voltages, the thermal R0 factor and the battery current of row 0 when non-empty. An element
-    whose parameter is neutral in every row is skipped (the flags do not change inside the loops,
-    so the compiler takes the branches out of them). ``extras``: a constant of the compiled
-    version (:func:`_kernel`).
-
-    Long records (issue 25): the voltage is computed only at samples that are returned or
-    traced (or under a load, where the current follows it); between them only the state is
-    stepped, and across a held current (same current, step and temperature) with the hold's
-    increments computed once. Every state update is the same operations in the same order as
-    the full pass, so a thinned call returns the full pass's voltages bit for bit
-    (``tests/unit/test_long_records.py``).
-
-    One long function on purpose: numba passes every array argument of a called function, even
-    an inlined one, with a reference count per call. The loop split into four inlined functions
-    (the OCV and the drops, the state update, the hold; results bit for bit the same) ran the base
-    model at 39.6 ns per sample-row against 6.8 (``benchmarks/bench_simulator.py --against``),
-    and the state update alone moved into one, at 71 against 6.8.
-    """
-    m = P.shape[0]
-    n = cur.shape[0]
-    record = tr.shape[0] > 0
-    rational = table.shape[0] == 0
-    nt = table.shape[0]
-    vnom = P[:, VNOM].copy()
-    omb = P[:, OMB].copy()
-    beta = 1.0 - omb
-    q3600 = 3600.0 * P[:, Q]
-    soc = P[:, SOC0].copy()
-    r0 = P[:, R0].copy()
-    r1 = P[:, R1].copy()
-    r2 = P[:, R2].copy()
-    r3 = P[:, R3].copy()
-    tau1 = P[:, TAU1].copy()
-    tau2 = P[:, TAU2].copy()
-    tau3 = P[:, TAU3].copy()
-    klow = P[:, KLOW].copy()
-    sig = P[:, SIG].copy()
-    kd = P[:, KD].copy()
-    taud = P[:, TAUD].copy()
-    hm = P[:, HM].copy()
-    gam = P[:, GAM].copy()
-    h = P[:, H0].copy()
-    bvg = P[:, BVG].copy()
-    th0 = P[:, TH0].copy()
-    th1 = P[:, TH1].copy()
-    ioff = P[:, IOFF].copy()
-    voff = P[:, VOFF].copy()
-    eta = P[:, ETA].copy()
-    rho = P[:, RHO].copy()
-    thbv = P[:, THBV].copy()
-    thtau = P[:, THTAU].copy()
-    dudt = P[:, DUDT].copy()
-    kq = P[:, KQ].copy()
-    d = P[:, D0 : D0 + nk].copy()
-    l0 = P[:, L0 : L0 + nk].copy()
-    l1 = P[:, L1 : L1 + nk].copy()
-    a1 = np.exp(-dt[0] / tau1)
-    a2 = np.exp(-dt[0] / tau2)
-    a3 = np.exp(-dt[0] / tau3)
-    ad = np.exp(-dt[0] / taud)
-    v1 = np.zeros(m)
-    v2 = np.zeros(m)
-    v3 = np.zeros(m)
-    dl = np.zeros(m)
-    hyst = np.any(hm != 0.0)
-    therm0 = np.any(th0 != 0.0)
-    therm1 = np.any(th1 != 0.0)
-    bv = np.any(bvg != 0.0)
-    shape = np.any(d != 0.0)
-    rc2 = np.any(r2 != 0.0)
-    rc3 = np.any(r3 != 0.0)
-    low = np.any(klow != 0.0)
-    diff = np.any(kd != 0.0)
-    soc_r0 = np.any(l0 != 0.0)
-    soc_r1 = np.any(l1 != 0.0)
-    r0chg = np.any(rho != 0.0)
-    bvarr = np.any(thbv != 0.0)
-    ttau = np.any(thtau != 0.0)
-    entr = np.any(dudt != 0.0)
-    qlaw = np.any(kq != 0.0)
-    load = g_load != 0.0
-    hx = np.zeros(m)  # the hysteresis decay of the last sample, per row
-    # a held current between returned samples: the state's per-sample increments are constants
-    # of the hold (no element there depends on the state itself), so they are computed once and
-    # the states stepped in tight loops, the same operations in the same order as below
-    fast = not load and not record and not low
-    tdep = therm1  # the state's increments depend on the temperature: a hold ends where it moves
-    if extras:
-        if soc_r1:
-            fast = False
-        tdep = therm1 or ttau or qlaw
-    b1, b2, b3, bd = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
-    dqs, hs = np.zeros(m), np.zeros(m)
-    hon = np.zeros(m, dtype=np.bool_)
-    k = 0
-    while k < n:
-        dtk = dt[k]
-        ik0 = cur[k]
-        # the same current over the same step as the sample before (a cycler's hold; never under
-        # a load, whose current follows the voltage): the hysteresis decay is the same number,
-        # so it is reused (one exp per row and sample was most of a hysteresis model's cost)
-        held = not load and k > 0 and ik0 == cur[k - 1] and dtk == dt[k - 1]
-        if extras:  # noqa: SIM102 - as below
-            if qlaw and held:  # the decay's charge step follows the temperature's capacity
-                held = dinv_t[k] == dinv_t[k - 1]
-        dinv = dinv_t[k]
-        rtf = two_rt_f[k]
-        row = sel[k]
-        if not uniform:
-            for c in range(m):
-                a1[c] = np.exp(-dtk / tau1[c])
-                a2[c] = np.exp(-dtk / tau2[c])
-                a3[c] = np.exp(-dtk / tau3[c])
-                ad[c] = np.exp(-dtk / taud[c])
-        qf = 1.0  # capacity_temperature's T − Tref, for its factor and for entropic's term
-        dtemp = 0.0
-        if extras:
-            if ttau:  # thermal_tau: the RC time constants follow the temperature
-                for c in range(m):
-                    ft = np.exp(thtau[c] * dinv)
-                    a1[c] = np.exp(-dtk / (tau1[c] * ft))
-                    a2[c] = np.exp(-dtk / (tau2[c] * ft))
-                    a3[c] = np.exp(-dtk / (tau3[c] * ft))
-            if qlaw or entr:
-                tk = rtf * KELVIN_PER_TWO_RT_F
-                dtemp = tk - 1.0 / (1.0 / tk - dinv)
-        if fast and row < 0:
-            e = k + 1
-            while (e < n and sel[e] < 0 and cur[e] == ik0 and dt[e] == dtk
-                   and (not tdep or dinv_t[e] == dinv)):  # fmt: skip
-                e += 1
-            if e - k > 1:
-                for c in range(m):
-                    i = ik0 + ioff[c]
-                    g = 1.0
-                    f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
-                    gi = f1 * g * i
-                    b1[c] = r1[c] * (1.0 - a1[c]) * gi
-                    b2[c] = r2[c] * (1.0 - a2[c]) * gi
-                    b3[c] = r3[c] * (1.0 - a3[c]) * gi
-                    bd[c] = (1.0 - ad[c]) * kd[c] * i
-                    ie = i if i > 0.0 else eta[c] * i
-                    if extras:
-                        qf = 1.0 + kq[c] * dtemp if qlaw else 1.0
-                    dqs[c] = ie * dtk / (q3600[c] * qf) if extras else ie * dtk / q3600[c]
-                    hon[c] = hyst and i != 0.0
-                    if hon[c]:
-                        hx[c] = np.exp(-abs(dqs[c] * gam[c]))
-                        hs[c] = (1.0 - hx[c]) * (1.0 if i > 0.0 else -1.0)
-                for _ in range(e - k):
-                    for c in range(m):
-                        v1[c] = a1[c] * v1[c] + b1[c]
-                    if rc2:
-                        for c in range(m):
-                            v2[c] = a2[c] * v2[c] + b2[c]
-                    if rc3:
-                        for c in range(m):
-                            v3[c] = a3[c] * v3[c] + b3[c]
-                    if diff:
-                        for c in range(m):
-                            dl[c] = ad[c] * dl[c] + bd[c]
-                    if hyst:
-                        for c in range(m):
-                            if hon[c]:
-                                h[c] = hx[c] * h[c] - hs[c]
-                    for c in range(m):
-                        soc[c] = soc[c] - dqs[c]
-                k = e
-                continue
-        # the terminal voltage is needed only where it is returned or recorded, or where a load
-        # makes the current follow it; elsewhere only the state is stepped (a fit returns a
-        # thinned subset of a long record, so most samples only carry the state forward)
-        need_v = load or record or row >= 0
-        for c in range(m):
-            s = soc[c]
-            g = 1.0 + klow[c] * np.exp(-min(max(s, -0.5), 2.0) / sig[c]) if low else 1.0
-            f1 = np.exp(th1[c] * dinv) if therm1 else 1.0
-            g1 = 1.0
-            if extras:  # noqa: SIM102 - a constant alone, so that the compiler drops the block
-                if soc_r1:
-                    xs = (s - k_lo) / k_step
-                    js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
-                    ws = min(max(xs - js, 0.0), 1.0)
-                    g1 = np.exp((1.0 - ws) * l1[c, js] + ws * l1[c, js + 1])
-            ip = ik0 + ioff[c]
-            i = ip
-            if need_v:
-                so = s - dl[c] if diff else s
-                if rational:
-                    sc = min(max(so, 0.0), 1.2)  # the rational curve is singular outside
-                    e = vnom[c] * sc / (omb[c] + beta[c] * sc)
-                else:
-                    x = (so - tab_lo) / tab_step
-                    if x <= 0.0:
-                        e = table[0]
-                    elif x >= nt - 1:
-                        e = table[nt - 1]
-                    else:
-                        j = int(x)
-                        w = x - j
-                        e = (1.0 - w) * table[j] + w * table[j + 1]
-                    sc = so
-                if shape:
-                    x = (sc - k_lo) / k_step
-                    if x <= 0.0:
-                        e += d[c, 0]
-                    elif x >= nk - 1:
-                        e += d[c, nk - 1]
-                    else:
-                        j = int(x)
-                        w = x - j
-                        e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
-                e += voff[c]
-                if extras:  # noqa: SIM102 - as above
-                    if entr:
-                        e += dudt[c] * dtemp
-                if hyst:
-                    e += hm[c] * h[c]
-                f0 = np.exp(th0[c] * dinv) if therm0 else 1.0
-                ro = f0 * g * r0[c]
-                if extras:  # noqa: SIM102 - as above
-                    if soc_r0:  # log-multipliers at the knots, by the (bulk) SOC
-                        xs = (s - k_lo) / k_step
-                        js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
-                        ws = min(max(xs - js, 0.0), 1.0)
-                        ro *= np.exp((1.0 - ws) * l0[c, js] + ws * l0[c, js + 1])
-                e -= v1[c] + v2[c] + v3[c]
-                if extras:  # noqa: SIM102 - as above
-                    if r0chg and ip < 0.0:
-                        ro *= np.exp(rho[c])
-                if load:  # the load's current follows the terminal voltage: solved exactly
-                    v = (e - ro * ip) / (1.0 + ro * g_load)
-                    i = ip + v * g_load
-                else:
-                    v = e - ro * i
-                    if bv:
-                        gb = bvg[c]
-                        if extras:  # noqa: SIM102 - as above
-                            if bvarr:
-                                gb *= np.exp(thbv[c] * dinv)
-                        v -= rtf * np.arcsinh(0.5 * gb * i)
-                if row >= 0:
-                    out[row, c] = v
-                if record and c == 0:
-                    tr[0, k] = s
-                    tr[1, k] = h[c]
-                    tr[2, k] = v1[c] + v2[c] + v3[c]
-                    tr[3, k] = f0
-                    tr[4, k] = i
-            gi = f1 * g * i
-            if extras:
-                v1[c] = a1[c] * v1[c] + r1[c] * g1 * (1.0 - a1[c]) * gi
-            else:
-                v1[c] = a1[c] * v1[c] + r1[c] * (1.0 - a1[c]) * gi
-            if rc2:
-                v2[c] = a2[c] * v2[c] + r2[c] * (1.0 - a2[c]) * gi
-            if rc3:
-                v3[c] = a3[c] * v3[c] + r3[c] * (1.0 - a3[c]) * gi
-            if diff:
-                dl[c] = ad[c] * dl[c] + (1.0 - ad[c]) * kd[c] * i
-            ie = i if i > 0.0 else eta[c] * i
-            if extras:
-                qf = 1.0 + kq[c] * dtemp if qlaw else 1.0
-                dq = ie * dtk / (q3600[c] * qf)
-            else:
-                dq = ie * dtk / q3600[c]
-            if hyst and i != 0.0:
-                if not held:
-                    hx[c] = np.exp(-abs(dq * gam[c]))
-                ex = hx[c]
-                h[c] = ex * h[c] - (1.0 - ex) * (1.0 if i > 0.0 else -1.0)
-            soc[c] = s - dq
-        k += 1
-
-
-_SIMULATE = {False: _kernel(False), True: _kernel(True)}
+_SIMULATE = _simulator.SIMULATE
 _NO_TABLE = np.empty(0)
 
 
@@ -873,7 +463,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
         sel = np.full(rec.n, -1)
         sel[idx] = np.arange(idx.size)
     out = np.empty((rec.n if idx is None else idx.size, P.shape[0]))
-    tr = np.empty((5, rec.n)) if traces else np.empty((0, 0))
+    tr = np.zeros((5, rec.n)) if traces else np.empty((0, 0))  # an absent element's trace: 0
     tab = _NO_TABLE if table is None else table.values
     t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
     g = 0.0 if load_ohm is None else 1.0 / load_ohm

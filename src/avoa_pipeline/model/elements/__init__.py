@@ -2,11 +2,13 @@
 
 An element is what a model may add to its base (the OCV, R0, one RC branch, the capacity and the
 initial SOC): each module defines ``ELEMENT`` (:class:`.element.Element`, which lists every part
-an element declares). Adding one: its module here, its line in the tuple below (the order is the
-ladder's order of trying them, ``selection.ladder``), its code in the compiled simulator
-(``ecm._loop``: numba compiles the loop as one function, so an element's kernel code cannot live
-in its module) with its physical columns in ``ecm``'s layout, and its row in
-docs/gap-diagnosis.md. ``tests/unit/test_elements.py`` fails while a part is missing.
+an element declares), its physics stated once in its ``kernel`` (:class:`.element.Kernel`: its
+columns, flags, and code for the compiled simulator's slots). Adding one: its module here, its
+line in the tuple below (the order is the ladder's order of trying them, ``selection.ladder``),
+``python -m avoa_pipeline.model.loopgen --write`` (the compiled simulator, ``model/_simulator.py``,
+is written from the base's statement and every element's; its columns follow the registry), and
+its row in docs/gap-diagnosis.md. ``tests/unit/test_elements.py`` fails while a part is missing,
+``tests/unit/test_loopgen.py`` while the simulator is not rewritten.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...records import REST_FRACTION
-from .element import FARADAY, GAS_R, Element, Export, Param, Piece, Signature, View
+from .element import FARADAY, GAS_R, Element, Export, Kernel, Param, Piece, Signature, View
 
 _BUTLER_VOLMER = '''
 def butler_volmer(T_cell, current):
@@ -45,6 +45,20 @@ def current_bands(v: View) -> dict:
     return {"signed_residual_by_current_mv": bands}
 
 
+KERNEL = Kernel(
+    columns={"bvg": "bvg"},
+    flags={"bv": "np.any(bvg != 0.0)"},
+    code={
+        "overpotential": """if bv:
+    gb = bvg[c]
+    @slot exchange_current
+    v -= rtf * np.arcsinh(0.5 * gb * i)""",
+    },
+)
+"""V −= (2RT/F)·asinh(i/(2 i0)), 1/i0 = bvg (not under the paper's load: its current would follow
+a voltage that is not linear in it). bv_arrhenius fills ``exchange_current``."""
+
+
 ELEMENT = Element(
     name="butler_volmer",
     params={
@@ -72,4 +86,5 @@ ELEMENT = Element(
     would_decide="pulses of several currents at one SOC",
     conflicts={"load": "the load is solved for a linear ohmic drop"},
     withheld=True,
+    kernel=KERNEL,
 )

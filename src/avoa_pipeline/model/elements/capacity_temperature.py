@@ -7,7 +7,22 @@ the records can identify. Offered only where the temperature moves."""
 from __future__ import annotations
 
 from .coulombic_efficiency import charge_piece
-from .element import Element, Export, Param
+from .element import Element, Export, Kernel, Param
+
+KERNEL = Kernel(
+    columns={"kq": "kq"},
+    flags={"qlaw": "np.any(kq != 0.0)"},
+    reads=("dtemp",),
+    factors={"capacity": "qf"},
+    code={
+        "hold_setup": "tdep = tdep or qlaw",
+        # the hysteresis decay's charge step follows the temperature's capacity
+        "held": "if qlaw and held:\n    held = dinv_t[k] == dinv_t[k - 1]",
+        "capacity": "qf = 1.0 + kq[c] * dtemp if qlaw else 1.0",
+    },
+)
+"""The capacity is Q·(1 + κQ·(T − Tref)) in the SOC's step."""
+
 
 ELEMENT = Element(
     name="capacity_temperature",
@@ -35,4 +50,5 @@ ELEMENT = Element(
     would_decide="full discharges at several temperatures",
     compiled="extras",
     needs_temperature=True,
+    kernel=KERNEL,
 )

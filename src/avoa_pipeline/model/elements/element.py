@@ -148,6 +148,37 @@ class Signature:
 
 
 @dataclass(frozen=True)
+class Kernel:
+    """An element's physics, stated once, as code for the compiled simulator's slots
+    (``model/loopgen.py`` writes the loop from the base's statement and these; its docstring
+    lists the slots and the names the base gives a snippet to read and set).
+
+    ``columns``: local array name → the internal parameter whose physical column it copies (one
+    value per row), or ``KNOTS`` for a vector element's N_KNOTS values per row. ``flags``: flag
+    name → expression of the locals, true where the element acts in some row (its code is guarded
+    by it, so that an element neutral in every row costs a test per sample, the branch taken out
+    of the loops by the compiler). ``code``: slot → snippet (Python, indented from column 0), or
+    (position, snippet) where its place among the slot's other snippets changes the floats (sums
+    and products are not associative: snippets of a slot run by position, then registry order).
+    ``branch``: the number j of the RC branch it adds (the generator writes its arrays r{j},
+    tau{j}, a{j}, v{j}, b{j} and its code, as for the base's branch 1, from ``rc_kernel``).
+    ``factors``: a product of the base's (``r1``: branch 1's resistance, ``capacity``: the
+    capacity) → the local it multiplies by. ``reads``: quantities the base computes only for an
+    element that reads them (``dtemp``: the temperature's rise over the reference, K)."""
+
+    columns: Mapping[str, str] = field(default_factory=dict)
+    flags: Mapping[str, str] = field(default_factory=dict)
+    code: Mapping[str, str | tuple[int, str]] = field(default_factory=dict)
+    branch: int | None = None
+    factors: Mapping[str, str] = field(default_factory=dict)
+    reads: tuple[str, ...] = ()
+
+
+KNOTS = "@knots"
+"""A vector element's column in :attr:`Kernel.columns`: its values at the N_KNOTS knots."""
+
+
+@dataclass(frozen=True)
 class Element:
     """One element of the model library. ``starts(row, imax)``: the values (internal, by name)
     each start of its fit sets on the fitted rows it extends (row: the first record's fitted
@@ -155,7 +186,8 @@ class Element:
     cannot be a candidate on these records ("" when it can), beyond what ``requires``,
     ``needs_temperature`` and ``conflicts`` say; ``signature``: its residual signature, or why
     it has none of its own; ``compiled``: the version of the compiled simulator that carries its
-    code ("core", or "extras": compiled in only when a row uses it, ``ecm._kernel``)."""
+    code ("core", or "extras": compiled in only when a row uses it, ``model/loopgen.py``);
+    ``kernel``: its physics in the compiled simulator."""
 
     name: str
     params: dict[str, Param]
@@ -170,6 +202,7 @@ class Element:
     applies: Callable[[list, float], str] | None = None
     vector: Vector | None = None
     withheld: bool = False  # the withheld-effect check (gap/withheld.py) makes records with it
+    kernel: Kernel | None = None  # its physics in the compiled simulator (``model/loopgen.py``)
 
     def conflict(self, table: bool, load: bool) -> str:
         """Why the element cannot join a model with a measured OCV table / the paper's load
@@ -219,6 +252,8 @@ def missing_parts(e: Element) -> list[str]:
         out.append("no PyBaMM mapping, nor why it has none")
     if not e.would_decide.strip():
         out.append("no record that would decide it")
+    if e.kernel is None:
+        out.append("no physics for the compiled simulator (kernel)")
     if e.compiled not in ("core", "extras"):
         out.append(f"compiled {e.compiled!r}: neither 'core' nor 'extras'")
     unknown = sorted(set(e.conflicts) - {"table", "load"})

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece
 
 _SOC_FACTOR = '''
 def soc_factor(soc):
@@ -23,6 +23,19 @@ def _piece(p) -> Piece:
         helpers=(_SOC_FACTOR,),
         factors=(("R0", "soc_factor(soc)"), ("RC", "soc_factor(soc)")),
     )  # fmt: skip
+
+
+KERNEL = Kernel(
+    columns={"klow": "klow", "sig": "lsig"},
+    flags={"low": "np.any(klow != 0.0)"},
+    code={
+        # g follows the SOC, a state: a hold cannot compute its increments once
+        "hold_setup": "fast = fast and not low",
+        "row": "if low:\n    g = 1.0 + klow[c] * np.exp(-min(max(s, -0.5), 2.0) / sig[c])",
+    },
+)
+"""g(s) = 1 + k_low·exp(−s/σ) multiplies R0 and the RC resistances (s clipped to [−0.5, 2]: the
+exponential overflows far outside)."""
 
 
 ELEMENT = Element(
@@ -48,4 +61,5 @@ ELEMENT = Element(
         _piece,
     ),
     would_decide="pulses at low and at high SOC",
+    kernel=KERNEL,
 )

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, View
 
 THETA_LIMITS = (0.0, 12000.0)
 THETA_WHY = "θ = Ea/R up to 12,000 K (≈ 100 kJ/mol, above any cell's activation energy)"
@@ -38,6 +38,20 @@ def _read(v: View) -> dict:
     return {"corr_residual_vs_i_dT": c}
 
 
+KERNEL = Kernel(
+    columns={"th0": "th0", "th1": "th1"},
+    flags={"therm0": "np.any(th0 != 0.0)", "therm1": "np.any(th1 != 0.0)"},
+    code={
+        "hold_setup": "tdep = tdep or therm1",
+        "row": "if therm1:\n    f1 = np.exp(th1[c] * dinv)",
+        "hold_row": "if therm1:\n    f1 = np.exp(th1[c] * dinv)",
+        "r0_factor": "if therm0:\n    f0 = np.exp(th0[c] * dinv)",
+    },
+)
+"""f0 = exp(θ0·(1/T − 1/Tref)) multiplies R0, f1 = exp(θ1·(1/T − 1/Tref)) the RC resistances
+(``dinv``: 1/T − 1/Tref of the sample)."""
+
+
 ELEMENT = Element(
     name="thermal",
     params={
@@ -55,4 +69,5 @@ ELEMENT = Element(
     would_decide="records at other temperatures",
     needs_temperature=True,
     withheld=True,
+    kernel=KERNEL,
 )
