@@ -4,14 +4,17 @@ a charge-dependent R0, an Arrhenius exchange current).
 
 Run: .venv/bin/python benchmarks/bench_simulator.py [--samples 100000] [--rows 12] [--repeat 7]
 
-Prints the ns per sample-row of each configuration (the minimum of ``--repeat`` timings of one
-call each); with ``--against DIR`` it also runs the same on the package in DIR (another
-checkout, e.g. ``git worktree add /tmp/before <commit>``) and prints the ratio now / before for
-the configurations both know: issue 19's goal was ≤ 1.2 for models without its elements, issue
-39's (the loop generated from the elements' statements) ≤ 1.05 for every mix. ``--every``
-adds each element alone (with what it requires; rational OCV) and all of them together.
-``--interleave N``: the two checkouts measured N times in turn, each ratio from the minima over
-all rounds (on a shared, noisy machine a slow spell then hits both).
+Prints the ns per sample-row of each configuration (the minimum of ``--repeat`` timings of one call
+each, in the thread's CPU time: the simulator runs in the calling thread, and on a shared machine
+wall time also counts the spells the process waits for a core: at a load of 10 on 2 cores, the same
+checkout's wall-time minima moved 1.5-2x between runs, its CPU-time ones 5 %); with ``--against
+DIR`` it also runs the same on the package in DIR (another checkout, e.g. ``git worktree add
+/tmp/before <commit>``) and prints the ratio now / before for the configurations both know: issue
+19's goal was ≤ 1.2 for models without its elements, issue 39's (the loop generated from the
+elements' statements) ≤ 1.05 for every mix. ``--every`` adds each element alone (with what it
+requires; rational OCV) and all of them together. ``--interleave N``: the two checkouts measured N
+times in turn, each ratio from the minima over all rounds (on a shared, noisy machine a slow spell
+then hits both).
 """
 
 from __future__ import annotations
@@ -85,9 +88,9 @@ def measure(samples: int, rows: int, repeat: int, every: bool = False) -> dict[s
         ecm.simulate_rows(rec, X, ecm.Knots(0.0, 0.2), tab)  # compile / load the cache
         best = np.inf
         for _ in range(repeat):
-            start = time.perf_counter()
+            start = time.thread_time()
             ecm.simulate_rows(rec, X, ecm.Knots(0.0, 0.2), tab)
-            best = min(best, time.perf_counter() - start)
+            best = min(best, time.thread_time() - start)
         out[name] = 1e9 * best / (samples * rows)
     return out
 
