@@ -215,6 +215,90 @@ the held-current shortcut and the thinned voltage (issue 25); every element's co
 slots. Every state update is the same operations in the same order in the hold and in the full
 pass, so a thinned call returns the full pass's voltages bit for bit."""
 
+STEP_ARGS = ("P, table, tab_lo, tab_step, nk, k_lo, k_step, grid, i_read, dtk, dinv, rtf, X, bias, "
+             "need_v, update, ext, out")  # fmt: skip
+
+STEP = """\
+m = P.shape[0]
+rational = table.shape[0] == 0
+dt = np.full(1, dtk)  # what the setup reads as the first step
+vnom = P[:, @col(vnom)].copy()
+omb = P[:, @col(lc)].copy()
+beta = 1.0 - omb
+q3600 = 3600.0 * P[:, @col(lq)]
+r0 = P[:, @col(r0)].copy()
+r1 = P[:, @col(r1)].copy()
+tau1 = P[:, @col(ltau1)].copy()
+@copies
+a1 = np.exp(-dt[0] / tau1)
+@slot setup
+@flags
+@load_states
+held = False  # the hysteresis decay is computed afresh
+dtemp = 0.0  # T − Tref (K), for the elements that read it
+@slot sample
+if @reads(dtemp):
+    tk = rtf * @kelvin
+    dtemp = tk - 1.0 / (1.0 / tk - dinv)
+for c in range(m):
+    s = soc[c]
+    g = 1.0
+    f1 = 1.0
+    @slot row
+    ip = i_read
+    @slot current
+    ip += bias[c]  # the filter's current-sensor bias state
+    i = ip
+    if need_v:
+        so = s
+        @slot surface
+        if rational:
+            sc = min(max(so, 0.0), 1.2)  # the rational curve is singular outside
+            e = vnom[c] * sc / (omb[c] + beta[c] * sc)
+        else:
+            e = np.interp(so, grid, table)
+            if ext[0] != 0.0:  # the filter's table goes on past its ends with their slopes
+                above = (so - ext[2]) * ext[4] if so > ext[2] else 0.0
+                below = (so - ext[1]) * ext[3] if so < ext[1] else 0.0
+                e = e + (above + below)
+            sc = so
+        @slot ocv
+        f0 = 1.0
+        @slot r0_factor
+        ro = f0 * g * r0[c]
+        @slot r0_multiplier
+        @each_branch e -= v{j}[c]
+        v = e - ro * i
+        @slot overpotential
+        out[c] = v
+    if update:
+        gi = f1 * g * i
+        v1[c] = a1[c] * v1[c] + r1[c]@factors(r1) * (1.0 - a1[c]) * gi
+        @slot update
+        ie = i
+        @slot counted
+        @slot capacity
+        dq = ie * dtk / (q3600[c]@factors(capacity))
+        @slot update_charge
+        soc[c] = s - dq
+if update:
+    @store_states
+"""
+"""The SOC filter's base (``estimate``): one sample for a batch of rows (sigma points), the
+state read from and written back to the columns of ``X`` (:func:`states`), the voltage before
+the step. The same element snippets as :data:`BASE`; where the base differs it is the filter's
+own: a current-sensor bias per row, the OCV table read by ``np.interp`` and continued past its
+ends (``ext``: on, first and last SOC, slope below and above), the RC voltages subtracted one by
+one (the filter's order since issue 29)."""
+
+STEP_DOC = """\
+One sample of the SOC filter's state-space model for every row (``estimate.Model``).
+
+``X`` (m, states): the states of ``loopgen.states``, in that order (:data:`STATES`), stepped
+in place when ``update``; ``out`` (m,): the terminal voltage before the step when ``need_v``.
+Written by ``model/loopgen.py`` from the elements' statements, the same as the simulator's."""
+
+
 DOC = """\
 Terminal voltage of every physical row of ``P`` at the selected samples ({version}: {which}).
 
@@ -261,8 +345,17 @@ def _expand(text: str, kernels: list[Kernel], branches: list[int], depth: int = 
     return out
 
 
-def _version(name: str, kernels: list[Kernel], layout: dict[str, int]) -> str:
-    """The source of one compiled version: ``kernels`` are the elements it carries."""
+def states(kernels: list[Kernel]) -> list[tuple[str, str]]:
+    """(local, name) of every state, in the filter's order: the SOC, RC branch 1, then each
+    element's in registry order."""
+    return [("soc", "soc"), ("v1", "v1"),
+            *((loc, st.name) for k in kernels for loc, st in k.states.items())]  # fmt: skip
+
+
+def _version(name: str, kernels: list[Kernel], layout: dict[str, int], template: str = BASE,
+             args: str = ARGS, doc: str = "") -> str:  # fmt: skip
+    """The source of one compiled function from ``template``: ``kernels`` are the elements it
+    carries."""
     opened = {m for k in kernels for c in k.code.values()
               for m in re.findall(r"@slot (\w+)", c if isinstance(c, str) else c[1])}  # fmt: skip
     for k in kernels:
@@ -271,6 +364,8 @@ def _version(name: str, kernels: list[Kernel], layout: dict[str, int]) -> str:
             raise ValueError(f"unknown slots {sorted(unknown)} (slots: {', '.join(SLOTS)})")
     branches = [1, *(k.branch for k in kernels if k.branch is not None)]
     copies, flags = [], []
+    loads = [f"{loc} = X[:, {j}].copy()" for j, (loc, _) in enumerate(states(kernels))]
+    stores = [f"X[:, {j}] = {loc}" for j, (loc, _) in enumerate(states(kernels))]
     for k in kernels:
         for local, param in k.columns.items():
             if param == KNOTS:
@@ -280,15 +375,11 @@ def _version(name: str, kernels: list[Kernel], layout: dict[str, int]) -> str:
                 copies.append(f"{local} = P[:, {layout[param]}].copy()")
         flags += [f"{f} = {expr}" for f, expr in k.flags.items()]
     lines = []
-    for line in _expand(BASE, kernels, branches):
+    blocks = {"@copies": copies, "@flags": flags, "@load_states": loads, "@store_states": stores}
+    for line in _expand(template, kernels, branches):
         body = line.lstrip()
         pad = line[: len(line) - len(body)]
-        if body == "@copies":
-            lines += [pad + c for c in copies]
-        elif body == "@flags":
-            lines += [pad + f for f in flags]
-        else:
-            lines.append(line)
+        lines += [pad + b for b in blocks[body]] if body in blocks else [line]
     text = "\n".join(lines)
 
     def reads(match):
@@ -304,9 +395,11 @@ def _version(name: str, kernels: list[Kernel], layout: dict[str, int]) -> str:
     text = re.sub(r"@reads\((\w+)\)", reads, text)
     if "@" in text.replace("@nb.", ""):
         raise ValueError(f"a marker left in the loop: {text[text.index('@') :][:60]!r}")
-    which = "every element" if name == "extras" else "the elements compiled in the core"
-    doc = textwrap.indent(DOC.format(version=name, which=which), "    ")
-    return (f"@nb.njit(cache=True, nogil=True)\ndef simulate_{name}({ARGS}):  # noqa: C901\n"
+    if not doc:
+        which = "every element" if name == "extras" else "the elements compiled in the core"
+        doc = DOC.format(version=name, which=which)
+    doc = textwrap.indent(doc, "    ")
+    return (f"@nb.njit(cache=True, nogil=True)\ndef {name}({args}):  # noqa: C901\n"
             f'    """{doc.lstrip()}\n    """\n' + textwrap.indent(text, "    "))  # fmt: skip
 
 
@@ -323,14 +416,18 @@ def source(registry=None) -> str:
                 layout[f"{KNOTS}{local}"] = col
     core = [e.kernel for e in registry.values() if e.compiled == "core"]
     every = [e.kernel for e in registry.values()]
-    names = textwrap.fill("The elements, in registry order: " + ", ".join(registry) + ".", 96)
+    listed = textwrap.fill("The elements, in registry order: " + ", ".join(registry) + ".", 96)
     head = ('"""The compiled simulator, WRITTEN BY ``python -m avoa_pipeline.model.loopgen '
             '--write``:\ndo not edit (edit the base in ``model/loopgen.py`` or an element\'s '
-            f'``Kernel``).\n\n{names}\n"""\n\n'
+            f'``Kernel``).\n\n{listed}\n"""\n\n'
             "# fmt: off\n# ruff: noqa\nimport numba as nb\nimport numpy as np\n\n"
             f"N_KNOTS = {N_KNOTS}  # the vector elements' knots\n\n\n")  # fmt: skip
-    return (head + _version("core", core, layout) + "\n\n" + _version("extras", every, layout)
-            + "\n\nSIMULATE = {False: simulate_core, True: simulate_extras}\n")  # fmt: skip
+    names = ", ".join(f'"{n}"' for _, n in states(every))
+    return (head + _version("simulate_core", core, layout) + "\n\n"
+            + _version("simulate_extras", every, layout) + "\n\n"
+            + _version("step", every, layout, STEP, STEP_ARGS, STEP_DOC) + "\n\n"
+            + "SIMULATE = {False: simulate_core, True: simulate_extras}\n"
+            + f"STATES = ({names},)  # the columns of step's X\n")  # fmt: skip
 
 
 def main(argv=None) -> int:

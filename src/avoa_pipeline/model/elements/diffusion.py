@@ -3,7 +3,7 @@ a single-particle model); unlike an RC branch its voltage scales with the OCV's 
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, State
 
 _SURFACE_SOC_LAG = '''
 class SurfaceSocLag(pybamm.BaseSubModel):
@@ -59,6 +59,7 @@ def _piece(p) -> Piece:
 KERNEL = Kernel(
     columns={"kd": "kd", "taud": "ltaud"},
     flags={"diff": "np.any(kd != 0.0)"},
+    states={"dl": State("delta", lambda p, i: abs(p["kd"]) * i)},
     code={
         "setup": "ad = np.exp(-dt[0] / taud)\ndl = np.zeros(m)\nbd = np.zeros(m)",
         "uneven": "ad[c] = np.exp(-dtk / taud[c])",

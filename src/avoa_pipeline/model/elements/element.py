@@ -148,6 +148,17 @@ class Signature:
 
 
 @dataclass(frozen=True)
+class State:
+    """A state an element adds to the model (beyond the SOC and RC branch 1): ``name`` in the
+    SOC filter's state vector (``estimate``), ``reach(p, i)`` the largest |value| it reaches at
+    current ``i`` (A) with physical values ``p`` (by internal name): the filter's start takes it
+    uniform over ±reach."""
+
+    name: str
+    reach: Callable[[Mapping[str, float], float], float]
+
+
+@dataclass(frozen=True)
 class Kernel:
     """An element's physics, stated once, as code for the compiled simulator's slots
     (``model/loopgen.py`` writes the loop from the base's statement and these; its docstring
@@ -164,7 +175,9 @@ class Kernel:
     tau{j}, a{j}, v{j}, b{j} and its code, as for the base's branch 1, from ``rc_kernel``).
     ``factors``: a product of the base's (``r1``: branch 1's resistance, ``capacity``: the
     capacity) → the local it multiplies by. ``reads``: quantities the base computes only for an
-    element that reads them (``dtemp``: the temperature's rise over the reference, K)."""
+    element that reads them (``dtemp``: the temperature's rise over the reference, K).
+    ``states``: local array → :class:`State`, the arrays its code steps (the simulator starts
+    them where ``setup`` does; the filter's one-sample step reads and writes them)."""
 
     columns: Mapping[str, str] = field(default_factory=dict)
     flags: Mapping[str, str] = field(default_factory=dict)
@@ -172,6 +185,7 @@ class Kernel:
     branch: int | None = None
     factors: Mapping[str, str] = field(default_factory=dict)
     reads: tuple[str, ...] = ()
+    states: Mapping[str, State] = field(default_factory=dict)
 
 
 KNOTS = "@knots"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .coulombic_efficiency import counted_piece
-from .element import Element, Export, Kernel, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, View
 
 _HYSTERESIS = '''
 class Hysteresis(pybamm.BaseSubModel):
@@ -96,6 +96,7 @@ def _read(v: View) -> dict:
 KERNEL = Kernel(
     columns={"hm": "hm", "gam": "lgamma", "h": "h0"},
     flags={"hyst": "np.any(hm != 0.0)"},
+    states={"h": State("h", lambda p, i: 1.0)},
     code={
         # hx: the decay of the last sample, per row (one exp per row and sample was most of a
         # hysteresis model's cost, so a held current's decay is reused); hs, hon: a hold's

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, View
 
 R_LIMITS = (0.0, 2.0)
 R_WHY = "0-2 Ω: above the resistance of any cell this library models (mΩ to about 1 Ω)"
@@ -33,6 +33,7 @@ def rc_kernel(j: int) -> Kernel:
         columns={f"r{j}": f"r{j}", f"tau{j}": f"ltau{j}"},
         flags={f"rc{j}": f"np.any(r{j} != 0.0)"},
         branch=j,
+        states={f"v{j}": State(f"v{j}", lambda p, i: p[f"r{j}"] * i)},
         code={
             "setup": f"a{j} = np.exp(-dt[0] / tau{j})\nv{j} = np.zeros(m)\nb{j} = np.zeros(m)",
             "uneven": f"a{j}[c] = np.exp(-dtk / tau{j}[c])",
