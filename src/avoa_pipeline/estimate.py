@@ -3,10 +3,10 @@ states, reading a record's current and voltage; ``python -m avoa_pipeline estima
 
 The state-space form. The model is ``model.ecm``'s (its docstring has the equations): the compiled
 simulator keeps its state inside, so the filter steps a second compiled function,
-``_simulator.step``, written from the same element statements (``model/loopgen.py``) with the state
-exposed, one sample for all rows (the filter's sigma points): :meth:`Model.transition` steps the
-state over one sample, :meth:`Model.measurement` gives the terminal voltage. State, in this order:
-SOC s, RC branch 1's voltage v1, then each of the model's elements' states in registry order
+``ecm.COMPILED.step``, written from the same element statements (``model/loopgen.py``) with the
+state exposed, one sample for all rows (the filter's sigma points): :meth:`Model.transition` steps
+the state over one sample, :meth:`Model.measurement` gives the terminal voltage. State, in this
+order: SOC s, RC branch 1's voltage v1, then each of the model's elements' states in registry order
 (``State`` in its module: v2 with ``second_rc``, v3 with ``third_rc``, the diffusion lag δ, the
 hysteresis h), then two states every model gets: the current-sensor bias b (A, added to the current
 read) and the model's voltage error e (V, added to the voltage). The temperature is not a state: the
@@ -71,7 +71,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import DataError
-from .model import _simulator, ecm, elements
+from .model import ecm, elements
 from .model.ecm import IDX, N_KNOTS
 from .model.elements.element import FARADAY, GAS_R
 
@@ -160,13 +160,13 @@ def _temperature_offset(dinv, rtf):
 
 
 _NO_TABLE = np.empty(0)
-_FULL = {name: k for k, name in enumerate(_simulator.STATES)}
+_FULL = {name: k for k, name in enumerate(ecm.COMPILED.STATES)}
 
 
 @dataclass(frozen=True)
 class Model:
     """A fitted model as the filter steps it: its physical rows, OCV and state layout. Its
-    state step and measurement are the compiled ``_simulator.step``, written from the same
+    state step and measurement are the compiled ``step`` of ``ecm.COMPILED``, written from the same
     element statements as the simulator (``model/loopgen.py``)."""
 
     P: np.ndarray  # (m, NP): row 0 the model's; more rows: the same model, parameters moved
@@ -213,7 +213,7 @@ class Model:
         tab = self.table
         grid = _NO_TABLE if tab is None else tab.grid()
         out = np.empty(m)
-        _simulator.step(np.ascontiguousarray(P), _NO_TABLE if tab is None else tab.values,
+        ecm.COMPILED.step(np.ascontiguousarray(P), _NO_TABLE if tab is None else tab.values,
                         0.0 if tab is None else tab.lo, 1.0 if tab is None else tab.step,
                         N_KNOTS, self.knots.lo, self.knots.step, grid, float(i_read), float(dt),
                         float(dinv), float(rtf), full, np.ascontiguousarray(X[:, L["bias"]]),

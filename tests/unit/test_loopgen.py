@@ -8,7 +8,7 @@ import dataclasses
 
 import pytest
 
-from avoa_pipeline.model import _simulator, elements, loopgen
+from avoa_pipeline.model import _simulator, ecm, elements, loopgen
 from avoa_pipeline.model.elements.element import Kernel
 
 
@@ -16,10 +16,11 @@ def test_checked_in_source_is_what_the_generator_writes(capsys):
     assert loopgen.main(["--check"]) == 0, capsys.readouterr().err
 
 
-def test_one_compiled_function_per_version():
+def test_one_compiled_function_per_version_and_the_filters_step():
     src = loopgen.source()
-    assert src.count("@nb.njit") == 2
-    assert set(_simulator.SIMULATE) == {False, True}
+    assert src.count("@nb.njit") == 3
+    assert set(ecm.COMPILED.SIMULATE) == {False, True}
+    assert ecm.COMPILED is _simulator  # the package's registry: the checked-in module
 
 
 def _with(name: str, kernel: Kernel) -> dict:

@@ -60,7 +60,7 @@ import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
 from ..records import at_rest, current_scale
-from . import _simulator, elements, kernel
+from . import elements, kernel, loopgen
 from .elements.element import FARADAY, GAS_R, N_KNOTS, Physical
 
 # isort: off
@@ -437,7 +437,10 @@ class Record:
 # compiled only where a row uses one (``Element.compiled``)
 
 
-_SIMULATE = _simulator.SIMULATE
+COMPILED = loopgen.compiled()
+"""The compiled simulator's module (``SIMULATE``: its two versions; ``step``: the SOC filter's
+one-sample step; ``STATES``: the step's state columns) for the registry as imported."""
+_SIMULATE = COMPILED.SIMULATE
 _NO_TABLE = np.empty(0)
 
 

@@ -55,8 +55,12 @@ quantity, or-ed; ``False`` when none).
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib.util
+import os
 import re
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -428,6 +432,36 @@ def source(registry=None) -> str:
             + _version("step", every, layout, STEP, STEP_ARGS, STEP_DOC) + "\n\n"
             + "SIMULATE = {False: simulate_core, True: simulate_extras}\n"
             + f"STATES = ({names},)  # the columns of step's X\n")  # fmt: skip
+
+
+def compiled():
+    """The compiled simulator's module for the registry as it is now: ``model/_simulator.py``
+    when that is what :func:`source` writes, else the source written once to a cache folder
+    (``$NUMBA_CACHE_DIR``, or the temporary folder) under its hash and imported from there: a
+    registry with an element added at run time (``elements.register``: a plug-in, a test's toy
+    element) gets its own loop, still one compiled function per version, cached by numba beside
+    it."""
+    text = source()
+    if TARGET.read_text(encoding="utf-8") == text:
+        from . import _simulator
+
+        return _simulator
+    name = "avoa_simulator_" + hashlib.sha256(text.encode()).hexdigest()[:16]
+    if name in sys.modules:
+        return sys.modules[name]
+    folder = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir()) / "avoa-simulators"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.py"
+    if not path.exists():  # written whole, then renamed: another process may import it meanwhile
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def main(argv=None) -> int:

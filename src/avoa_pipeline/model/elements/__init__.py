@@ -13,6 +13,8 @@ its row in docs/gap-diagnosis.md. ``tests/unit/test_elements.py`` fails while a 
 
 from __future__ import annotations
 
+import sys
+
 from . import (
     butler_volmer,
     bv_arrhenius,
@@ -33,7 +35,7 @@ from . import (
     third_rc,
     voltage_offset,
 )
-from .element import Element
+from .element import Element, missing_parts
 
 REGISTRY: dict[str, Element] = {
     m.ELEMENT.name: m.ELEMENT
@@ -60,6 +62,24 @@ REGISTRY: dict[str, Element] = {
 }
 NAMES = tuple(REGISTRY)
 """Elements a model may add to its base, by their one name (config, CLI, JSON, file names)."""
+
+
+def register(element: Element) -> None:
+    """Adds ``element`` to the registry, after the package's own (the ladder tries it last): a
+    plug-in's element, or a test's toy. Before the model library is imported: ``model.ecm`` lays
+    out its columns and compiles its simulator for the registry it finds (``model/loopgen.py``)."""
+    global NAMES
+    if "avoa_pipeline.model.ecm" in sys.modules:
+        raise RuntimeError(f"element {element.name!r}: register it before "
+                           "avoa_pipeline.model.ecm is imported (its columns and compiled "
+                           "simulator follow the registry)")  # fmt: skip
+    if element.name in REGISTRY:
+        raise ValueError(f"element {element.name!r} is registered already")
+    missing = missing_parts(element)
+    if missing:
+        raise ValueError(f"element {element.name!r}: {'; '.join(missing)}")
+    REGISTRY[element.name] = element
+    NAMES = tuple(REGISTRY)
 
 
 def get(name: str) -> Element:
