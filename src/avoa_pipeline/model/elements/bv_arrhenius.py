@@ -3,7 +3,7 @@ top of ``butler_volmer`` and only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 from .thermal import THETA_LIMITS, THETA_WHY
 
 KERNEL = Kernel(
@@ -29,4 +29,5 @@ ELEMENT = Element(
     requires="butler_volmer",
     needs_temperature=True,
     kernel=KERNEL,
+    table=TableLaw("in r_bv0_ohm (butler_volmer's column): 1/i0 times exp(θ·(1/T − 1/tref_k))"),
 )

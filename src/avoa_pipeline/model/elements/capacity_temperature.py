@@ -7,7 +7,7 @@ the records can identify. Offered only where the temperature moves."""
 from __future__ import annotations
 
 from .coulombic_efficiency import charge_piece
-from .element import Element, Export, Kernel, Param
+from .element import Element, Export, Kernel, Param, TableLaw
 
 KERNEL = Kernel(
     columns={"kq": "kq"},
@@ -22,6 +22,10 @@ KERNEL = Kernel(
     },
 )
 """The capacity is Q·(1 + κQ·(T − Tref)) in the SOC's step."""
+
+
+def _capacity(p, s, tk, tref):
+    return p["lq"] * (1.0 + p["kq"] * (tk - tref))
 
 
 ELEMENT = Element(
@@ -51,4 +55,16 @@ ELEMENT = Element(
     compiled="extras",
     needs_temperature=True,
     kernel=KERNEL,
+    table=TableLaw(
+        "the capacity the SOC counts at each temperature, column capacity_ah",
+        columns={
+            "capacity_ah": (
+                "A·h",
+                "capacity_temperature: the capacity the SOC counts at "
+                "this row's temperature, Q·(1 + κQ·(T − tref_k)) (the same at "
+                "every SOC)",
+                _capacity,
+            )
+        },
+    ),
 )

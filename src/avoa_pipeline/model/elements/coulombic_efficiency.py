@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import records
-from .element import Element, Export, Kernel, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 _COUNTED = '''
 def counted(current, T_cell):
@@ -98,4 +98,5 @@ ELEMENT = Element(
     applies=_applies,
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw("a scalar of the sidecar, in the recursion's charge count"),
 )

@@ -3,7 +3,7 @@ and the hysteresis."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 
 def _piece(p) -> Piece:
@@ -50,4 +50,5 @@ ELEMENT = Element(
     would_decide="a full charge and discharge between two rests",
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw("a scalar of the sidecar (current_offset_a), added to a measured current"),
 )

@@ -3,7 +3,7 @@ a single-particle model); unlike an RC branch its voltage scales with the OCV's 
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece, State
+from .element import Element, Export, Kernel, Param, Piece, State, TableLaw
 
 _SURFACE_SOC_LAG = '''
 class SurfaceSocLag(pybamm.BaseSubModel):
@@ -107,4 +107,7 @@ ELEMENT = Element(
     ),
     would_decide="a long rest after a load (relaxation over an hour or more)",
     kernel=KERNEL,
+    table=TableLaw(
+        "a state, not a column: the sidecar's scalars and recursion (ocv_v read at s − δ)"
+    ),
 )

@@ -188,6 +188,23 @@ class Kernel:
     states: Mapping[str, State] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class TableLaw:
+    """How an element's law enters the BMS-style table (``interop/table.py``; ``how`` in words).
+    Each law is a function of (p: physical values by internal name, soc: the bulk SOC at the grid
+    points, tk: the cell temperature there (K), tref_k), an array over the grid points.
+    ``factors``: resistor → factor: "r0" (R0, both directions), "r0_charge" (R0 while charging),
+    "rc" (every RC resistance), "r1" (RC branch 1's), "tau" (every RC time constant); a value
+    (position, law) places it among the resistor's other factors (products round in order).
+    ``ocv``: a term added to the ocv_v column. ``columns``: columns of its own, name → (unit,
+    meaning, law)."""
+
+    how: str
+    factors: Mapping[str, Callable | tuple[int, Callable]] = field(default_factory=dict)
+    ocv: Callable | None = None
+    columns: Mapping[str, tuple[str, str, Callable]] = field(default_factory=dict)
+
+
 KNOTS = "@knots"
 """A vector element's column in :attr:`Kernel.columns`: its values at the N_KNOTS knots."""
 
@@ -217,6 +234,7 @@ class Element:
     vector: Vector | None = None
     withheld: bool = False  # the withheld-effect check (gap/withheld.py) makes records with it
     kernel: Kernel | None = None  # its physics in the compiled simulator (``model/loopgen.py``)
+    table: TableLaw | str = ""  # how its law enters the BMS table export, or why it cannot
 
     def conflict(self, table: bool, load: bool) -> str:
         """Why the element cannot join a model with a measured OCV table / the paper's load
@@ -268,6 +286,10 @@ def missing_parts(e: Element) -> list[str]:
         out.append("no record that would decide it")
     if e.kernel is None:
         out.append("no physics for the compiled simulator (kernel)")
+    if not (isinstance(e.table, TableLaw) and e.table.how.strip()) and not (
+        isinstance(e.table, str) and e.table.strip()
+    ):
+        out.append("no table law, nor why it has none")
     if e.compiled not in ("core", "extras"):
         out.append(f"compiled {e.compiled!r}: neither 'core' nor 'extras'")
     unknown = sorted(set(e.conflicts) - {"table", "load"})

@@ -5,7 +5,7 @@ one table over the others. Offered only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 _ENTROPIC = '''
 class EntropicOcv(pybamm.BaseSubModel):
@@ -78,4 +78,7 @@ ELEMENT = Element(
     compiled="extras",
     needs_temperature=True,
     kernel=KERNEL,
+    table=TableLaw(
+        "(∂U/∂T)·(T − tref_k) added to ocv_v", ocv=lambda p, s, tk, tref: p["dudt"] * (tk - tref)
+    ),
 )

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .coulombic_efficiency import counted_piece
-from .element import Element, Export, Kernel, Param, Piece, Signature, State, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, TableLaw, View
 
 _HYSTERESIS = '''
 class Hysteresis(pybamm.BaseSubModel):
@@ -163,4 +163,5 @@ ELEMENT = Element(
     would_decide="rests at one SOC reached once by charge and once by discharge",
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw("a state, not a column: the sidecar's scalars and recursion (V += M·h)"),
 )

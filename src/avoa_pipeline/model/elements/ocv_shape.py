@@ -16,6 +16,7 @@ from .element import (
     Param,
     Piece,
     Signature,
+    TableLaw,
     Vector,
     View,
     flat_ends,
@@ -92,4 +93,5 @@ ELEMENT = Element(
     vector=Vector(2, _report),
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw("in ocv_v (ecm.ocv_values adds the correction at the SOC)"),
 )

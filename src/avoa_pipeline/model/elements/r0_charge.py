@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 
 
 def _piece(p) -> Piece:
@@ -45,4 +45,8 @@ ELEMENT = Element(
     would_decide="charge pulses beside discharge pulses",
     compiled="extras",
     kernel=KERNEL,
+    table=TableLaw(
+        "exp(ρ) multiplies r0_charge_ohm",
+        factors={"r0_charge": lambda p, s, tk, tref: np.exp(p["rho"])},
+    ),
 )

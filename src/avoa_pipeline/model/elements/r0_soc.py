@@ -7,7 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import KNOTS, N_KNOTS, Element, Export, Kernel, Param, Piece, Vector, flat_ends
+from .element import (
+    KNOTS,
+    N_KNOTS,
+    Element,
+    Export,
+    Kernel,
+    Param,
+    Piece,
+    TableLaw,
+    Vector,
+    flat_ends,
+)
 
 LOG_LIMITS = (-3.0, 3.0)
 LOG_WHY = "a log-multiplier at a knot: a factor of e^±3 (0.05-20) at most"
@@ -71,4 +82,7 @@ ELEMENT = Element(
     compiled="extras",
     vector=Vector(1, _report),
     kernel=KERNEL,
+    table=TableLaw(
+        "exp(l0(s)) multiplies r0_ohm", factors={"r0": lambda p, s, tk, tref: np.exp(p["r0_soc"](s))}
+    ),
 )

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from .element import KNOTS, N_KNOTS, Element, Export, Kernel, Param, Vector
+import numpy as np
+
+from .element import KNOTS, N_KNOTS, Element, Export, Kernel, Param, TableLaw, Vector
 from .r0_soc import LOG_LIMITS, LOG_WHY, soc_table
 
 _report, _piece = soc_table("r1_soc", "R1")
@@ -42,4 +44,7 @@ ELEMENT = Element(
     compiled="extras",
     vector=Vector(1, _report),
     kernel=KERNEL,
+    table=TableLaw(
+        "exp(l1(s)) multiplies r1_ohm", factors={"r1": lambda p, s, tk, tref: np.exp(p["r1_soc"](s))}
+    ),
 )

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, State, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, TableLaw, View
 
 R_LIMITS = (0.0, 2.0)
 R_WHY = "0-2 Ω: above the resistance of any cell this library models (mΩ to about 1 Ω)"
@@ -81,4 +81,5 @@ ELEMENT = Element(
     would_decide="a long rest after a load (relaxation over an hour or more)",
     withheld=True,
     kernel=rc_kernel(2),
+    table=TableLaw("its RC branch: columns r2_ohm, tau2_s, c2_f"),
 )

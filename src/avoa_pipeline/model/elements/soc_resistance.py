@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 
 _SOC_FACTOR = '''
 def soc_factor(soc):
@@ -38,6 +38,12 @@ KERNEL = Kernel(
 exponential overflows far outside)."""
 
 
+def _g(p, s, tk, tref):  # its SOC clipped as the simulator clips it
+    if p["klow"] == 0.0:
+        return np.ones_like(s)
+    return 1.0 + p["klow"] * np.exp(-np.clip(s, -0.5, 2.0) / p["lsig"])
+
+
 ELEMENT = Element(
     name="soc_resistance",
     params={
@@ -62,4 +68,8 @@ ELEMENT = Element(
     ),
     would_decide="pulses at low and at high SOC",
     kernel=KERNEL,
+    table=TableLaw(
+        "g(s) multiplies r0_ohm and every r_j_ohm",
+        factors={"r0": _g, "rc": _g},
+    ),
 )

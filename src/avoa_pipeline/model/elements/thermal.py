@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View
 
 THETA_LIMITS = (0.0, 12000.0)
 THETA_WHY = "θ = Ea/R up to 12,000 K (≈ 100 kJ/mol, above any cell's activation energy)"
@@ -52,6 +52,14 @@ KERNEL = Kernel(
 (``dinv``: 1/T − 1/Tref of the sample)."""
 
 
+def _f0(p, s, tk, tref):
+    return np.exp(p["th0"] * (1.0 / tk - 1.0 / tref))
+
+
+def _f1(p, s, tk, tref):
+    return np.exp(p["th1"] * (1.0 / tk - 1.0 / tref))
+
+
 ELEMENT = Element(
     name="thermal",
     params={
@@ -70,4 +78,9 @@ ELEMENT = Element(
     needs_temperature=True,
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw(
+        "f0(T) multiplies r0_ohm, f1(T) every r_j_ohm",
+        # after r0_soc's factor: the order the table's R0 was computed in since issue 19
+        factors={"r0": (1, _f0), "rc": _f1},
+    ),
 )

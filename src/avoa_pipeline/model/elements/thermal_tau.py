@@ -5,7 +5,9 @@ identify it (issue 28). Offered on top of ``thermal`` and only where the tempera
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece
+import numpy as np
+
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 from .thermal import THETA_LIMITS
 
 
@@ -58,4 +60,8 @@ ELEMENT = Element(
     requires="thermal",
     needs_temperature=True,
     kernel=KERNEL,
+    table=TableLaw(
+        "exp(θτ·(1/T − 1/tref_k)) multiplies every tau_j_s",
+        factors={"tau": lambda p, s, tk, tref: np.exp(p["thtau"] * (1.0 / tk - 1.0 / tref))},
+    ),
 )

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .element import Element, Export, Param
+from .element import Element, Export, Param, TableLaw
 from .second_rc import R_LIMITS, R_WHY, TAU_LIMITS, TAU_WHY, rc_kernel, rc_piece
 
 
@@ -24,4 +24,5 @@ ELEMENT = Element(
     would_decide="a long rest after a load (relaxation over an hour or more)",
     requires="second_rc",
     kernel=rc_kernel(3),
+    table=TableLaw("its RC branch: columns r3_ohm, tau3_s, c3_f"),
 )

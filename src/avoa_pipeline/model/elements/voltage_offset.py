@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Kernel, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View
 
 
 def _piece(p) -> Piece:
@@ -39,4 +39,5 @@ ELEMENT = Element(
     conflicts={"table": "a table OCV's offset is part of the base"},
     withheld=True,
     kernel=KERNEL,
+    table=TableLaw("in ocv_v (ecm.ocv_values adds the offset)"),
 )
