@@ -83,6 +83,7 @@ ELEMENT = Element(
     vector=Vector(1, _report),
     kernel=KERNEL,
     table=TableLaw(
-        "exp(l0(s)) multiplies r0_ohm", factors={"r0": lambda p, s, tk, tref: np.exp(p["r0_soc"](s))}
+        "exp(l0(s)) multiplies r0_ohm",
+        factors={"r0": lambda p, s, tk, tref: np.exp(p["r0_soc"](s))},
     ),
 )

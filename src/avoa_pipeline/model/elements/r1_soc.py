@@ -45,6 +45,7 @@ ELEMENT = Element(
     vector=Vector(1, _report),
     kernel=KERNEL,
     table=TableLaw(
-        "exp(l1(s)) multiplies r1_ohm", factors={"r1": lambda p, s, tk, tref: np.exp(p["r1_soc"](s))}
+        "exp(l1(s)) multiplies r1_ohm",
+        factors={"r1": lambda p, s, tk, tref: np.exp(p["r1_soc"](s))},
     ),
 )
