@@ -4,7 +4,8 @@ simulator for any combination, one parameter table, one initial-SOC rule.
 In the spirit of PyBaMM's Thevenin model (a base and elements assembled from validated options):
 a model is an OCV source (the paper's rational eq. 5, or a measured table), R0, one RC branch, a
 capacity and an initial SOC, plus any of the elements of :data:`EFFECTS` (each declared in its
-own module of ``model/elements/``; this module holds the base and the compiled simulator). The
+own module of ``model/elements/``, its physics stated once; this module holds the base, the
+OCV sources, records and the initial-SOC rule; ``layout.py`` the parameter table). The
 paper's model (``battery.py``/``kernel.py``), the C/20 circuits of the real-data experiment and
 the diagnosis's candidates are configurations of it. ``gap/withheld.py`` stays independent on
 purpose (the test oracle).
@@ -45,7 +46,9 @@ state) rather than to the cell. A fit's bounds and priors follow the records' cu
 
 Why hand-written numerics: the recursion is sequential in time and its current depends on the
 voltage under a load, so it is compiled with numba; one call steps a whole set of parameter rows
-together (time outer, rows inner) so that a finite-difference Jacobian costs one pass. The
+together (time outer, rows inner) so that a finite-difference Jacobian costs one pass. Its source
+is written by ``model/loopgen.py`` from the base's statement and each element's (``Kernel``), one
+numba function per version (:data:`COMPILED`). The
 paper's population kernel (``kernel.py``) stays as a specialised fast path for the optimiser grid;
 ``tests/unit/test_ecm.py`` shows it is the same model as :func:`paper_rows`' configuration.
 """
