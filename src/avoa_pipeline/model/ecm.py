@@ -55,14 +55,10 @@ paper's population kernel (``kernel.py``) stays as a specialised fast path for t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from functools import cached_property
-
 import numpy as np
 import pandas as pd
-from scipy.interpolate import PchipInterpolator
 
-from ..records import at_rest, current_scale
+from ..records import at_rest
 from . import elements, kernel, loopgen
 from .elements.element import FARADAY, GAS_R, N_KNOTS, Physical
 
@@ -73,20 +69,16 @@ from .layout import (  # noqa: F401 - the parameter table and layout, read as ec
     R3, RHO, SIG, SOC0, TAU1, TAU2, TAU3, TAUD, TH0, TH1, THBV, THTAU, VECTORS, VNOM, VOFF, Q,
     columns, element_params, to_physical,
 )  # fmt: skip
+
+from .config import Config
+from .ocv_source import TABLE_POINTS, Knots, OcvTable, ocv_values  # noqa: F401 - as above
+from .record import (  # noqa: F401 - as above
+    MIN_OPENING_SAMPLES, OPENING_WINDOW_S, T_DEFAULT_K, THERMAL_MIN_RANGE_C, Record, load_window,
+    opening,
+)  # fmt: skip
 # isort: on
 
-T_DEFAULT_K = 298.15
 KELVIN_PER_TWO_RT_F = FARADAY / (2.0 * GAS_R)  # T = (2RT/F) × this: the loop reads T from 2RT/F
-TABLE_POINTS = 4001
-"""Measured OCV tables are resampled onto this uniform SOC grid (0.025 % steps) by a monotone
-cubic (:meth:`OcvTable.from_points`); the simulator interpolates linearly between its points.
-Why so fine (issue 37; 1001 points, linearly resampled, earlier): the model's voltage is then
-piecewise linear in SOC, and a fit's finite-difference Jacobian (steps of about 1e-6) reads each
-cell's slope, not the OCV's. Along the flat offset-capacity-initial-SOC valley that slope noise
-passed for information: on issue 37's clean record with its true OCV given at 201 points the
-offset's standard deviation came out 7.3 mV; with the monotone cubic at 4001 points 71 mV, near
-the smooth limit (84 mV at 100,001 points). 4001 doubles are 32 kB, inside a core's L2 cache."""
-
 EFFECTS = elements.NAMES
 """Elements a model may add to its base (the registry, ``model/elements/``, in its order)."""
 REQUIRES = {e.name: e.requires for e in elements.REGISTRY.values() if e.requires}
@@ -161,277 +153,6 @@ def vector(params: dict) -> np.ndarray:
         n, v = internal_value(key, value)
         x[IDX[n]] = v
     return x
-
-
-# ----------------------------------------------------------------------------------------------
-# the OCV source
-
-
-@dataclass(frozen=True)
-class Knots:
-    """Where the ocv_shape correction lives: N_KNOTS knots from ``lo`` in steps of ``step``."""
-
-    lo: float
-    step: float
-
-    def grid(self) -> np.ndarray:
-        return self.lo + self.step * np.arange(N_KNOTS)
-
-
-@dataclass(frozen=True)
-class OcvTable:
-    """A measured OCV on a uniform SOC grid (``values`` strictly increasing)."""
-
-    lo: float
-    step: float
-    values: np.ndarray
-    capacity_ah: float | None = None  # the slow test's capacity, if it came from one
-    source: str = ""
-    how: str = ""  # how it was made (which branches, why)
-    notes: tuple[str, ...] = ()  # what is odd about it (warnings for the user)
-    # how far the table may lie from the cell's OCV (V, one standard deviation) and why; None:
-    # not measured (``ocv.offset_prior`` then gives the default)
-    offset_sd_v: float | None = None
-    offset_why: str = ""
-    capacity_sd_ah: float | None = None  # the slow test's capacity's uncertainty (ocv.py)
-
-    @classmethod
-    def from_points(cls, soc, ocv_v, capacity_ah=None, source="", how="") -> OcvTable:
-        """The table of points (soc, ocv_v) in any order, resampled onto TABLE_POINTS by the
-        monotone cubic (scipy's PCHIP: it passes through the points, rises where they rise and
-        has no overshoot; points at one SOC averaged), then made strictly increasing (the
-        initial-SOC rule inverts it) by at most 1 µV."""
-        soc = np.asarray(soc, dtype=float)
-        v = np.asarray(ocv_v, dtype=float)
-        soc, where = np.unique(soc, return_inverse=True)
-        v = np.bincount(where, weights=v) / np.bincount(where)
-        grid = np.linspace(soc[0], soc[-1], TABLE_POINTS)
-        vals = PchipInterpolator(soc, v)(grid) if soc.size > 2 else np.interp(grid, soc, v)
-        vals = np.maximum.accumulate(vals) + np.linspace(0.0, 1e-6, grid.size)
-        step = (soc[-1] - soc[0]) / (TABLE_POINTS - 1)
-        return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source, how)
-
-    def grid(self) -> np.ndarray:
-        return self.lo + self.step * np.arange(self.values.size)
-
-    def __call__(self, soc) -> np.ndarray:
-        return np.interp(soc, self.grid(), self.values)
-
-
-@dataclass(frozen=True)
-class Config:
-    """A model configuration: the OCV source, the elements added to the base, the load."""
-
-    effects: tuple[str, ...] = ()
-    table: OcvTable | None = None  # None: the paper's rational OCV with free Vnom, β
-    load_ohm: float | None = None  # the paper's load resistor across the cell
-
-    def __post_init__(self):
-        for e in self.effects:
-            el = elements.get(e)
-            if el.requires and el.requires not in self.effects:
-                raise ValueError(f"element {e!r} needs {el.requires!r}")
-            why = el.conflict(self.table is not None, self.load_ohm is not None)
-            if why:
-                raise ValueError(f"element {e!r}: {why}")
-
-    @property
-    def ocv_kind(self) -> str:
-        return "rational" if self.table is None else "table"
-
-    def names(self) -> tuple[str, ...]:
-        """Internal names of this configuration's parameters (base first, then elements)."""
-        out = list(element_params("base", self.ocv_kind))
-        for e in self.effects:
-            out.extend(element_params(e))
-        return tuple(out)
-
-    def with_effect(self, effect: str) -> Config:
-        return Config((*self.effects, effect), self.table, self.load_ohm)
-
-    @property
-    def name(self) -> str:
-        base = "table" if self.table is not None else "rational"
-        return "+".join((base, *self.effects))
-
-
-def ocv_values(P_row: np.ndarray, soc, knots: Knots, table: OcvTable | None) -> np.ndarray:
-    """OCV (with correction and offset, no hysteresis) of physical row ``P_row`` at ``soc``."""
-    soc = np.asarray(soc, dtype=float)
-    if table is None:
-        sc = np.clip(soc, 0.0, 1.2)
-        omb = P_row[OMB]
-        v = P_row[VNOM] * sc / (omb + (1.0 - omb) * sc)
-    else:
-        sc = soc
-        v = table(sc)
-    d = P_row[D0 : D0 + N_KNOTS]
-    if np.any(d != 0.0):
-        v = v + np.interp(sc, knots.grid(), d)
-    return v + P_row[VOFF]
-
-
-# ----------------------------------------------------------------------------------------------
-# records
-
-
-THERMAL_MIN_RANGE_C = 2.0
-"""The thermal element needs the measured temperature to move at least this much (°C): with
-less, an Arrhenius factor is a constant that R0 and R1 already absorb."""
-
-OPENING_WINDOW_S = 60.0
-"""The initial state is read from 60 s of a record's opening: the last 60 s of its opening rest
-(at 1 Hz sixty samples, so the logger's noise enters √60 times less than through one sample, and
-the end of the rest is its most relaxed part; docs/gap-diagnosis.md, "Selection judged like
-prediction"), or the first 60 s of a record that starts under load (issue 37: the model is
-simulated over them, :func:`soc0_rows`; one sample left the initial SOC, and with it the offset
-and capacity that trade along it, at the mercy of one sample's noise)."""
-
-MIN_OPENING_SAMPLES = 25
-"""The opening window holds at least this many samples (the last ones of the opening rest, or the
-first under load), however long they last. Why: a cycler logs a rest every 30-300 s, so 60 s of
-it may be one or two samples, and the initial state then carries one sample's noise through the
-whole record as a constant offset (issue 37's fit-back cases: the true model, started by the rule
-on rests logged every 60 s, scored 1.39-1.42 × the noise). With n samples the rule adds σ²/n to
-the squared error, so the RMSE ÷ noise of a model that is otherwise exact is √(1 + 1/n);
-n ≥ 25 keeps it within 1.02 (the fit-back goal). At a 1 Hz log the 60 s already hold 60."""
-
-
-def opening(t: np.ndarray, i: np.ndarray, v: np.ndarray) -> tuple[float, float, int]:
-    """(voltage, current, samples) that start a record: their means over the last
-    OPENING_WINDOW_S of the opening rest (the leading samples ``records.at_rest``), or, if the
-    record starts under load, over its first OPENING_WINDOW_S (each at least MIN_OPENING_SAMPLES
-    samples where the record has them; the rule
-    then simulates the model over those samples, :func:`load_window`)."""
-    moving = np.flatnonzero(~at_rest(i, max(current_scale(i), 1e-6)))
-    end = int(moving[0]) if moving.size else i.size
-    if end == 0:
-        w = load_window(t, i)
-        return float(np.mean(v[:w])), float(np.mean(i[:w])), w
-    first = int(np.searchsorted(t[:end], t[end - 1] - OPENING_WINDOW_S, side="left"))
-    first = max(0, min(first, end - MIN_OPENING_SAMPLES))
-    return float(np.mean(v[first:end])), float(np.mean(i[first:end])), end - first
-
-
-def load_window(t: np.ndarray, i: np.ndarray) -> int:
-    """Samples of the opening window of a record that starts under load (the first
-    OPENING_WINDOW_S, at least MIN_OPENING_SAMPLES where there are), or 0 if it starts at rest
-    (``records.at_rest``)."""
-    if i.size == 0 or at_rest(float(i[0]), max(current_scale(i), 1e-6)):
-        return 0
-    w = int(np.searchsorted(t, t[0] + OPENING_WINDOW_S, side="left"))
-    return min(max(w, MIN_OPENING_SAMPLES), i.size)
-
-
-@dataclass(frozen=True)
-class Record:
-    """The inputs a simulation needs, prepared once per record."""
-
-    t: np.ndarray
-    i: np.ndarray
-    v: np.ndarray
-    temp_c: np.ndarray | None
-    dt: np.ndarray  # dt[k] = t[k+1] − t[k]; the last is the median step (never used by V)
-    uniform: bool
-    tref_k: float
-    dinv_t: np.ndarray
-    two_rt_f: np.ndarray
-    source: str = "<data>"
-    v_open: float = np.nan  # what starts the record (:func:`opening`)
-    i_open: float = 0.0
-    n_load_open: int = 0  # starts under load: samples of its opening window (:func:`load_window`)
-
-    @property
-    def n(self) -> int:
-        return self.t.size
-
-    @property
-    def temperature_varies(self) -> bool:
-        return self.temp_c is not None and float(np.ptp(self.temp_c)) >= THERMAL_MIN_RANGE_C
-
-    @classmethod
-    def from_frame(cls, frame: pd.DataFrame, tref_k: float | None = None, source=None) -> Record:
-        t = np.ascontiguousarray(frame["time_s"].to_numpy(dtype=float))
-        i = np.ascontiguousarray(frame["current_a"].to_numpy(dtype=float))
-        v = np.ascontiguousarray(frame["voltage_v"].to_numpy(dtype=float))
-        temp = None
-        if "temperature_c" in frame.columns:
-            temp = np.ascontiguousarray(frame["temperature_c"].to_numpy(dtype=float))
-        d = np.diff(t)
-        step = float(np.median(d)) if d.size else 1.0
-        dt = np.append(d, step)
-        uniform = bool(np.all(np.abs(d - step) <= 1e-9 * max(step, 1.0)))
-        if uniform:
-            dt = np.full(t.size, step)
-        tk = np.full(t.size, T_DEFAULT_K) if temp is None else temp + 273.15
-        if tref_k is None:
-            tref_k = float(np.mean(tk))
-        v_open, i_open, _ = opening(t, i, v)
-        return cls(
-            t=t, i=i, v=v, temp_c=temp, dt=np.ascontiguousarray(dt), uniform=uniform,
-            tref_k=float(tref_k), dinv_t=np.ascontiguousarray(1.0 / tk - 1.0 / tref_k),
-            two_rt_f=np.ascontiguousarray(2.0 * GAS_R * tk / FARADAY),
-            source=str(source if source is not None else frame.attrs.get("source", "<data>")),
-            v_open=v_open, i_open=i_open, n_load_open=load_window(t, i),
-        )  # fmt: skip
-
-    @classmethod
-    def join(cls, recs: list[Record]) -> Record:
-        """One record of several, end to end (time made continuous, the next record a median
-        step after the last sample), for what reads the residual against current, time and
-        temperature (the diagnosis's localization and signatures)."""
-        if len(recs) == 1:
-            return recs[0]
-        t, start = [], 0.0
-        for r in recs:
-            t.append(r.t - r.t[0] + start)
-            start = t[-1][-1] + float(np.median(r.dt))
-        temps = None
-        if all(r.temp_c is not None for r in recs):
-            temps = np.concatenate([r.temp_c for r in recs])
-        joined = {k: np.concatenate([getattr(r, k) for r in recs])
-                  for k in ("i", "v", "dt", "dinv_t", "two_rt_f")}  # fmt: skip
-        return cls(t=np.concatenate(t), temp_c=temps, uniform=False, tref_k=recs[0].tref_k,
-                   source="+".join(r.source for r in recs), **joined)  # fmt: skip
-
-    @cached_property
-    def rest_held(self) -> tuple[np.ndarray, np.ndarray]:
-        """``dinv_t`` and ``two_rt_f`` with each run of zero current given its first sample's
-        values (what :func:`simulate_physical` passes the simulator where no current flows
-        at rest).
-
-        Why: at zero current the temperature acts on nothing the simulator computes (its
-        factors multiply the current: R0's and the RC resistances' Arrhenius factors, the
-        Butler–Volmer term's RT/F and exchange current; every state increment is then 0 and
-        the voltage is the OCV side, whatever the temperature), but a measured temperature
-        that flickers by a hundredth of a kelvin breaks the simulator's held-current shortcut
-        (``_loop``: a thermal model's hold needs the same temperature) at every sample. The
-        Panasonic HPPC records rest 93 % of their ~90,000 samples, and the thermocouple moves
-        at 94 % of them. Held this way, a rest is one hold, and every voltage is the same bit
-        for bit (``tests/unit/test_long_records.py``)."""
-        rest = self.i == 0.0
-        start = rest & ~np.concatenate([[False], rest[:-1]])  # the first sample of each rest
-        # per sample, the index of the last sample that is not inside a rest's tail
-        src = np.where(rest & ~start, 0, np.arange(self.n))
-        np.maximum.accumulate(src, out=src)
-        return (np.ascontiguousarray(self.dinv_t[src]),
-                np.ascontiguousarray(self.two_rt_f[src]))  # fmt: skip
-
-    @cached_property
-    def opening_record(self) -> Record:
-        """The record's first ``n_load_open`` samples (what :func:`soc0_rows` simulates for a
-        record that starts under load)."""
-        k = max(self.n_load_open, 1)
-        cut = {f: getattr(self, f)[:k] for f in ("t", "i", "v", "dt", "dinv_t", "two_rt_f")}
-        temp = None if self.temp_c is None else self.temp_c[:k]
-        return replace(self, temp_c=temp, uniform=self.uniform, n_load_open=0, **cut)
-
-    def charge_ah(self) -> np.ndarray:
-        """Charge removed since the start (Ah) at each sample (discharge positive)."""
-        return np.concatenate([[0.0], np.cumsum(self.i[:-1] * self.dt[:-1])]) / 3600.0
-
-    def imax(self) -> float:
-        return max(current_scale(self.i), 1e-6)
 
 
 # ----------------------------------------------------------------------------------------------
