@@ -144,9 +144,9 @@ class Record:
         Butler–Volmer term's RT/F and exchange current; every state increment is then 0 and
         the voltage is the OCV side, whatever the temperature), but a measured temperature
         that flickers by a hundredth of a kelvin breaks the simulator's held-current shortcut
-        (``_loop``: a thermal model's hold needs the same temperature) at every sample. The
-        Panasonic HPPC records rest 93 % of their ~90,000 samples, and the thermocouple moves
-        at 94 % of them. Held this way, a rest is one hold, and every voltage is the same bit
+        (the generated loop, ``model/loopgen.py``: a thermal model's hold needs the same
+        temperature) at every sample. The Panasonic HPPC records rest 93 % of their ~90,000
+        samples, and the thermocouple moves at 94 % of them. Held this way, a rest is one hold, and every voltage is the same bit
         for bit (``tests/unit/test_long_records.py``)."""
         rest = self.i == 0.0
         start = rest & ~np.concatenate([[False], rest[:-1]])  # the first sample of each rest
