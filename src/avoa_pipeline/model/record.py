@@ -146,8 +146,8 @@ class Record:
         that flickers by a hundredth of a kelvin breaks the simulator's held-current shortcut
         (the generated loop, ``model/loopgen.py``: a thermal model's hold needs the same
         temperature) at every sample. The Panasonic HPPC records rest 93 % of their ~90,000
-        samples, and the thermocouple moves at 94 % of them. Held this way, a rest is one hold, and every voltage is the same bit
-        for bit (``tests/unit/test_long_records.py``)."""
+        samples, and the thermocouple moves at 94 % of them. Held this way, a rest is one hold,
+        and every voltage is the same bit for bit (``tests/unit/test_long_records.py``)."""
         rest = self.i == 0.0
         start = rest & ~np.concatenate([[False], rest[:-1]])  # the first sample of each rest
         # per sample, the index of the last sample that is not inside a rest's tail
