@@ -67,6 +67,11 @@ it cannot). A model with another element is refused in one line rather than writ
 law: the table would be wrong where that element acts."""
 
 
+def _expressed(name: str) -> bool:
+    """Whether the registry has element ``name`` and it says how its law enters the table."""
+    return name in elements.REGISTRY and isinstance(elements.get(name).table, TableLaw)
+
+
 def _laws(model: FittedModel):
     """(p, the model's elements' table laws): p holds the physical values by internal name, and a
     vector element's values at the knots as a function of SOC (linear between, flat beyond)."""
@@ -364,8 +369,7 @@ def export_table(model: FittedModel, source: str, soc: np.ndarray | None = None,
     if model.config.load_ohm is not None:
         raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
                         "test rig, not of the cell; a table of the cell has none")  # fmt: skip
-    unknown = [e for e in model.config.effects
-               if e not in elements.REGISTRY or not isinstance(elements.get(e).table, TableLaw)]
+    unknown = [e for e in model.config.effects if not _expressed(e)]
     if unknown:  # the element's own reason where it gives one
         why = "; ".join(f"{e}: {elements.get(e).table}" for e in unknown if e in elements.REGISTRY)
         raise UserError(f"{source}: field 'effects': the table export does not write the law of "
