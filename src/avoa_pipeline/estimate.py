@@ -1,18 +1,20 @@
 """SOC estimation with a fitted model (issue 29): an unscented Kalman filter over the model's
 states, reading a record's current and voltage; ``python -m avoa_pipeline estimate``.
 
-The state-space form. The model is ``model.ecm``'s (its docstring has the equations): the
-compiled simulator (``ecm._loop``) keeps its state inside, so the same equations are written
-here in numpy with the state exposed, vectorised over rows (the filter's sigma points):
-:func:`transition` steps the state over one sample, :func:`measurement` gives the terminal
-voltage. State, in this order, each where the model has it: SOC s, the RC voltages v1 (v2 with
-``second_rc``, v3 with ``third_rc``), the diffusion lag δ (``diffusion``), the hysteresis h
-(``hysteresis``), then two states every model gets: the current-sensor bias b (A, added to the
-current read) and the model's voltage error e (V, added to the voltage). The temperature is not a
-state: the record's measured ``temperature_c`` drives the temperature laws as in ``simulate``.
-Open loop (no correction, b = e = 0) the numpy form reproduces ``FittedModel.simulate`` to far
-below 0.1 mV on every element (``tests/unit/test_estimate.py``). A model with the paper's load
-resistor (``load_ohm``: the current follows the voltage) is refused.
+The state-space form. The model is ``model.ecm``'s (its docstring has the equations): the compiled
+simulator keeps its state inside, so the filter steps a second compiled function,
+``ecm.COMPILED.step``, written from the same element statements (``model/loopgen.py``) with the
+state exposed, one sample for all rows (the filter's sigma points): :meth:`Model.transition` steps
+the state over one sample, :meth:`Model.measurement` gives the terminal voltage. State, in this
+order: SOC s, RC branch 1's voltage v1, then each of the model's elements' states in registry order
+(``State`` in its module: v2 with ``second_rc``, v3 with ``third_rc``, the diffusion lag δ, the
+hysteresis h), then two states every model gets: the current-sensor bias b (A, added to the current
+read) and the model's voltage error e (V, added to the voltage). The temperature is not a state: the
+record's measured ``temperature_c`` drives the temperature laws as in ``simulate``. Open loop (no
+correction, b = e = 0) the step reproduces ``FittedModel.simulate`` to 1e-9 V on every element
+(``tests/unit/test_estimate.py``; not bit for bit: the filter reads a table by ``np.interp`` and
+continues it past its ends). A model with the paper's load resistor (``load_ohm``: the current
+follows the voltage) is refused.
 
 The filter: filterpy 2.0's ``UnscentedKalmanFilter`` (sigma points, the unscented transform, the
 update), a kept library rather than a hand-written one. filterpy calls the model once per sigma
@@ -69,7 +71,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import DataError
-from .model import ecm
+from .model import ecm, elements
 from .model.ecm import IDX, N_KNOTS
 from .model.elements.element import FARADAY, GAS_R
 
@@ -96,7 +98,7 @@ SIGMA_SPREAD = 1.0
 Gaussian prior; the unscented transform is exact to second order at any spread). Not at ±√3 sd
 (a Gaussian's fourth moment, Julier & Uhlmann 2004): with the start's SOC sd of 0.25 near full
 charge those points sit 0.43 past the OCV table's end, where the voltage is only the
-continuation of :meth:`Model._beyond` (on the 25 °C training LA92 record the first update from
+continuation of :meth:`Model._ends` (on the 25 °C training LA92 record the first update from
 the true start then moved the SOC 6 % off; docs/real-data.md has what else was tried)."""
 
 END_SLOPE_SPAN = 0.02
@@ -136,12 +138,19 @@ class Layout:
 
 
 def layout_of(effects) -> Layout:
-    names = ["soc", "v1"]
-    names += ["v2"] if "second_rc" in effects else []
-    names += ["v3"] if "third_rc" in effects else []
-    names += ["delta"] if "diffusion" in effects else []
-    names += ["h"] if "hysteresis" in effects else []
-    return Layout((*names, "bias", "verr"))
+    """The SOC, RC branch 1, each of ``effects``' states in registry order (the elements'
+    statements, :class:`.elements.element.State`), then the bias and the voltage error."""
+    names = [st.name for e in elements.NAMES if e in effects
+             for st in elements.get(e).kernel.states.values()]  # fmt: skip
+    return Layout(("soc", "v1", *names, "bias", "verr"))
+
+
+def state_reach() -> dict[str, object]:
+    """Each state's reach (``State.reach``: the largest |value| at a current), by state name."""
+    out = {"v1": lambda p, i: p["r1"] * i}  # the base's RC branch
+    for e in elements.REGISTRY.values():
+        out |= {st.name: st.reach for st in e.kernel.states.values()}
+    return out
 
 
 def _temperature_offset(dinv, rtf):
@@ -150,28 +159,22 @@ def _temperature_offset(dinv, rtf):
     return tk - 1.0 / (1.0 / tk - dinv)
 
 
-def _interp_rows(x: np.ndarray, lo: float, step: float, vals: np.ndarray) -> np.ndarray:
-    """Per row, its knot values (rows of ``vals``, or one shared row) at ``x``, flat beyond the
-    knots (ecm._loop's rule)."""
-    u = np.clip((x - lo) / step, 0.0, vals.shape[-1] - 1.0)
-    j = np.minimum(u.astype(int), vals.shape[-1] - 2)
-    w = u - j
-    if vals.shape[0] == 1:
-        return (1.0 - w) * vals[0, j] + w * vals[0, j + 1]
-    r = np.arange(vals.shape[0])
-    return (1.0 - w) * vals[r, j] + w * vals[r, j + 1]
+_NO_TABLE = np.empty(0)
+_FULL = {name: k for k, name in enumerate(ecm.COMPILED.STATES)}
 
 
 @dataclass(frozen=True)
 class Model:
-    """A fitted model as the filter steps it: its physical rows, OCV and state layout."""
+    """A fitted model as the filter steps it: its physical rows, OCV and state layout. Its
+    state step and measurement are the compiled ``step`` of ``ecm.COMPILED``, written from the same
+    element statements as the simulator (``model/loopgen.py``)."""
 
     P: np.ndarray  # (m, NP): row 0 the model's; more rows: the same model, parameters moved
     layout: Layout
     knots: ecm.Knots
     table: ecm.OcvTable | None
 
-    extend: bool = False  # the filter's OCV continues past the table's ends (_beyond)
+    extend: bool = False  # the filter's OCV continues past the table's ends (_ends)
 
     def rows(self, P: np.ndarray) -> Model:
         return Model(np.atleast_2d(P), self.layout, self.knots, self.table, self.extend)
@@ -179,135 +182,72 @@ class Model:
     def extended(self) -> Model:
         return Model(self.P, self.layout, self.knots, self.table, True)
 
-    def _beyond(self, so):
+    def _ends(self) -> np.ndarray:
         """Past the table's ends, the OCV goes on with its slope over the last
         :data:`END_SLOPE_SPAN` of SOC at that end (the simulator holds it flat there): a state
         outside the table (a start guessed above full) then still reads a voltage that pulls it
         back, and sigma points spread across an end see the slope on both sides. Inside the
-        table, nothing changes."""
+        table, nothing changes. (on, first SOC, last SOC, slope below, slope above)"""
+        if self.table is None or not self.extend:
+            return np.zeros(5)
         g, v = self.table.grid(), self.table.values
         w = max(round(END_SLOPE_SPAN / self.table.step), 1)
         lo_slope = (v[w] - v[0]) / (g[w] - g[0])
         hi_slope = (v[-1] - v[-1 - w]) / (g[-1] - g[-1 - w])
-        above = np.where(so > g[-1], (so - g[-1]) * hi_slope, 0.0)
-        return above + np.where(so < g[0], (so - g[0]) * lo_slope, 0.0)
-
-    def _g(self, s):  # soc_resistance: the resistances' rise near empty
-        klow = self.P[:, ecm.KLOW]
-        if not np.any(klow):
-            return 1.0
-        return 1.0 + klow * np.exp(-np.clip(s, -0.5, 2.0) / self.P[:, ecm.SIG])
-
-    def _soc_factor(self, s, col):  # r0_soc / r1_soc: log-multipliers at the knots
-        vals = self.P[:, col : col + N_KNOTS]
-        if not np.any(vals):
-            return 1.0
-        return np.exp(_interp_rows(s, self.knots.lo, self.knots.step, vals))
-
-    def current(self, X, i_read):
-        """The cell's current: what was read, the model's offset and the bias state."""
-        return i_read + self.P[:, ecm.IOFF] + X[:, self.layout["bias"]]
+        return np.array([1.0, g[0], g[-1], lo_slope, hi_slope])
 
     def _later(self, name: str):
-        """A later element's physical column (issue 28 item 1's temperature laws), or None where
-        the library has no such parameter or every row has it at 0 (neutral)."""
+        """An element's physical column, or None where the library has no such parameter or
+        every row has it at 0 (neutral)."""
         col = ecm.IDX.get(name)
         return None if col is None or not np.any(self.P[:, col]) else self.P[:, col]
 
+    def _step(self, X, i_read, dt, dinv, rtf, need_v: bool, update: bool):
+        """The compiled step on the rows of ``X`` (each with its parameter row, or all with row
+        0): (voltage before the step, states after it)."""
+        m, L = X.shape[0], self.layout
+        P = self.P if self.P.shape[0] == m else np.repeat(self.P[:1], m, axis=0)
+        cols = [_FULL[name] for name in L.names[:-2]]
+        full = np.zeros((m, len(_FULL)))
+        full[:, cols] = X[:, : L.n - 2]
+        tab = self.table
+        grid = _NO_TABLE if tab is None else tab.grid()
+        out = np.empty(m)
+        ecm.COMPILED.step(np.ascontiguousarray(P), _NO_TABLE if tab is None else tab.values,
+                        0.0 if tab is None else tab.lo, 1.0 if tab is None else tab.step,
+                        N_KNOTS, self.knots.lo, self.knots.step, grid, float(i_read), float(dt),
+                        float(dinv), float(rtf), full, np.ascontiguousarray(X[:, L["bias"]]),
+                        need_v, update, self._ends(), out)  # fmt: skip
+        return out, full[:, cols]
+
     def transition(self, X: np.ndarray, i_read: float, dt: float, dinv: float,
                    rtf: float) -> np.ndarray:  # fmt: skip
-        """The state after one sample of ``dt`` s (ecm's equations; rows of ``X`` stepped
-        together, each with its parameter row, or all with row 0)."""
-        P, L = self.P, self.layout
-        s = X[:, L["soc"]]
-        i = self.current(X, i_read)
-        f1 = np.exp(P[:, ecm.TH1] * dinv)
-        thtau = self._later("thtau")  # thermal_tau: the time constants follow the temperature
-        ft = 1.0 if thtau is None else np.exp(thtau * dinv)
-        gi = f1 * self._g(s) * i
+        """The state after one sample of ``dt`` s (rows of ``X`` stepped together, each with
+        its parameter row, or all with row 0)."""
+        _, states = self._step(X, i_read, dt, dinv, rtf, need_v=False, update=True)
         out = X.copy()
-        for name, r, tau, extra in (("v1", ecm.R1, ecm.TAU1, self._soc_factor(s, ecm.L1)),
-                                    ("v2", ecm.R2, ecm.TAU2, 1.0),
-                                    ("v3", ecm.R3, ecm.TAU3, 1.0)):  # fmt: skip
-            if L.has(name):
-                a = np.exp(-dt / (P[:, tau] * ft))
-                out[:, L[name]] = a * X[:, L[name]] + P[:, r] * extra * (1.0 - a) * gi
-        if L.has("delta"):
-            ad = np.exp(-dt / P[:, ecm.TAUD])
-            out[:, L["delta"]] = ad * X[:, L["delta"]] + (1.0 - ad) * P[:, ecm.KD] * i
-        ie = np.where(i > 0.0, i, P[:, ecm.ETA] * i)
-        kq = self._later("kq")  # capacity_temperature: Q·(1 + κQ·(T − Tref))
-        qf = 1.0 if kq is None else 1.0 + kq * _temperature_offset(dinv, rtf)
-        dq = ie * dt / (3600.0 * P[:, ecm.Q] * qf)
-        if L.has("h"):
-            e = np.exp(-np.abs(dq * P[:, ecm.GAM]))
-            h = X[:, L["h"]]
-            out[:, L["h"]] = np.where(i != 0.0, e * h - (1.0 - e) * np.sign(i), h)
-        out[:, L["soc"]] = s - dq
+        out[:, : self.layout.n - 2] = states
         return out
-
-    def ocv(self, so):
-        """OCV of the (surface) SOC ``so`` with the correction and offset (no hysteresis)."""
-        P = self.P
-        if self.table is None:
-            sc = np.clip(so, 0.0, 1.2)  # the rational curve is singular outside
-            omb = P[:, ecm.OMB]
-            e = P[:, ecm.VNOM] * sc / (omb + (1.0 - omb) * sc)
-        else:
-            sc = so
-            e = np.interp(so, self.table.grid(), self.table.values)
-            if self.extend:
-                e = e + self._beyond(so)
-        d = P[:, ecm.D0 : ecm.D0 + N_KNOTS]
-        if np.any(d):
-            e = e + _interp_rows(sc, self.knots.lo, self.knots.step, d)
-        return e + P[:, ecm.VOFF]
 
     def measurement(self, X: np.ndarray, i_read: float, dinv: float, rtf: float,
                     with_error: bool = True) -> np.ndarray:  # fmt: skip
-        """Terminal voltage of each row of ``X`` (ecm's equations), plus the error state e."""
-        P, L = self.P, self.layout
-        s = X[:, L["soc"]]
-        i = self.current(X, i_read)
-        so = s - X[:, L["delta"]] if L.has("delta") else s
-        v = self.ocv(so)
-        if L.has("h"):
-            v = v + P[:, ecm.HM] * X[:, L["h"]]
-        dudt = self._later("dudt")  # entropic: OCV + dU/dT·(T − Tref)
-        if dudt is not None:
-            v = v + dudt * _temperature_offset(dinv, rtf)
-        ro = np.exp(P[:, ecm.TH0] * dinv) * self._g(s) * P[:, ecm.R0] * self._soc_factor(s, ecm.L0)
-        ro = np.where(i < 0.0, ro * np.exp(P[:, ecm.RHO]), ro)
-        for name in ("v1", "v2", "v3"):
-            if L.has(name):
-                v = v - X[:, L[name]]
-        v = v - ro * i
-        bvg = P[:, ecm.BVG]
-        if np.any(bvg):
-            v = v - rtf * np.arcsinh(0.5 * bvg * np.exp(P[:, ecm.THBV] * dinv) * i)
-        return v + X[:, L["verr"]] if with_error else v
+        """Terminal voltage of each row of ``X``, plus the error state e."""
+        v, _ = self._step(X, i_read, 1.0, dinv, rtf, need_v=True, update=False)
+        return v + X[:, self.layout["verr"]] if with_error else v
 
 
 # ----------------------------------------------------------------------------------------------
 # the model file → the filter's model and noise
 
 
-SUPPORTED = frozenset({
-    "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
-    "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency", "r0_soc",
-    "r1_soc", "r0_charge", "bv_arrhenius", "thermal_tau", "entropic", "capacity_temperature",
-})  # fmt: skip
-"""The elements whose equations :class:`Model` has (each registered one checked open loop against
-the compiled simulator in tests/unit/test_estimate.py; the last three, issue 28 item 1's
-temperature laws, are read by their parameter's name where the library has them). An element
-added to the registry later is refused until its equations are written here: stepping a model
-without them would be another model."""
 UNSUPPORTED = {"load": "the paper's load resistor makes the current follow the voltage"}
+"""What the filter cannot step, and why. Every registered element it can: its state step and
+measurement are written from the elements' statements (``model/loopgen.py``)."""
 
 
 def filter_model(fitted, source: str = "model.json") -> Model:
     """The filter's form of a ``FittedModel`` (refused, one line, for what it cannot step)."""
-    missing = [e for e in fitted.config.effects if e not in SUPPORTED]
+    missing = [e for e in fitted.config.effects if e not in elements.REGISTRY]
     if missing:
         raise DataError(f"{source}: effects: estimate does not support "
                         f"{', '.join(map(repr, missing))} (its equations are not in the filter's "
@@ -431,18 +371,15 @@ def open_loop(model: Model, inp: Inputs, soc0: float) -> np.ndarray:
 def initial_state(model: Model, noise: Noise, soc0: float, i_range: float, i_scale: float):
     """The start's mean and covariance (module docstring: the guess; uniform ranges; e
     stationary; b at 0)."""
-    L, P = model.layout, model.P[0]
+    L = model.layout
+    p = dict(zip(ecm.PHYS, model.P[0], strict=True))
     x0 = np.zeros(L.n)
     x0[L["soc"]] = soc0
     sd = np.zeros(L.n)
     sd[L["soc"]] = SOC0_SD
-    for name, r in (("v1", ecm.R1), ("v2", ecm.R2), ("v3", ecm.R3)):
-        if L.has(name):
-            sd[L[name]] = P[r] * i_scale / np.sqrt(3.0)
-    if L.has("delta"):
-        sd[L["delta"]] = abs(P[ecm.KD]) * i_scale / np.sqrt(3.0)
-    if L.has("h"):
-        sd[L["h"]] = 1.0 / np.sqrt(3.0)
+    reach = state_reach()
+    for name in L.names[1:-2]:  # uniform over ±reach
+        sd[L[name]] = reach[name](p, i_scale) / np.sqrt(3.0)
     sd[L["bias"]] = BIAS_SD_OF_RANGE * i_range
     sd[L["verr"]] = noise.residual_sd_v
     return x0, np.diag(np.maximum(sd, 1e-9) ** 2)

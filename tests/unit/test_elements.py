@@ -4,7 +4,6 @@ the package keeps elsewhere (the compiled loop, the docs table) are there for ea
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import re
 from pathlib import Path
 
@@ -13,8 +12,8 @@ import pandas as pd
 import pytest
 
 from avoa_pipeline import gap
-from avoa_pipeline.model import ecm, elements, fitting
-from avoa_pipeline.model.elements.element import Piece, Signature, View, missing_parts
+from avoa_pipeline.model import ecm, elements, fitting, loopgen
+from avoa_pipeline.model.elements.element import KNOTS, Piece, Signature, View, missing_parts
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "gap-diagnosis.md"
 
@@ -26,8 +25,8 @@ def test_every_part_declared(name):
 
 def test_a_missing_part_is_found():
     e = elements.get("second_rc")
-    broken = dataclasses.replace(e, signature=" ", would_decide="", compiled="fast")
-    assert len(missing_parts(broken)) == 3
+    broken = dataclasses.replace(e, signature=" ", would_decide="", compiled="fast", kernel=None)
+    assert len(missing_parts(broken)) == 4
     p = e.params["r2"]
     bad = dataclasses.replace(e, params={"r2": dataclasses.replace(p, limits=(0.1, 2.0), why="")})
     assert any("outside its limits" in m for m in missing_parts(bad))
@@ -54,18 +53,21 @@ def test_starts_set_only_own_parameters(name):
 
 @pytest.mark.parametrize("name", elements.NAMES)
 def test_kernel_reads_each_column(name):
-    """The compiled loop reads every physical column of the element (its code is there)."""
-    src = inspect.getsource(ecm._loop)
-    # integer constants of ecm that are not columns
-    sizes = {"N_SCALAR", "N_KNOTS", "NX", "NP", "TABLE_POINTS", "MIN_OPENING_SAMPLES"}
-    const = {v: k for k, v in vars(ecm).items()
-             if k.isupper() and k[0] != "_" and k not in sizes and isinstance(v, int)}  # fmt: skip
-    cols = ecm.columns(elements.get(name))
-    vec = any(v == name for v, *_ in ecm.VECTORS)
-    names = {const[int(cols[0])]} if vec else {const[int(c)] for c in cols}
-    for n in names:
-        assert re.search(rf"(C\[|P\[:, ){n}\b", src), n
-    assert elements.get(name).compiled == "core" or bool(set(cols) <= set(ecm.EXTRAS_COLUMNS))
+    """The element's statement copies every physical column it owns, the loop generated for its
+    version reads them (its code is there), and a core element's is in both versions."""
+    e = elements.get(name)
+    core, extras = loopgen.source().split("def simulate_extras")
+    cols = ecm.columns(e)
+    if e.vector is not None:
+        reads = {f"P[:, {int(cols[0])} : {int(cols[0])} + nk]"}
+        assert list(e.kernel.columns.values()) == [KNOTS]
+    else:
+        reads = {f"P[:, {int(c)}]" for c in cols}
+        assert set(e.kernel.columns.values()) == set(e.params)
+    for r in reads:
+        assert r in extras, r
+        assert (r in core) == (e.compiled == "core"), r
+    assert e.compiled == "core" or bool(set(cols) <= set(ecm.EXTRAS_COLUMNS))
 
 
 def test_docs_table_has_one_row_per_element():

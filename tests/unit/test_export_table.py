@@ -8,6 +8,7 @@ from the same initial SOC.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -19,7 +20,7 @@ from test_interop_pybamm import SOC0, fitted, measured, record, rms_mv, run_cli
 
 from avoa_pipeline.interop import table as T
 from avoa_pipeline.interop.pybamm import without
-from avoa_pipeline.model import ecm
+from avoa_pipeline.model import ecm, elements
 
 TOL_RMS_MV = 0.5
 """A table simulator on a 0.01 SOC grid (plus the knots) and a 1 K temperature grid against our
@@ -250,11 +251,13 @@ def test_a_bad_out_or_model_gets_one_line_and_nothing_is_written(tmp_path, capsy
 
 
 def test_every_element_is_expressed_and_another_is_refused(monkeypatch):
-    """The table writes every element's law (EXPRESSED); an element it does not know (one added
-    to the library later) is refused in one line, not written without its law."""
+    """The table writes every element's law (EXPRESSED, from each element's ``table``); an
+    element that says why its law cannot enter a table is refused in one line with its reason,
+    not written without its law."""
     assert set(ecm.EFFECTS) == T.EXPRESSED
-    monkeypatch.setattr(T, "EXPRESSED", T.EXPRESSED - {"thermal"})
-    with pytest.raises(T.UserError, match="thermal") as exc:
+    cannot = dataclasses.replace(elements.get("thermal"), table="no grid holds this law")
+    monkeypatch.setitem(elements.REGISTRY, "thermal", cannot)
+    with pytest.raises(T.UserError, match="thermal: no grid holds this law") as exc:
         T.export_table(fitted("table", ("thermal",)), "m.json")
     assert "\n" not in str(exc.value)
 

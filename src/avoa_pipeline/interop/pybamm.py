@@ -440,12 +440,6 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     consts = {name: (value, note) for p in pieces.values() for name, value, note in p.constants}
     # a branch with R = 0 holds no voltage (it starts at 0): left out, the rest renumbered
     branches = sorted(b for p in pieces.values() for b in p.branches if consts[b[1]][0] != 0.0)
-    factors = [f for p in pieces.values() for f in p.factors]
-    terms = [t for p in pieces.values() for t in p.terms]
-
-    def of(kind, *resistors):
-        return [e for r, e in kind if r in resistors]
-
     hows = {"base": BASE_HOW, **{e: elements.get(e).pybamm.how for e in model.config.effects}}
     text = _HEADER.format(
         version=__version__,
@@ -468,6 +462,13 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         text += line if "\n" not in line[:-1] else f"# {note}\n{name} = {_literal(value)}\n"
     for h in dict.fromkeys(h for p in pieces.values() for h in p.helpers):
         text += "\n" + h
+    text += _ocv_function(model, pieces)
+    laws, r0_value, rc_values = _resistance_functions(pieces, branches, held_soc)
+    return text + laws + _tail(model, pieces, branches, held_soc, r0_value, rc_values)
+
+
+def _ocv_function(model: FittedModel, pieces: dict[str, Piece]) -> str:
+    """The module's ``ocv(soc)``: the base's OCV source plus every piece's OCV terms."""
     if model.config.table is not None:
         doc, sc = "the measured table (linear, flat beyond it)\n    plus its offset", "soc"
     else:
@@ -482,9 +483,20 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         if len(ocv_terms) == 1
         else "(\n        " + "\n        + ".join(ocv_terms) + "\n    )"
     )
-    text += (f'\n\ndef ocv(soc):\n    """Open-circuit voltage [V] at SoC: {doc}."""\n'
-             f"    sc = {sc}\n    return {ocv_expr}\n")  # fmt: skip
-    r0_value = "R0_OHM"
+    return (f'\n\ndef ocv(soc):\n    """Open-circuit voltage [V] at SoC: {doc}."""\n'
+            f"    sc = {sc}\n    return {ocv_expr}\n")  # fmt: skip
+
+
+def _resistance_functions(pieces: dict[str, Piece], branches, held_soc: bool):
+    """(the functions of R0 and of each RC branch's R and C that follow a law, R0's value in
+    the parameter values, the RC branches' entries there)."""
+    factors = [f for p in pieces.values() for f in p.factors]
+    terms = [t for p in pieces.values() for t in p.terms]
+
+    def of(kind, *resistors):
+        return [e for r, e in kind if r in resistors]
+
+    text, r0_value = "", "R0_OHM"
     if of(factors, "R0") or of(terms, "R0"):
         text += _resistance_function(
             "r0",
@@ -517,6 +529,12 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
             c_val = f"{tau_name} / {r_name}"
         rc_values += (f'        "R{n} [Ohm]": {r_val},\n        "C{n} [F]": {c_val},\n'
                       f'        "Element-{n} initial overpotential [V]": 0.0,\n')  # fmt: skip
+    return text, r0_value, rc_values
+
+
+def _tail(model: FittedModel, pieces: dict[str, Piece], branches, held_soc: bool,
+          r0_value: str, rc_values: str) -> str:  # fmt: skip
+    """The module's parameter values, states, submodels, drive and thermal block."""
     states = {"SoC": "Initial SoC"} | {
         f"Element-{n} overpotential [V]": f"Element-{n} initial overpotential [V]"
         for n in range(1, len(branches) + 1)
@@ -528,7 +546,7 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
     entropic = extra_values.pop("Entropic change [V/K]", "0.0")
     current_terms = "".join(f" + {t}" for p in pieces.values() for t in p.current_terms)
     extra_values |= thermal_parameters(model)
-    text += _THERMAL_AND_DRIVE.format(
+    return _THERMAL_AND_DRIVE.format(
         lower=_literal(VOLTAGE_CUTOFFS_V[0]), upper=_literal(VOLTAGE_CUTOFFS_V[1]),
         r0_value=r0_value, rc_values=rc_values, tol=repr(SOLVER_TOL), chunk=CHUNK_SAMPLES,
         states=_dict({k: json.dumps(v, ensure_ascii=False) for k, v in states.items()}),
@@ -538,7 +556,6 @@ def module_source(model: FittedModel, initial_soc: float, soc0_note: str, source
         extra_values=_entries(extra_values, indent=8), entropic=entropic,
         thermal=thermal_block(model),
     )  # fmt: skip
-    return text
 
 
 # ----------------------------------------------------------------------------------------------

@@ -10,7 +10,8 @@ on an SOC × temperature grid, for a simulator written in Simulink, C or a BMS's
   (I < 0), ``r1_ohm``, ``tau1_s``, ``c1_f`` (= τ1/R1), the same three for branches 2 and 3 where
   the model has them, ``r_bv0_ohm`` with Butler–Volmer and ``capacity_ah`` with
   capacity_temperature: every SOC and temperature law of the model evaluated at the grid point
-  (:func:`grid_values`; thermal_tau's in the ``tau`` columns, entropic's in ``ocv_v``).
+  (:func:`grid_values`, from each element's statement of how its law enters the table,
+  ``Element.table``; thermal_tau's in the ``tau`` columns, entropic's in ``ocv_v``).
 - ``cell.json`` (the sidecar, :func:`sidecar`): what each column means and its unit, the grids,
   the model's scalars (capacity, the surface-SOC lag κ and τ_d, hysteresis M and γ, the current
   offset, the coulombic efficiency, Butler–Volmer's i0 and its Arrhenius θ, the laws' own
@@ -32,7 +33,7 @@ import pandas as pd
 from .. import __version__, records
 from ..errors import UserError
 from ..model import ecm, elements
-from ..model.elements.element import FARADAY, GAS_R
+from ..model.elements.element import TableLaw
 from ..model.fitted import FittedModel
 
 FORMAT = "avoa-pipeline-table"
@@ -60,65 +61,75 @@ TEMPERATURE_DEPENDENT = frozenset(
 )
 """Elements whose laws depend on the cell temperature: those the registry says need one, and
 Butler–Volmer (through RT/F, at 25 °C without a temperature)."""
-EXPRESSED = frozenset({
-    "second_rc", "third_rc", "soc_resistance", "diffusion", "hysteresis", "butler_volmer",
-    "thermal", "ocv_shape", "current_offset", "voltage_offset", "coulombic_efficiency",
-    "r0_soc", "r1_soc", "r0_charge", "bv_arrhenius", "thermal_tau", "entropic",
-    "capacity_temperature",
-})  # fmt: skip
-"""The elements whose laws :func:`grid_values` and :func:`scalars` write. A model with another
-element (one added to the library after this module) is refused in one line rather than
-written without its law: the table would be wrong where that element acts."""
+EXPRESSED = frozenset(n for n, e in elements.REGISTRY.items() if isinstance(e.table, TableLaw))
+"""The elements whose laws the table writes (each element's ``table``: how its law enters, or why
+it cannot). A model with another element is refused in one line rather than written without its
+law: the table would be wrong where that element acts."""
 
 
-def _temperature_factor(theta_k: float, temp_k: np.ndarray, tref_k: float) -> np.ndarray:
-    """exp(θ·(1/T − 1/T_ref)): thermal's Arrhenius factor (1 at T_ref, or for θ = 0)."""
-    return np.exp(theta_k * (1.0 / temp_k - 1.0 / tref_k))
+def _expressed(name: str) -> bool:
+    """Whether the registry has element ``name`` and it says how its law enters the table."""
+    return name in elements.REGISTRY and isinstance(elements.get(name).table, TableLaw)
+
+
+def _laws(model: FittedModel):
+    """(p, the model's elements' table laws): p holds the physical values by internal name, and a
+    vector element's values at the knots as a function of SOC (linear between, flat beyond)."""
+    phys = ecm.physical(model.x, model.knots)
+    knots = model.knots.grid()
+    p = dict(phys.scalars) | {e: (lambda s, v=v: np.interp(s, knots, v))
+                              for e, v in phys.at_knots.items()}  # fmt: skip
+    return p, [elements.get(e).table for e in elements.NAMES if e in model.config.effects]
+
+
+def _product(value, laws, resistor: str, p, s, tk, tref):
+    """``value`` times each law's factor of ``resistor``, by position, then registry order."""
+    found = [f if isinstance(f, tuple) else (0, f)
+             for law in laws if (f := law.factors.get(resistor)) is not None]  # fmt: skip
+    for _, factor in sorted(found, key=lambda pf: pf[0]):
+        value = value * factor(p, s, tk, tref)
+    return value
 
 
 def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
-    """Every column of the table at each (temperature, SOC) pair (temperature outer): the
-    model's laws exactly as the simulator evaluates them (``ecm._loop``): R0·g(s)·exp(l0(s))·f0(T)
-    (·exp(ρ) on charge), R_j·g(s)·f1(T) (·exp(l1(s)) for branch 1), τ_j·exp(θτ·(1/T − 1/T_ref))
-    (thermal_tau; fixed without it), the OCV of the SOC (with ocv_shape and the offset) plus
-    (∂U/∂T)·(T − T_ref) (entropic), Butler–Volmer's slope at I = 0, RT/(F·i0(T)), and the
-    capacity Q·(1 + κQ·(T − T_ref)) (capacity_temperature)."""
+    """Every column of the table at each (temperature, SOC) pair (temperature outer): R0 and the
+    RC branches (each where its R is not 0) times the factors the model's elements state for
+    them (``Element.table``: SOC and temperature laws; ·exp(ρ) on charge), the OCV of the SOC
+    (with ocv_shape and the offset) plus the elements' OCV terms, and the elements' own columns
+    (Butler–Volmer's slope at I = 0, the capacity at the temperature)."""
     P = ecm.to_physical(model.x)[0]
     s = np.asarray(soc, dtype=float)
     temps = np.asarray(temperature_c, dtype=float)
     S, T = np.meshgrid(s, temps)  # rows: temperatures, columns: SOC
     S, T = S.ravel(), T.ravel()
     tk = T + 273.15
-    knots = model.knots.grid()
-    g = np.ones_like(S)
-    if P[ecm.KLOW] != 0.0:  # soc_resistance, its SOC clipped as the simulator clips it
-        g = 1.0 + P[ecm.KLOW] * np.exp(-np.clip(S, -0.5, 2.0) / P[ecm.SIG])
-    # r0_soc, r1_soc: log-multipliers linear between the knots, flat beyond (0 without them)
-    l0 = np.interp(S, knots, P[ecm.L0 : ecm.L0 + ecm.N_KNOTS])
-    l1 = np.interp(S, knots, P[ecm.L1 : ecm.L1 + ecm.N_KNOTS])
-    f0 = _temperature_factor(P[ecm.TH0], tk, model.tref_k)
-    f1 = _temperature_factor(P[ecm.TH1], tk, model.tref_k)
-    ftau = _temperature_factor(P[ecm.THTAU], tk, model.tref_k)  # thermal_tau (1 without)
-    r0 = P[ecm.R0] * g * np.exp(l0) * f0
-    ocv = ecm.ocv_values(P, S, model.knots, model.config.table) + P[ecm.DUDT] * (tk - model.tref_k)
-    out = {"temperature_c": T, "soc": S, "ocv_v": ocv,
-           "r0_ohm": r0, "r0_charge_ohm": r0 * np.exp(P[ecm.RHO])}  # fmt: skip
+    p, laws = _laws(model)
+    at = (p, S, tk, model.tref_k)
+    r0 = _product(P[ecm.R0] * np.ones_like(S), laws, "r0", *at)
+    ocv = ecm.ocv_values(P, S, model.knots, model.config.table)
+    for law in laws:
+        if law.ocv is not None:
+            ocv = ocv + law.ocv(*at)
+    out = {"temperature_c": T, "soc": S, "ocv_v": ocv, "r0_ohm": r0,
+           "r0_charge_ohm": _product(r0, laws, "r0_charge", *at)}  # fmt: skip
     for j, r, tau in _branches(P):
-        rj = P[r] * g * f1 * (np.exp(l1) if j == 1 else 1.0)
-        out |= {f"r{j}_ohm": rj, f"tau{j}_s": P[tau] * ftau, f"c{j}_f": P[tau] * ftau / rj}
-    if "butler_volmer" in model.config.effects:
-        inv_i0 = P[ecm.BVG] * _temperature_factor(P[ecm.THBV], tk, model.tref_k)
-        out["r_bv0_ohm"] = GAS_R * tk / FARADAY * inv_i0
-    if "capacity_temperature" in model.config.effects:
-        out["capacity_ah"] = P[ecm.Q] * (1.0 + P[ecm.KQ] * (tk - model.tref_k))
+        rj = _product(P[r] * np.ones_like(S), laws, "rc", *at)
+        rj = _product(rj, laws, "r1", *at) if j == 1 else rj
+        tj = _product(P[tau] * np.ones_like(S), laws, "tau", *at)
+        out |= {f"r{j}_ohm": rj, f"tau{j}_s": tj, f"c{j}_f": tj / rj}
+    for law in laws:
+        out |= {name: f(*at) for name, (_, _, f) in law.columns.items()}
     return pd.DataFrame(out)
 
 
 def _branches(P: np.ndarray) -> list[tuple[int, int, int]]:
     """The RC branches a table carries: (number, R column, τ column), each where its
     resistance is not 0 (a branch with R = 0 holds no voltage, and its C = τ/R has no value);
-    numbered as the model numbers them."""
-    branches = ((1, ecm.R1, ecm.TAU1), (2, ecm.R2, ecm.TAU2), (3, ecm.R3, ecm.TAU3))
+    numbered as the model numbers them (branch 1 the base's, the others the elements')."""
+    branches = [(1, ecm.R1, ecm.TAU1)] + [
+        (j, ecm.IDX[f"r{j}"], ecm.IDX[f"ltau{j}"])
+        for e in elements.REGISTRY.values() if (j := e.kernel.branch) is not None
+    ]  # fmt: skip
     return [(j, r, t) for j, r, t in branches if P[r] != 0]
 
 
@@ -189,13 +200,13 @@ COLUMNS = {
     "r0_ohm": ("Ω", "series resistance while discharging or at rest (I ≥ 0)"),
     "r0_charge_ohm": ("Ω", "series resistance while charging (I < 0): r0_ohm times "
                       "exp(r0_charge_log_ratio); equal to r0_ohm without r0_charge"),
-    **{k.format(j=j): (u, m.format(j=j)) for j in (1, 2, 3) for k, (u, m) in _RC_COLUMNS.items()},
-    "r_bv0_ohm": ("Ω", "Butler–Volmer: the slope of its overpotential at I = 0, RT/(F·i0(T)) "
-                  "(see cannot)"),
-    "capacity_ah": ("A·h", "capacity_temperature: the capacity the SOC counts at this row's "
-                    "temperature, Q·(1 + κQ·(T − tref_k)) (the same at every SOC)"),
+    **{k.format(j=j): (u, m.format(j=j))
+       for j in (1, *(e.kernel.branch for e in elements.REGISTRY.values() if e.kernel.branch))
+       for k, (u, m) in _RC_COLUMNS.items()},
+    **{name: (unit, meaning) for e in elements.REGISTRY.values()
+       if isinstance(e.table, TableLaw) for name, (unit, meaning, _) in e.table.columns.items()},
 }  # fmt: skip
-"""Every column a table may have: (unit, meaning)."""
+"""Every column a table may have: (unit, meaning); the elements' own from their ``table``."""
 
 RECURSION = (
     "Per sample k (current i_k positive on discharge, held over [t_k, t_k+1), Δt = t_k+1 − t_k; "
@@ -358,10 +369,11 @@ def export_table(model: FittedModel, source: str, soc: np.ndarray | None = None,
     if model.config.load_ohm is not None:
         raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
                         "test rig, not of the cell; a table of the cell has none")  # fmt: skip
-    unknown = [e for e in model.config.effects if e not in EXPRESSED]
-    if unknown:
+    unknown = [e for e in model.config.effects if not _expressed(e)]
+    if unknown:  # the element's own reason where it gives one
+        why = "; ".join(f"{e}: {elements.get(e).table}" for e in unknown if e in elements.REGISTRY)
         raise UserError(f"{source}: field 'effects': the table export does not write the law of "
-                        f"{', '.join(unknown)} yet (interop/table.py EXPRESSED)")  # fmt: skip
+                        f"{', '.join(unknown)}" + (f" ({why})" if why else ""))  # fmt: skip
     soc = default_soc_grid(model) if soc is None else np.asarray(soc, dtype=float)
     if temperature_c is None:
         temperature_c = default_temperatures(model)

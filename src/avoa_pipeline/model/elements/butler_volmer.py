@@ -7,7 +7,18 @@ from __future__ import annotations
 import numpy as np
 
 from ...records import REST_FRACTION
-from .element import FARADAY, GAS_R, Element, Export, Param, Piece, Signature, View
+from .element import (
+    FARADAY,
+    GAS_R,
+    Element,
+    Export,
+    Kernel,
+    Param,
+    Piece,
+    Signature,
+    TableLaw,
+    View,
+)
 
 _BUTLER_VOLMER = '''
 def butler_volmer(T_cell, current):
@@ -45,6 +56,24 @@ def current_bands(v: View) -> dict:
     return {"signed_residual_by_current_mv": bands}
 
 
+KERNEL = Kernel(
+    columns={"bvg": "bvg"},
+    flags={"bv": "np.any(bvg != 0.0)"},
+    code={
+        "overpotential": """if bv:
+    gb = bvg[c]
+    @slot exchange_current
+    v -= rtf * np.arcsinh(0.5 * gb * i)""",
+    },
+)
+"""V −= (2RT/F)·asinh(i/(2 i0)), 1/i0 = bvg (not under the paper's load: its current would follow
+a voltage that is not linear in it). bv_arrhenius fills ``exchange_current``."""
+
+
+def _r_bv0(p, s, tk, tref):  # RT/F times 1/i0(T) (bv_arrhenius's factor: 1 without it)
+    return GAS_R * tk / FARADAY * (p["bvg"] * np.exp(p["thbv"] * (1.0 / tk - 1.0 / tref)))
+
+
 ELEMENT = Element(
     name="butler_volmer",
     params={
@@ -72,4 +101,15 @@ ELEMENT = Element(
     would_decide="pulses of several currents at one SOC",
     conflicts={"load": "the load is solved for a linear ohmic drop"},
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw(
+        "its slope at I = 0, RT/(F·i0(T)), in column r_bv0_ohm (the law itself in the sidecar)",
+        columns={
+            "r_bv0_ohm": (
+                "Ω",
+                "Butler–Volmer: the slope of its overpotential at I = 0, RT/(F·i0(T)) (see cannot)",
+                _r_bv0,
+            )
+        },
+    ),
 )

@@ -3,8 +3,16 @@ top of ``butler_volmer`` and only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 from .thermal import THETA_LIMITS, THETA_WHY
+
+KERNEL = Kernel(
+    columns={"thbv": "thbv"},
+    flags={"bvarr": "np.any(thbv != 0.0)"},
+    code={"exchange_current": "if bvarr:\n    gb *= np.exp(thbv[c] * dinv)"},
+)
+"""1/i0 is multiplied by exp(θbv·(1/T − 1/Tref)) (butler_volmer's ``exchange_current`` slot)."""
+
 
 ELEMENT = Element(
     name="bv_arrhenius",
@@ -20,4 +28,6 @@ ELEMENT = Element(
     compiled="extras",
     requires="butler_volmer",
     needs_temperature=True,
+    kernel=KERNEL,
+    table=TableLaw("in r_bv0_ohm (butler_volmer's column): 1/i0 times exp(θ·(1/T − 1/tref_k))"),
 )

@@ -7,7 +7,26 @@ the records can identify. Offered only where the temperature moves."""
 from __future__ import annotations
 
 from .coulombic_efficiency import charge_piece
-from .element import Element, Export, Param
+from .element import Element, Export, Kernel, Param, TableLaw
+
+KERNEL = Kernel(
+    columns={"kq": "kq"},
+    flags={"qlaw": "np.any(kq != 0.0)"},
+    reads=("dtemp",),
+    factors={"capacity": "qf"},
+    code={
+        "hold_setup": "tdep = tdep or qlaw",
+        # the hysteresis decay's charge step follows the temperature's capacity
+        "held": "if qlaw and held:\n    held = dinv_t[k] == dinv_t[k - 1]",
+        "capacity": "qf = 1.0 + kq[c] * dtemp if qlaw else 1.0",
+    },
+)
+"""The capacity is Q·(1 + κQ·(T − Tref)) in the SOC's step."""
+
+
+def _capacity(p, s, tk, tref):
+    return p["lq"] * (1.0 + p["kq"] * (tk - tref))
+
 
 ELEMENT = Element(
     name="capacity_temperature",
@@ -35,4 +54,17 @@ ELEMENT = Element(
     would_decide="full discharges at several temperatures",
     compiled="extras",
     needs_temperature=True,
+    kernel=KERNEL,
+    table=TableLaw(
+        "the capacity the SOC counts at each temperature, column capacity_ah",
+        columns={
+            "capacity_ah": (
+                "A·h",
+                "capacity_temperature: the capacity the SOC counts at "
+                "this row's temperature, Q·(1 + κQ·(T − tref_k)) (the same at "
+                "every SOC)",
+                _capacity,
+            )
+        },
+    ),
 )

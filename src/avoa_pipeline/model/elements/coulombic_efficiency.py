@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import records
-from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 _COUNTED = '''
 def counted(current, T_cell):
@@ -68,6 +68,11 @@ def _applies(recs, imax) -> str:
     return "" if charges else "no charge current"
 
 
+KERNEL = Kernel(columns={"eta": "eta"},
+                code={"counted": "ie = i if i > 0.0 else eta[c] * i"})  # fmt: skip
+"""The SOC counts η·i of a charging current (always: η = 1 counts it all)."""
+
+
 ELEMENT = Element(
     name="coulombic_efficiency",
     params={
@@ -92,4 +97,6 @@ ELEMENT = Element(
     would_decide="a full charge and discharge between two rests",
     applies=_applies,
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw("a scalar of the sidecar, in the recursion's charge count"),
 )

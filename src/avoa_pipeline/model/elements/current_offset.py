@@ -3,7 +3,7 @@ and the hysteresis."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 
 def _piece(p) -> Piece:
@@ -16,6 +16,10 @@ def _read(v: View) -> dict:
     rest = v.direction == 0
     th = (v.rec.t - v.rec.t[0]) / 3600.0
     return {"rest_trend_mv_per_h": slope_mv(th[rest], v.resid[rest])}
+
+
+KERNEL = Kernel(columns={"ioff": "ioff"}, code={"current": "ip += ioff[c]"})
+"""The cell's current is the measured one plus b (always added: b = 0 adds nothing)."""
 
 
 ELEMENT = Element(
@@ -45,4 +49,6 @@ ELEMENT = Element(
     ),
     would_decide="a full charge and discharge between two rests",
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw("a scalar of the sidecar (current_offset_a), added to a measured current"),
 )

@@ -3,7 +3,7 @@ a single-particle model); unlike an RC branch its voltage scales with the OCV's 
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, State, TableLaw
 
 _SURFACE_SOC_LAG = '''
 class SurfaceSocLag(pybamm.BaseSubModel):
@@ -56,6 +56,22 @@ def _piece(p) -> Piece:
     )  # fmt: skip
 
 
+KERNEL = Kernel(
+    columns={"kd": "kd", "taud": "ltaud"},
+    flags={"diff": "np.any(kd != 0.0)"},
+    states={"dl": State("delta", lambda p, i: abs(p["kd"]) * i)},
+    code={
+        "setup": "ad = np.exp(-dt[0] / taud)\ndl = np.zeros(m)\nbd = np.zeros(m)",
+        "uneven": "ad[c] = np.exp(-dtk / taud[c])",
+        "surface": "if diff:\n    so = s - dl[c]",
+        "hold_increment": "bd[c] = (1.0 - ad[c]) * kd[c] * i",
+        "hold_step": "if diff:\n    for c in range(m):\n        dl[c] = ad[c] * dl[c] + bd[c]",
+        "update": "if diff:\n    dl[c] = ad[c] * dl[c] + (1.0 - ad[c]) * kd[c] * i",
+    },
+)
+"""The OCV sees s − δ; δ_k+1 = a_d·δ_k + (1 − a_d)·κ·i_k, a_d = exp(−Δt/τ_d)."""
+
+
 ELEMENT = Element(
     name="diffusion",
     params={
@@ -90,4 +106,8 @@ ELEMENT = Element(
         _piece,
     ),
     would_decide="a long rest after a load (relaxation over an hour or more)",
+    kernel=KERNEL,
+    table=TableLaw(
+        "a state, not a column: the sidecar's scalars and recursion (ocv_v read at s − δ)"
+    ),
 )

@@ -148,6 +148,68 @@ class Signature:
 
 
 @dataclass(frozen=True)
+class State:
+    """A state an element adds to the model (beyond the SOC and RC branch 1): ``name`` in the
+    SOC filter's state vector (``estimate``), ``reach(p, i)`` the largest |value| it reaches at
+    current ``i`` (A) with physical values ``p`` (by internal name): the filter's start takes it
+    uniform over ±reach."""
+
+    name: str
+    reach: Callable[[Mapping[str, float], float], float]
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """An element's physics, stated once, as code for the compiled simulator's slots
+    (``model/loopgen.py`` writes the loop from the base's statement and these; its docstring
+    lists the slots and the names the base gives a snippet to read and set).
+
+    ``columns``: local array name → the internal parameter whose physical column it copies (one
+    value per row), or ``KNOTS`` for a vector element's N_KNOTS values per row. ``flags``: flag
+    name → expression of the locals, true where the element acts in some row (its code is guarded
+    by it, so that an element neutral in every row costs a test per sample, the branch taken out
+    of the loops by the compiler). ``code``: slot → snippet (Python, indented from column 0), or
+    (position, snippet) where its place among the slot's other snippets changes the floats (sums
+    and products are not associative: snippets of a slot run by position, then registry order).
+    ``branch``: the number j of the RC branch it adds (the generator writes its arrays r{j},
+    tau{j}, a{j}, v{j}, b{j} and its code, as for the base's branch 1, from ``rc_kernel``).
+    ``factors``: a product of the base's (``r1``: branch 1's resistance, ``capacity``: the
+    capacity) → the local it multiplies by. ``reads``: quantities the base computes only for an
+    element that reads them (``dtemp``: the temperature's rise over the reference, K).
+    ``states``: local array → :class:`State`, the arrays its code steps (the simulator starts
+    them where ``setup`` does; the filter's one-sample step reads and writes them)."""
+
+    columns: Mapping[str, str] = field(default_factory=dict)
+    flags: Mapping[str, str] = field(default_factory=dict)
+    code: Mapping[str, str | tuple[int, str]] = field(default_factory=dict)
+    branch: int | None = None
+    factors: Mapping[str, str] = field(default_factory=dict)
+    reads: tuple[str, ...] = ()
+    states: Mapping[str, State] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TableLaw:
+    """How an element's law enters the BMS-style table (``interop/table.py``; ``how`` in words).
+    Each law is a function of (p: physical values by internal name, soc: the bulk SOC at the grid
+    points, tk: the cell temperature there (K), tref_k), an array over the grid points.
+    ``factors``: resistor → factor: "r0" (R0, both directions), "r0_charge" (R0 while charging),
+    "rc" (every RC resistance), "r1" (RC branch 1's), "tau" (every RC time constant); a value
+    (position, law) places it among the resistor's other factors (products round in order).
+    ``ocv``: a term added to the ocv_v column. ``columns``: columns of its own, name → (unit,
+    meaning, law)."""
+
+    how: str
+    factors: Mapping[str, Callable | tuple[int, Callable]] = field(default_factory=dict)
+    ocv: Callable | None = None
+    columns: Mapping[str, tuple[str, str, Callable]] = field(default_factory=dict)
+
+
+KNOTS = "@knots"
+"""A vector element's column in :attr:`Kernel.columns`: its values at the N_KNOTS knots."""
+
+
+@dataclass(frozen=True)
 class Element:
     """One element of the model library. ``starts(row, imax)``: the values (internal, by name)
     each start of its fit sets on the fitted rows it extends (row: the first record's fitted
@@ -155,7 +217,8 @@ class Element:
     cannot be a candidate on these records ("" when it can), beyond what ``requires``,
     ``needs_temperature`` and ``conflicts`` say; ``signature``: its residual signature, or why
     it has none of its own; ``compiled``: the version of the compiled simulator that carries its
-    code ("core", or "extras": compiled in only when a row uses it, ``ecm._kernel``)."""
+    code ("core", or "extras": compiled in only when a row uses it, ``model/loopgen.py``);
+    ``kernel``: its physics in the compiled simulator."""
 
     name: str
     params: dict[str, Param]
@@ -170,6 +233,8 @@ class Element:
     applies: Callable[[list, float], str] | None = None
     vector: Vector | None = None
     withheld: bool = False  # the withheld-effect check (gap/withheld.py) makes records with it
+    kernel: Kernel | None = None  # its physics in the compiled simulator (``model/loopgen.py``)
+    table: TableLaw | str = ""  # how its law enters the BMS table export, or why it cannot
 
     def conflict(self, table: bool, load: bool) -> str:
         """Why the element cannot join a model with a measured OCV table / the paper's load
@@ -219,6 +284,12 @@ def missing_parts(e: Element) -> list[str]:
         out.append("no PyBaMM mapping, nor why it has none")
     if not e.would_decide.strip():
         out.append("no record that would decide it")
+    if e.kernel is None:
+        out.append("no physics for the compiled simulator (kernel)")
+    if not (isinstance(e.table, TableLaw) and e.table.how.strip()) and not (
+        isinstance(e.table, str) and e.table.strip()
+    ):
+        out.append("no table law, nor why it has none")
     if e.compiled not in ("core", "extras"):
         out.append(f"compiled {e.compiled!r}: neither 'core' nor 'extras'")
     unknown = sorted(set(e.conflicts) - {"table", "load"})

@@ -5,7 +5,7 @@ one table over the others. Offered only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Piece, Signature, View, slope_mv
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View, slope_mv
 
 _ENTROPIC = '''
 class EntropicOcv(pybamm.BaseSubModel):
@@ -44,6 +44,15 @@ def _read(v: View) -> dict:
     return {"rest_mv_per_k": slope_mv(rec.temp_c[rest], v.resid[rest]) if rest.any() else None}
 
 
+KERNEL = Kernel(
+    columns={"dudt": "dudt"},
+    flags={"entr": "np.any(dudt != 0.0)"},
+    reads=("dtemp",),
+    code={"ocv": "if entr:\n    e += dudt[c] * dtemp"},
+)
+"""(∂U/∂T)·(T − Tref) is added to the OCV."""
+
+
 ELEMENT = Element(
     name="entropic",
     params={
@@ -68,4 +77,8 @@ ELEMENT = Element(
     would_decide="rests at several temperatures (an OCV measured at two temperatures)",
     compiled="extras",
     needs_temperature=True,
+    kernel=KERNEL,
+    table=TableLaw(
+        "(∂U/∂T)·(T − tref_k) added to ocv_v", ocv=lambda p, s, tk, tref: p["dudt"] * (tk - tref)
+    ),
 )

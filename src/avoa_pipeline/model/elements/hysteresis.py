@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .coulombic_efficiency import counted_piece
-from .element import Element, Export, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, TableLaw, View
 
 _HYSTERESIS = '''
 class Hysteresis(pybamm.BaseSubModel):
@@ -93,6 +93,36 @@ def _read(v: View) -> dict:
     }
 
 
+KERNEL = Kernel(
+    columns={"hm": "hm", "gam": "lgamma", "h": "h0"},
+    flags={"hyst": "np.any(hm != 0.0)"},
+    states={"h": State("h", lambda p, i: 1.0)},
+    code={
+        # hx: the decay of the last sample, per row (one exp per row and sample was most of a
+        # hysteresis model's cost, so a held current's decay is reused); hs, hon: a hold's
+        "setup": "hx = np.zeros(m)\nhs = np.zeros(m)\nhon = np.zeros(m, dtype=np.bool_)",
+        # added after the other OCV terms (the hand-written loop's order: floats)
+        "ocv": (1, "if hyst:\n    e += hm[c] * h[c]"),
+        "trace": "tr[1, k] = h[c]",
+        "hold_increment_charge": """hon[c] = hyst and i != 0.0
+if hon[c]:
+    hx[c] = np.exp(-abs(dqs[c] * gam[c]))
+    hs[c] = (1.0 - hx[c]) * (1.0 if i > 0.0 else -1.0)""",
+        "hold_step": """if hyst:
+    for c in range(m):
+        if hon[c]:
+            h[c] = hx[c] * h[c] - hs[c]""",
+        "update_charge": """if hyst and i != 0.0:
+    if not held:
+        hx[c] = np.exp(-abs(dq * gam[c]))
+    ex = hx[c]
+    h[c] = ex * h[c] - (1.0 - ex) * (1.0 if i > 0.0 else -1.0)""",
+    },
+)
+"""V += M·h; h_k+1 = e_k·h_k − (1 − e_k)·sgn(i_k), e_k = exp(−|γ·Δs_k|) with Δs_k the SOC step
+(the counted charge over the capacity); at zero current h holds."""
+
+
 ELEMENT = Element(
     name="hysteresis",
     params={
@@ -132,4 +162,6 @@ ELEMENT = Element(
     ),
     would_decide="rests at one SOC reached once by charge and once by discharge",
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw("a state, not a column: the sidecar's scalars and recursion (V += M·h)"),
 )

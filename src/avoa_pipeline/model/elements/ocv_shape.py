@@ -7,7 +7,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import N_KNOTS, Element, Export, Param, Piece, Signature, Vector, View, flat_ends
+from .element import (
+    KNOTS,
+    N_KNOTS,
+    Element,
+    Export,
+    Kernel,
+    Param,
+    Piece,
+    Signature,
+    TableLaw,
+    Vector,
+    View,
+    flat_ends,
+)
 
 
 def _report(p) -> dict:
@@ -38,6 +51,26 @@ def _read(v: View) -> dict:
     return {"late_rest_by_soc_mv": by_soc}
 
 
+KERNEL = Kernel(
+    columns={"d": KNOTS},
+    flags={"shape": "np.any(d != 0.0)"},
+    code={
+        "ocv": """if shape:
+    x = (sc - k_lo) / k_step
+    if x <= 0.0:
+        e += d[c, 0]
+    elif x >= nk - 1:
+        e += d[c, nk - 1]
+    else:
+        j = int(x)
+        w = x - j
+        e += (1.0 - w) * d[c, j] + w * d[c, j + 1]""",
+    },
+)
+"""The correction's values at the knots, interpolated linearly at the SOC the OCV curve was read
+at and held flat beyond the knots."""
+
+
 ELEMENT = Element(
     name="ocv_shape",
     params={
@@ -59,4 +92,6 @@ ELEMENT = Element(
     would_decide="a slow OCV test (--ocv)",
     vector=Vector(2, _report),
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw("in ocv_v (ecm.ocv_values adds the correction at the SOC)"),
 )

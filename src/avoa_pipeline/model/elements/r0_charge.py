@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 
 
 def _piece(p) -> Piece:
@@ -13,6 +13,14 @@ def _piece(p) -> Piece:
         constants=(("R0_CHARGE_FACTOR", float(np.exp(p["rho"])), "R0 while charging / R0"),),
         factors=(("R0", "(1.0 + (R0_CHARGE_FACTOR - 1.0) * (current < 0))"),),
     )  # fmt: skip
+
+
+KERNEL = Kernel(
+    columns={"rho": "rho"},
+    flags={"r0chg": "np.any(rho != 0.0)"},
+    code={"r0_multiplier": "if r0chg and ip < 0.0:\n    ro *= np.exp(rho[c])"},
+)
+"""R0 is multiplied by exp(ρ) while charging (the cell's current, offset included, below 0)."""
 
 
 ELEMENT = Element(
@@ -36,4 +44,9 @@ ELEMENT = Element(
     ),
     would_decide="charge pulses beside discharge pulses",
     compiled="extras",
+    kernel=KERNEL,
+    table=TableLaw(
+        "exp(ρ) multiplies r0_charge_ohm",
+        factors={"r0_charge": lambda p, s, tk, tref: np.exp(p["rho"])},
+    ),
 )

@@ -7,7 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import N_KNOTS, Element, Export, Param, Piece, Vector, flat_ends
+from .element import (
+    KNOTS,
+    N_KNOTS,
+    Element,
+    Export,
+    Kernel,
+    Param,
+    Piece,
+    TableLaw,
+    Vector,
+    flat_ends,
+)
 
 LOG_LIMITS = (-3.0, 3.0)
 LOG_WHY = "a log-multiplier at a knot: a factor of e^±3 (0.05-20) at most"
@@ -40,6 +51,21 @@ def soc_table(element: str, resistor: str):
 
 _report, _piece = soc_table("r0_soc", "R0")
 
+KERNEL = Kernel(
+    columns={"l0": KNOTS},
+    flags={"soc_r0": "np.any(l0 != 0.0)"},
+    code={
+        "r0_multiplier": """if soc_r0:  # log-multipliers at the knots, by the (bulk) SOC
+    xs = (s - k_lo) / k_step
+    js = min(max(int(xs), 0), nk - 2) if xs > 0.0 else 0
+    ws = min(max(xs - js, 0.0), 1.0)
+    ro *= np.exp((1.0 - ws) * l0[c, js] + ws * l0[c, js + 1])""",
+    },
+)
+"""R0 is multiplied by exp of the log-multipliers interpolated at the bulk SOC (flat beyond the
+knots)."""
+
+
 ELEMENT = Element(
     name="r0_soc",
     params={
@@ -55,4 +81,9 @@ ELEMENT = Element(
     would_decide="pulses at low and at high SOC",
     compiled="extras",
     vector=Vector(1, _report),
+    kernel=KERNEL,
+    table=TableLaw(
+        "exp(l0(s)) multiplies r0_ohm",
+        factors={"r0": lambda p, s, tk, tref: np.exp(p["r0_soc"](s))},
+    ),
 )

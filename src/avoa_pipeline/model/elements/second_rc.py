@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, State, TableLaw, View
 
 R_LIMITS = (0.0, 2.0)
 R_WHY = "0-2 Ω: above the resistance of any cell this library models (mΩ to about 1 Ω)"
@@ -24,6 +24,26 @@ def rc_piece(j: int):
         )  # fmt: skip
 
     return piece
+
+
+def rc_kernel(j: int) -> Kernel:
+    """RC branch ``j`` (j ≥ 2) as the base's branch 1 is written (``v{j}`` the voltage across it,
+    ``a{j}`` its decay over the step, ``b{j}`` a hold's increment), skipped where R_j is 0."""
+    return Kernel(
+        columns={f"r{j}": f"r{j}", f"tau{j}": f"ltau{j}"},
+        flags={f"rc{j}": f"np.any(r{j} != 0.0)"},
+        branch=j,
+        states={f"v{j}": State(f"v{j}", lambda p, i: p[f"r{j}"] * i)},
+        code={
+            "setup": f"a{j} = np.exp(-dt[0] / tau{j})\nv{j} = np.zeros(m)\nb{j} = np.zeros(m)",
+            "uneven": f"a{j}[c] = np.exp(-dtk / tau{j}[c])",
+            "hold_increment": f"b{j}[c] = r{j}[c] * (1.0 - a{j}[c]) * gi",
+            "hold_step": f"if rc{j}:\n    for c in range(m):\n"
+                         f"        v{j}[c] = a{j}[c] * v{j}[c] + b{j}[c]",
+            "update": f"if rc{j}:\n"
+                      f"    v{j}[c] = a{j}[c] * v{j}[c] + r{j}[c] * (1.0 - a{j}[c]) * gi",
+        },
+    )  # fmt: skip
 
 
 def step_aligned(v: View) -> dict:
@@ -60,4 +80,6 @@ ELEMENT = Element(
     pybamm=Export("an RC branch: R2 [Ohm], C2 [F] = τ2/R2", rc_piece(2)),
     would_decide="a long rest after a load (relaxation over an hour or more)",
     withheld=True,
+    kernel=rc_kernel(2),
+    table=TableLaw("its RC branch: columns r2_ohm, tau2_s, c2_f"),
 )

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 
 _SOC_FACTOR = '''
 def soc_factor(soc):
@@ -23,6 +23,25 @@ def _piece(p) -> Piece:
         helpers=(_SOC_FACTOR,),
         factors=(("R0", "soc_factor(soc)"), ("RC", "soc_factor(soc)")),
     )  # fmt: skip
+
+
+KERNEL = Kernel(
+    columns={"klow": "klow", "sig": "lsig"},
+    flags={"low": "np.any(klow != 0.0)"},
+    code={
+        # g follows the SOC, a state: a hold cannot compute its increments once
+        "hold_setup": "fast = fast and not low",
+        "row": "if low:\n    g = 1.0 + klow[c] * np.exp(-min(max(s, -0.5), 2.0) / sig[c])",
+    },
+)
+"""g(s) = 1 + k_low·exp(−s/σ) multiplies R0 and the RC resistances (s clipped to [−0.5, 2]: the
+exponential overflows far outside)."""
+
+
+def _g(p, s, tk, tref):  # its SOC clipped as the simulator clips it
+    if p["klow"] == 0.0:
+        return np.ones_like(s)
+    return 1.0 + p["klow"] * np.exp(-np.clip(s, -0.5, 2.0) / p["lsig"])
 
 
 ELEMENT = Element(
@@ -48,4 +67,9 @@ ELEMENT = Element(
         _piece,
     ),
     would_decide="pulses at low and at high SOC",
+    kernel=KERNEL,
+    table=TableLaw(
+        "g(s) multiplies r0_ohm and every r_j_ohm",
+        factors={"r0": _g, "rc": _g},
+    ),
 )

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View
 
 THETA_LIMITS = (0.0, 12000.0)
 THETA_WHY = "θ = Ea/R up to 12,000 K (≈ 100 kJ/mol, above any cell's activation energy)"
@@ -38,6 +38,28 @@ def _read(v: View) -> dict:
     return {"corr_residual_vs_i_dT": c}
 
 
+KERNEL = Kernel(
+    columns={"th0": "th0", "th1": "th1"},
+    flags={"therm0": "np.any(th0 != 0.0)", "therm1": "np.any(th1 != 0.0)"},
+    code={
+        "hold_setup": "tdep = tdep or therm1",
+        "row": "if therm1:\n    f1 = np.exp(th1[c] * dinv)",
+        "hold_row": "if therm1:\n    f1 = np.exp(th1[c] * dinv)",
+        "r0_factor": "if therm0:\n    f0 = np.exp(th0[c] * dinv)",
+    },
+)
+"""f0 = exp(θ0·(1/T − 1/Tref)) multiplies R0, f1 = exp(θ1·(1/T − 1/Tref)) the RC resistances
+(``dinv``: 1/T − 1/Tref of the sample)."""
+
+
+def _f0(p, s, tk, tref):
+    return np.exp(p["th0"] * (1.0 / tk - 1.0 / tref))
+
+
+def _f1(p, s, tk, tref):
+    return np.exp(p["th1"] * (1.0 / tk - 1.0 / tref))
+
+
 ELEMENT = Element(
     name="thermal",
     params={
@@ -55,4 +77,10 @@ ELEMENT = Element(
     would_decide="records at other temperatures",
     needs_temperature=True,
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw(
+        "f0(T) multiplies r0_ohm, f1(T) every r_j_ohm",
+        # after r0_soc's factor: the order the table's R0 was computed in since issue 19
+        factors={"r0": (1, _f0), "rc": _f1},
+    ),
 )

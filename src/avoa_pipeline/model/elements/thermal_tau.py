@@ -5,7 +5,9 @@ identify it (issue 28). Offered on top of ``thermal`` and only where the tempera
 
 from __future__ import annotations
 
-from .element import Element, Export, Param, Piece
+import numpy as np
+
+from .element import Element, Export, Kernel, Param, Piece, TableLaw
 from .thermal import THETA_LIMITS
 
 
@@ -16,6 +18,21 @@ def _piece(p) -> Piece:
         constants=(("THERMAL_THETA_TAU_K", p["thtau"], "Arrhenius θτ of the RC time constants"),),
         factors=(("TAU", "arrhenius(THERMAL_THETA_TAU_K, T_cell)"),),
     )  # fmt: skip
+
+
+KERNEL = Kernel(
+    columns={"thtau": "thtau"},
+    flags={"ttau": "np.any(thtau != 0.0)"},
+    code={
+        "hold_setup": "tdep = tdep or ttau",
+        "sample": """if ttau:
+    for c in range(m):
+        ft = np.exp(thtau[c] * dinv)
+        @each_branch a{j}[c] = np.exp(-dtk / (tau{j}[c] * ft))""",
+    },
+)
+"""Every RC branch's time constant τ_j·exp(θτ·(1/T − 1/Tref)) (its decay recomputed per
+sample)."""
 
 
 ELEMENT = Element(
@@ -42,4 +59,9 @@ ELEMENT = Element(
     compiled="extras",
     requires="thermal",
     needs_temperature=True,
+    kernel=KERNEL,
+    table=TableLaw(
+        "exp(θτ·(1/T − 1/tref_k)) multiplies every tau_j_s",
+        factors={"tau": lambda p, s, tk, tref: np.exp(p["thtau"] * (1.0 / tk - 1.0 / tref))},
+    ),
 )

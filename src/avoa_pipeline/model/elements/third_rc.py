@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .element import Element, Export, Param
-from .second_rc import R_LIMITS, R_WHY, TAU_LIMITS, TAU_WHY, rc_piece
+from .element import Element, Export, Param, TableLaw
+from .second_rc import R_LIMITS, R_WHY, TAU_LIMITS, TAU_WHY, rc_kernel, rc_piece
 
 
 def _starts(row, imax):
@@ -23,4 +23,6 @@ ELEMENT = Element(
     pybamm=Export("an RC branch: R3 [Ohm], C3 [F] = τ3/R3", rc_piece(3)),
     would_decide="a long rest after a load (relaxation over an hour or more)",
     requires="second_rc",
+    kernel=rc_kernel(3),
+    table=TableLaw("its RC branch: columns r3_ohm, tau3_s, c3_f"),
 )

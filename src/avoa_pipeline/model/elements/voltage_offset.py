@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .element import Element, Export, Param, Piece, Signature, View
+from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw, View
 
 
 def _piece(p) -> Piece:
@@ -14,6 +14,10 @@ def _piece(p) -> Piece:
 
 def _read(v: View) -> dict:
     return {"mean_residual_mv": 1e3 * float(np.mean(v.resid)), "mean_residual_t": v.t_mean(v.resid)}
+
+
+KERNEL = Kernel(columns={"voff": "voff"}, code={"ocv": "e += voff[c]"})
+"""c is added to the OCV (always: c = 0 adds nothing)."""
 
 
 ELEMENT = Element(
@@ -34,4 +38,6 @@ ELEMENT = Element(
     would_decide="a slow OCV test (--ocv)",
     conflicts={"table": "a table OCV's offset is part of the base"},
     withheld=True,
+    kernel=KERNEL,
+    table=TableLaw("in ocv_v (ecm.ocv_values adds the offset)"),
 )
