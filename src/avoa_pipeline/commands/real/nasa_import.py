@@ -1,0 +1,18 @@
+"""``real nasa-import``: the 168 B0005 discharges into one canonical record."""
+
+from __future__ import annotations
+
+from ..registry import register
+from .common import config, no_lock
+
+
+def arguments(n) -> None:
+    n.add_argument("--out", required=True)
+
+
+@register("nasa-import", "the 168 B0005 discharges into one canonical record",
+          arguments=arguments, group="real", output=no_lock)  # fmt: skip
+def run_nasa_import(args) -> None:
+    from ...jobs import real as jobs
+
+    jobs.nasa_import(config(args), args.out)
