@@ -52,10 +52,10 @@ def main(argv=None, group: str | None = None, prog: str = PROG) -> int:
         cmd = args.command_
         # one run at a time per output: the lock is held from before the first check to the
         # last rename (io.output_lock); what a command locks is its own declaration
-        out = cmd.output(args)
         lock = contextlib.nullcontext()
-        if out is not None:
-            lock = output_lock(out[0], folder=out[1], command=" ".join([prog, *argv]))
+        if cmd.output is not None:
+            out, folder = cmd.output(args)
+            lock = output_lock(out, folder=folder, command=" ".join([prog, *argv]))
         with lock:
             cmd.run(args)
     except UserError as exc:

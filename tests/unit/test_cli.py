@@ -337,7 +337,7 @@ def test_a_registered_command_runs_through_main_with_the_lock_it_declares(
 
     # a command that declares no output takes no lock (and needs no --out)
     registry.register("quiet", "no output", arguments=lambda p: None,
-                      output=lambda args: None)(lambda args: print("quiet ran"))  # fmt: skip
+                      output=None)(lambda args: print("quiet ran"))  # fmt: skip
     assert main(["quiet"]) == 0
     assert capsys.readouterr().out == "quiet ran\n"
 

@@ -19,8 +19,9 @@ class Command:
     """One subcommand. ``parents`` are parent parsers whose options come before the command's
     own, ``parents_after`` those whose options come after them (so each ``--help`` lists its
     options in the order a reader needs them). ``output(args)`` is the (path, is a folder) whose
-    lock the run holds (``io.output_lock``), or None for no lock. A command with ``run=None`` is
-    a group: its subcommands are those registered with ``group=`` its name."""
+    lock the run holds (``io.output_lock``); ``output=None``: the command takes no lock. A
+    command with ``run=None`` is a group: its subcommands are those registered with ``group=``
+    its name."""
 
     name: str
     help: str
@@ -29,7 +30,7 @@ class Command:
     group: str | None = None
     parents: tuple = ()
     parents_after: tuple = ()
-    output: Callable[[argparse.Namespace], tuple[str, bool] | None] = out_file
+    output: Callable[[argparse.Namespace], tuple[str, bool]] | None = out_file
     description: str | None = None
 
 

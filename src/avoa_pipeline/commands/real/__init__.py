@@ -6,7 +6,6 @@ from __future__ import annotations
 from importlib import import_module
 
 from ..registry import register
-from .common import no_lock
 
 DESCRIPTION = """\
 ``python -m avoa_pipeline.real``: every real-data import and experiment without Snakemake.
@@ -29,12 +28,20 @@ nothing is half-written.
 """The group's ``--help``, in the alias's words (the docs call it so)."""
 
 
+def load_config(args) -> dict:
+    """The group's ``--config``. Its commands take no lock (``output=None``): each writes through
+    ``jobs.real``'s atomic writers, as the workflow's rules do."""
+    from ... import config
+
+    return config.load(args.config)
+
+
 def arguments(ap) -> None:
     ap.add_argument("--config", default=None, help="config file (default: config/config.yaml)")
 
 
 register("real", "every real-data import and experiment without Snakemake", arguments=arguments,
-         output=no_lock, description=DESCRIPTION)(None)  # fmt: skip
+         output=None, description=DESCRIPTION)(None)  # fmt: skip
 
 COMMANDS = ("list_records", "panasonic_import", "drive_cycles", "samsung_import", "nasa_import",
             "arrhenius", "fade")  # fmt: skip

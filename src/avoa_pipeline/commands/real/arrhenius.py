@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def _pair(text: str) -> tuple[str, str]:
@@ -22,8 +22,8 @@ def arguments(a) -> None:
 
 
 @register("arrhenius", "experiment 2: R0, Rtr, tau per pulse and Arrhenius fits",
-          arguments=arguments, group="real", output=no_lock)  # fmt: skip
+          arguments=arguments, group="real", output=None)  # fmt: skip
 def run_arrhenius(args) -> None:
     from ...jobs import real as jobs
 
-    jobs.arrhenius(config(args), dict(args.hppc), args.out_rc, args.out_arrhenius)
+    jobs.arrhenius(load_config(args), dict(args.hppc), args.out_rc, args.out_arrhenius)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ...errors import UserError
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def arguments(d) -> None:
@@ -74,6 +74,6 @@ def run_experiment(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
 
 
 @register("drive-cycles", "experiment 1 into a folder", arguments=arguments, group="real",
-          output=no_lock)  # fmt: skip
+          output=None)  # fmt: skip
 def run_drive_cycles(args) -> None:
-    print(f"wrote {run_experiment(config(args), args.out_dir, args.temperature)}")
+    print(f"wrote {run_experiment(load_config(args), args.out_dir, args.temperature)}")

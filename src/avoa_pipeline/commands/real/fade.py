@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def arguments(f) -> None:
@@ -13,8 +13,8 @@ def arguments(f) -> None:
 
 
 @register("fade", "experiment 3: capacity/resistance per state and fade laws",
-          arguments=arguments, group="real", output=no_lock)  # fmt: skip
+          arguments=arguments, group="real", output=None)  # fmt: skip
 def run_fade(args) -> None:
     from ...jobs import real as jobs
 
-    jobs.fade(config(args), args.record, args.out_states, args.out_fits)
+    jobs.fade(load_config(args), args.record, args.out_states, args.out_fits)

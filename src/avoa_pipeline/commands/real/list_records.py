@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 @register("list", "the Panasonic records the config names", arguments=lambda p: None,
-          group="real", output=no_lock)  # fmt: skip
+          group="real", output=None)  # fmt: skip
 def run_list(args) -> None:
     from ...real.importers import panasonic
 
-    for name, rec in panasonic.records(config(args)).items():
+    for name, rec in panasonic.records(load_config(args)).items():
         print(f"{name}\t{rec['test_type']}\t{'; '.join(rec['keys'])}")

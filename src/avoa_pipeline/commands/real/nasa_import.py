@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def arguments(n) -> None:
@@ -11,8 +11,8 @@ def arguments(n) -> None:
 
 
 @register("nasa-import", "the 168 B0005 discharges into one canonical record",
-          arguments=arguments, group="real", output=no_lock)  # fmt: skip
+          arguments=arguments, group="real", output=None)  # fmt: skip
 def run_nasa_import(args) -> None:
     from ...jobs import real as jobs
 
-    jobs.nasa_import(config(args), args.out)
+    jobs.nasa_import(load_config(args), args.out)

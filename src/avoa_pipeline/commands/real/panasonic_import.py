@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def arguments(p) -> None:
@@ -19,9 +19,9 @@ def arguments(p) -> None:
 
 
 @register("panasonic-import", "one Panasonic test → canonical CSV + JSON", arguments=arguments,
-          group="real", output=no_lock)  # fmt: skip
+          group="real", output=None)  # fmt: skip
 def run_panasonic_import(args) -> None:
     from ...real.importers import panasonic
 
-    side = panasonic.import_named(config(args), args.name, args.out)
+    side = panasonic.import_named(load_config(args), args.name, args.out)
     print(f"wrote {args.out}: {side['n_samples']} samples")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..registry import register
-from .common import config, no_lock
+from . import load_config
 
 
 def arguments(s) -> None:
@@ -12,8 +12,8 @@ def arguments(s) -> None:
 
 
 @register("samsung-import", "one Samsung HPPC file into the canonical form",
-          arguments=arguments, group="real", output=no_lock)  # fmt: skip
+          arguments=arguments, group="real", output=None)  # fmt: skip
 def run_samsung_import(args) -> None:
     from ...jobs import real as jobs
 
-    jobs.samsung_import(config(args), args.temperature, args.out)
+    jobs.samsung_import(load_config(args), args.temperature, args.out)
