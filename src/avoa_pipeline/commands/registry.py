@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from dataclasses import dataclass
+from typing import NamedTuple
 
 
 def out_file(args) -> tuple[str, bool]:
@@ -14,14 +14,13 @@ def out_file(args) -> tuple[str, bool]:
     return args.out, False
 
 
-@dataclass(frozen=True)
-class Command:
+class Command(NamedTuple):
     """One subcommand. ``parents`` are parent parsers whose options come before the command's
     own, ``parents_after`` those whose options come after them (so each ``--help`` lists its
     options in the order a reader needs them). ``output(args)`` is the (path, is a folder) whose
     lock the run holds (``io.output_lock``); ``output=None``: the command takes no lock. A
     command with ``run=None`` is a group: its subcommands are those registered with ``group=``
-    its name."""
+    its name. (A NamedTuple, not a dataclass: ``dataclasses`` costs ``--help`` its import.)"""
 
     name: str
     help: str

@@ -3,15 +3,13 @@ from the workflow's jobs (``jobs.real``)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ...errors import UserError
 from ..registry import register
 from . import load_config
 
 
 def arguments(d) -> None:
-    d.add_argument("--out-dir", required=True, type=Path)
+    d.add_argument("--out-dir", required=True)
     d.add_argument(
         "--temperature",
         action="append",
@@ -19,7 +17,7 @@ def arguments(d) -> None:
     )
 
 
-def run_experiment(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
+def run_experiment(cfg: dict, out_dir, temps: list[str] | None):
     """What the workflow's real rules run, job by job, in one process and no pool: it imports
     what it needs into ``out_dir/canonical`` and runs, per temperature, the paper models, the
     C/20 circuits, the diagnosis (training cycle + HPPC, the C/20 test as OCV, the unseen cycles
@@ -76,4 +74,6 @@ def run_experiment(cfg: dict, out_dir: Path, temps: list[str] | None) -> Path:
 @register("drive-cycles", "experiment 1 into a folder", arguments=arguments, group="real",
           output=None)  # fmt: skip
 def run_drive_cycles(args) -> None:
-    print(f"wrote {run_experiment(load_config(args), args.out_dir, args.temperature)}")
+    from pathlib import Path  # here, not above: --help stays without pathlib's imports
+
+    print(f"wrote {run_experiment(load_config(args), Path(args.out_dir), args.temperature)}")

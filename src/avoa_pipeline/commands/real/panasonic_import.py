@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from ..registry import register
 from . import load_config
 
@@ -15,13 +13,16 @@ def arguments(p) -> None:
         "negative temperature after `--`, as argparse reads -10degC as an option: "
         "`--out X.csv -- -10degC/us06`",
     )
-    p.add_argument("--out", required=True, type=Path)
+    p.add_argument("--out", required=True)
 
 
 @register("panasonic-import", "one Panasonic test → canonical CSV + JSON", arguments=arguments,
           group="real", output=None)  # fmt: skip
 def run_panasonic_import(args) -> None:
+    from pathlib import Path  # here, not above: --help stays without pathlib's imports
+
     from ...real.importers import panasonic
 
-    side = panasonic.import_named(load_config(args), args.name, args.out)
-    print(f"wrote {args.out}: {side['n_samples']} samples")
+    out = Path(args.out)
+    side = panasonic.import_named(load_config(args), args.name, out)
+    print(f"wrote {out}: {side['n_samples']} samples")
