@@ -44,6 +44,8 @@ def build_parser(group: str | None = None, prog: str = PROG) -> Parser:
 
 
 def main(argv=None, group: str | None = None, prog: str = PROG) -> int:
+    """Run one command (of ``group`` alone, under ``prog``: the ``.real`` alias): 0, or 2 after
+    one line on stderr."""
     from .io import output_lock
 
     argv = sys.argv[1:] if argv is None else list(argv)
