@@ -20,7 +20,7 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "unit"))
 from cycler_fixtures import from_frame, write_arbin  # the tests' own writer
 
-from avoa_pipeline.real.importers import cycler
+from avoa_pipeline.importers import cycler
 
 
 def record(n: int, seed: int = 0) -> pd.DataFrame:

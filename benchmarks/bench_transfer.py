@@ -27,7 +27,23 @@ from pathlib import Path
 
 import pandas as pd
 
+from avoa_pipeline import diagnosis, inputs
 from avoa_pipeline.gap import transfer as T
+
+
+def diagnose_split(paths, cell: str, split: str, out: Path, ambients, profiles) -> list[dict]:
+    """Diagnose one cell's split as a user would (``diagnosis.diagnose``, the command's
+    pipeline) and predict its unseen records; one row per unseen record with every model's RMSE
+    (mV). Writes ``diagnosis.json`` and ``model.json`` (``Diagnosis.write``, no figure) and the
+    fixed circuits' ``model_1rc.json``, ``model_2rc.json`` into ``out``."""
+    train, unseen, slow = T.split_inputs(paths, cell, split, ambients, profiles)
+    d = diagnosis.diagnose(train, unseen, slow)
+    d.write(out, figure=False)
+    fixed, train_mv = {}, {}
+    for key, fit in T.fit_fixed([c.frame for c in d.inputs.train], inputs.read_ocv(slow)).items():
+        fixed[key], train_mv[key] = fit.model, fit.train_rmse_mv
+        fit.model.save(out / f"model_{key}.json")
+    return T.unseen_rows(cell, split, d.report, d.inputs.validate, fixed, train_mv)
 
 
 def main(argv=None) -> int:
@@ -78,7 +94,7 @@ def main(argv=None) -> int:
             if args.reuse and cached.exists():
                 rows += pd.read_csv(cached).to_dict("records")
                 continue
-            got = T.diagnose_split(paths, cell, split, out / cell / split, ambients, profiles)
+            got = diagnose_split(paths, cell, split, out / cell / split, ambients, profiles)
             pd.DataFrame(got).to_csv(cached, index=False)
             rows += got
             print(f"{cell} {split}: {time.perf_counter() - t1:.0f} s", file=sys.stderr)

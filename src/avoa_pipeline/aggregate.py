@@ -27,6 +27,19 @@ def excess(ise, true_ise):
         return np.where(np.isfinite(t) & (t > 0), (ise - t) / t, np.nan)
 
 
+def median_position(values, ties=None) -> int | None:
+    """Position of the median run among ``values`` (a run's best ISE or training error): for an
+    even count the lower of the two middle ones, so that it is a real run, not an average; ties
+    broken by ``ties`` (the seed), then by position; non-finite values left out (a run that
+    never finished). None if no value is finite. The one median-run rule of the paper's
+    parameter tables, its fit figures and the real-cell experiments."""
+    v = np.asarray(values, dtype=float)
+    pos = np.arange(v.size)
+    keys = (pos, pos if ties is None else np.asarray(ties), v)  # lexsort: last key first
+    order = [k for k in np.lexsort(keys) if np.isfinite(v[k])]
+    return int(order[(len(order) - 1) // 2]) if order else None
+
+
 def run_row(rec: dict) -> dict:
     hist_nfe = rec["history"]["nfe"]
     iters = max(int(rec["iterations"]), 1)

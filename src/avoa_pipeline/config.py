@@ -16,10 +16,10 @@ import jsonschema
 import yaml
 
 from .errors import ConfigError
+from .io import REPO_ROOT
 from .model.battery import CASES, PARAM_NAMES
 
 SCHEMA_PATH = Path(str(resources.files("avoa_pipeline") / "schemas" / "config.schema.yaml"))
-REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_CONFIG = REPO_ROOT / "config" / "config.yaml"
 
 

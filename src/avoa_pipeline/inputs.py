@@ -1,7 +1,7 @@
 """The input layer: every file a command reads becomes a checked record (or an OCV) here, once.
 
 A path is a canonical CSV (``time_s, current_a, voltage_v[, temperature_c]``), or, with a cycler
-named, that cycler's raw export (``real.importers.cycler``, read through PyProBE). Either way its
+named, that cycler's raw export (``importers.cycler``, read through PyProBE). Either way its
 frame goes through the records layer's one validator, scale check and sign check (``records.py``)
 and comes out as a :class:`~avoa_pipeline.records.Checked` record in the pipeline's sign. The
 commands (``convert``, ``diagnose`` with ``--ocv`` and ``--validate``, ``simulate``) read through
@@ -17,7 +17,7 @@ What this layer adds to one record's checks is what only the set of inputs shows
 - the same file given twice (by path or by content) is refused.
 
 Layers (docs/inputs.md draws them): ``errors``, ``names``, ``io`` < ``records`` <
-``real.importers.cycler`` and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports
+``importers.cycler`` and ``model`` < ``inputs`` < ``gap``, ``cli``. Nothing below imports
 anything above.
 """
 
@@ -52,7 +52,7 @@ def _refuse_raw_export(path: Path) -> None:
     say which cycler it looks like (``cycler.sniff``, the header alone) and the flag."""
     if not path.is_file() or is_canonical(path):
         return
-    from .real.importers import cycler as cyc
+    from .importers import cycler as cyc
 
     hint = cyc.looks_like(path)
     if hint:
@@ -68,7 +68,7 @@ def _read(path, cycler: str | None, current_sign: str, rest_ok: bool = False) ->
         raise UserError(f"--current-sign must be one of {', '.join(CURRENT_SIGNS)}")
     path = Path(path)
     if cycler is not None and not is_canonical(path):
-        from .real.importers import cycler as cyc
+        from .importers import cycler as cyc
 
         with unchanged_while_read(path):  # an export still being written is refused
             frame, info = cyc.convert(path, cycler)  # checked there, on the current channel

@@ -41,6 +41,10 @@ import pandas as pd
 
 from .errors import DataError, UserError
 
+# The checkout's root: a config's relative paths that do not exist in the working directory
+# are taken from here. It lives in this bottom module so importers (below the config) can use it.
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 

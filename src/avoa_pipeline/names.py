@@ -7,7 +7,7 @@ CURRENT_SIGNS = ("discharge-positive", "charge-positive")
 """The two cycler conventions for the current's sign; the pipeline's own is the first."""
 
 CYCLERS = ("arbin", "maccor", "neware", "biologic", "basytec")
-"""The cyclers whose raw exports ``real/importers/cycler.py`` reads (``convert``, ``--cycler``)."""
+"""The cyclers whose raw exports ``importers/cycler.py`` reads (``convert``, ``--cycler``)."""
 
 CURRENT_FROM = ("counters", "channel")
 """Where a converted export's interval currents come from: its charge counters or its channel."""

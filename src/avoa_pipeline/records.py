@@ -629,7 +629,7 @@ def check(
 
 
 def converted(frame: pd.DataFrame, source: str, info: dict, origin: dict) -> Checked:
-    """A raw export's record as ``real.importers.cycler.convert`` made and checked it: its sign
+    """A raw export's record as ``importers.cycler.convert`` made and checked it: its sign
     read from the current channel (``info``, the conversion's sidecar), its warnings the
     conversion's."""
     ev = SignEvidence.from_dict(info["sign"]["voltage_check"])

@@ -234,7 +234,7 @@ def test_a_raw_export_that_grows_while_it_is_converted_is_one_line(tmp_path, cap
     unchanged over the conversion all the same."""
     import cycler_fixtures as cf
 
-    from avoa_pipeline.real.importers import cycler
+    from avoa_pipeline.importers import cycler
 
     raw, _ = cf.export("arbin", tmp_path)
     out = tmp_path / "out"

@@ -11,7 +11,7 @@ from test_ecm import TRUTH, profile_frame, with_voltage
 from avoa_pipeline import inputs, records, selection
 from avoa_pipeline.cli import main
 from avoa_pipeline.gap import diagnose, diagnoses
-from avoa_pipeline.model import ecm
+from avoa_pipeline.model import ecm, heat
 from avoa_pipeline.report import gap_figures as figure
 
 
@@ -153,6 +153,8 @@ def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
     path = _csv(tmp_path, _good())
     fake = ({"verdict": {"effect": "none"}}, {}, None)
     monkeypatch.setattr(diagnose, "diagnose_records", lambda *a, **k: fake)
+    # the fake has no model to fit a heat block to (the pipeline fits it before writing)
+    monkeypatch.setattr(heat, "attach", lambda model, checked: "no heat block (test)")
 
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")

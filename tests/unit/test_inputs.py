@@ -28,9 +28,9 @@ from test_ecm import TRUTH, profile_frame, with_voltage
 from avoa_pipeline import inputs, records
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError, UserError
+from avoa_pipeline.importers import cycler
 from avoa_pipeline.model import ecm
 from avoa_pipeline.model.fitted import FittedModel
-from avoa_pipeline.real.importers import cycler
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "avoa_pipeline"
 
@@ -477,7 +477,7 @@ def test_the_import_graph_has_no_circle():
             visit(m, [])
     # the layers: the records layer and the model library never reach up to the readers
     for low in ("avoa_pipeline.records", "avoa_pipeline.model.ocv",
-                "avoa_pipeline.real.importers.cycler"):  # fmt: skip
+                "avoa_pipeline.importers.cycler"):  # fmt: skip
         assert not graph[low] & {"avoa_pipeline.inputs", "avoa_pipeline.gap.diagnose",
                                  "avoa_pipeline.cli"}, low  # fmt: skip
 
@@ -512,7 +512,7 @@ def test_every_real_record_passes_the_records_layer(tmp_path):
     three HPPC files; NASA: the 168 discharges) imports through the records layer's checks, and
     its voltage says its sign, the pipeline's, itself."""
     from avoa_pipeline import config as config_mod
-    from avoa_pipeline.real.importers import nasa, panasonic, samsung
+    from avoa_pipeline.importers import nasa, panasonic, samsung
 
     cfg = config_mod.load(None)
     cfg["real"]["root"] = str(REAL)

@@ -479,3 +479,41 @@ def test_an_extreme_model_is_refused_by_its_voltage_without_numpy_warnings(files
     frame = pd.read_csv(data)
     with pytest.raises(DataError, match="do not describe a cell"):
         extreme.predict(frame.assign(temperature_c=-40.0), source="m.json")
+
+
+def _holes(node, at=""):
+    """Where the schema file left a number to the library and none was filled in."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if value is None and key in ("minimum", "maximum", "const"):
+                yield f"{at}/{key}"
+            yield from _holes(value, f"{at}/{key}")
+    elif isinstance(node, list):
+        for j, value in enumerate(node):
+            yield from _holes(value, f"{at}/{j}")
+
+
+@pytest.mark.parametrize("effects", [(), *[(e,) for e in ecm.EFFECTS], ("second_rc", "third_rc")])
+def test_schema_file_filled_for_every_element(effects):
+    """schemas/model.schema.yaml leaves the library's numbers as null; model_schema fills every
+    one, for each element (its parameters, their bounds and intervals named and ranged), and the
+    file is a valid Draft 2020-12 schema."""
+    import jsonschema
+
+    from avoa_pipeline.model import fitted
+    from avoa_pipeline.records import VOLTAGE_RANGE_V
+
+    try:
+        config = ecm.Config(effects, fitted._STAND_IN_TABLE)
+    except ValueError:  # an element that needs another (third_rc needs second_rc)
+        pytest.skip(f"{effects} is no configuration alone")
+    schema = fitted.model_schema(config)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    assert list(_holes(schema)) == []
+    top = schema["properties"]
+    reports = [ecm.PARAMS[n].report for n in config.names() if not ecm.PARAMS[n].per_record]
+    assert list(top["bounds"]["properties"]) == reports
+    assert set(reports) <= set(top["parameters"]["required"])
+    # the load's floor is the records' highest voltage over the largest current of a cell
+    floor = VOLTAGE_RANGE_V[1] / top["current_scale_a"]["maximum"]
+    assert top["load_ohm"]["minimum"] == floor

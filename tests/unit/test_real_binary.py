@@ -1,4 +1,4 @@
-"""Binary cycler files (real/importers/binary.py) on real files of other labs
+"""Binary cycler files (importers/binary.py) on real files of other labs
 (docs/cycler-samples.md says where each comes from and under what licence; they are read from
 AVOA_CYCLER_SAMPLES or ../shared/data/cyclers, never kept in the repository, and the tests that
 need them skip, saying where they looked, without them): charge and discharge against the reading
@@ -20,7 +20,7 @@ from cycler_fixtures import cli_error
 
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError
-from avoa_pipeline.real.importers import binary, cycler
+from avoa_pipeline.importers import binary, cycler
 
 DATA = Path(
     os.environ.get("AVOA_CYCLER_SAMPLES")

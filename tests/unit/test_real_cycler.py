@@ -29,8 +29,8 @@ from test_ecm import TRUTH, profile_frame, with_voltage
 
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError, UserError
+from avoa_pipeline.importers import cycler
 from avoa_pipeline.io import sha256
-from avoa_pipeline.real.importers import cycler
 
 CYCLERS = list(WRITERS)
 

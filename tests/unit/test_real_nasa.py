@@ -9,8 +9,8 @@ import pytest
 
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
+from avoa_pipeline.importers import nasa
 from avoa_pipeline.real.experiments import fade
-from avoa_pipeline.real.importers import nasa
 
 NASA_CFG = {
     "cutoff_v": 2.7,

@@ -17,11 +17,11 @@ from scipy.interpolate import PPoly
 
 from avoa_pipeline import plan, records
 from avoa_pipeline.errors import ConfigError, DataError
+from avoa_pipeline.importers import panasonic
 from avoa_pipeline.model.battery import PARAM_NAMES, ModelSpec, first_sample_soc0, ise, simulate
 from avoa_pipeline.model.kernel import paper_beta
 from avoa_pipeline.problem import on_record
 from avoa_pipeline.real.experiments import drive_cycles as dc
-from avoa_pipeline.real.importers import panasonic
 
 REPO = Path(__file__).resolve().parents[2]
 

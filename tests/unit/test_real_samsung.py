@@ -9,9 +9,9 @@ import pytest
 
 from avoa_pipeline import records
 from avoa_pipeline.errors import ConfigError, DataError
+from avoa_pipeline.importers import samsung
 from avoa_pipeline.real.__main__ import main as real_main
 from avoa_pipeline.real.experiments import arrhenius
-from avoa_pipeline.real.importers import samsung
 
 KEY20 = "samsung_30q_hppc/DNN01_HPPC_1C_20amb_processed_scrubbed.csv"
 

@@ -62,7 +62,7 @@ def test_slow_test_gives_an_ocv_table_of_the_cell(quick):
 
 @needs_panasonic
 def test_drive_currents_keep_the_panasonic_charge():
-    from avoa_pipeline.real.importers import panasonic
+    from avoa_pipeline.importers import panasonic
 
     seconds = 600
     c = T.drive_c_rate("la92", ROOT, seconds)

@@ -123,7 +123,7 @@ def scenario_runs(w):
 
 # --- real data (rules in real.smk; docs/real-data.md) --------------------------------------------
 from avoa_pipeline.real.experiments import drive_cycles as real_dc
-from avoa_pipeline.real.importers import panasonic as real_panasonic
+from avoa_pipeline.importers import panasonic as real_panasonic
 
 REAL = config.get("real") or {}
 REAL_ROOT = Path(REAL["root"]) if REAL else None

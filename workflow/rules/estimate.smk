@@ -7,7 +7,7 @@ if PAN_ESTIMATE_ON:
     rule panasonic_soc_estimation:
         """The protocol's runs (true start, ±20 %, a 1 % current bias) on every unseen cycle,
         one row each, and the figure; the same as `python -m
-        avoa_pipeline.real.experiments.soc_estimation` on these models."""
+        avoa_pipeline.jobs.estimate` on these models."""
         input:
             models=[f"{PAN_OUT}/diagnosis/{t}/model.json" for t in PAN_EXP_TEMPS],
             tests=[p for t in PAN_EXP_TEMPS for p in pan_tests(t).values()],

@@ -75,8 +75,8 @@ def _jobs(args, out, cycler) -> list[tuple]:
 def run_convert(args) -> None:
     from pathlib import Path
 
+    from ..importers import cycler
     from ..io import unchanged_while_read
-    from ..real.importers import cycler
 
     out = Path(args.out)
     if out.suffix.lower() != ".csv":

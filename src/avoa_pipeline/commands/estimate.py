@@ -4,7 +4,7 @@ issue 29)."""
 from __future__ import annotations
 
 from ..errors import UserError
-from .options import CURRENT_SIGN, CYCLER, csv_and_sidecar, flag_lines, number
+from .options import CURRENT_SIGN, CYCLER, csv_and_sidecar, number
 from .registry import register
 
 SOC0_GUESS_RANGE = (-0.5, 1.5)
@@ -59,10 +59,10 @@ def _check_options(args) -> None:
 
 
 def _warn(args, model, rec, summary) -> None:
-    from .. import inputs
+    from .. import diagnosis, inputs
 
     inputs.warn(rec.warnings)
-    inputs.warn(flag_lines(args.model, model.at_bounds(), model.intervals))
+    inputs.warn(diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals))
     out_of = summary["outside_range"]
     if out_of is not None:
         lo, hi = out_of["range"]

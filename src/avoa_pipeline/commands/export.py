@@ -4,7 +4,7 @@ files are ``interop.export_files``'s, the lines printed are this module's."""
 from __future__ import annotations
 
 from ..errors import UserError
-from .options import CURRENT_SIGN, CYCLER, flag_lines, number
+from .options import CURRENT_SIGN, CYCLER, number
 from .registry import register
 
 EXPORT_TARGETS = ("pybamm", "table")
@@ -69,7 +69,7 @@ def arguments(x) -> None:
 
 
 def _table(args) -> None:
-    from .. import inputs
+    from .. import diagnosis, inputs
     from ..interop.export_files import write_table
 
     if args.record is not None or args.soc0 is not None or args.drop_unsupported:
@@ -77,7 +77,7 @@ def _table(args) -> None:
     res = write_table(args.model, args.out, args.soc_grid, args.temperatures)
     model, side = res.model, res.side
     col, worst = max(side["interpolation_error"].items(), key=lambda kv: kv[1]["max_rel"])
-    inputs.warn(flag_lines(args.model, model.at_bounds(), model.intervals))
+    inputs.warn(diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals))
     strays = ("linear interpolation gives the model's laws at the middle of every grid cell"
               if worst["at_soc"] is None else
               f"linear interpolation strays at most {100 * worst['max_rel']:.2g} % ({col}; "
@@ -113,7 +113,7 @@ def _check_notes(args, res, line: str, notes: list[str]) -> str:
 
 
 def _pybamm(args) -> None:
-    from .. import inputs
+    from .. import diagnosis, inputs
     from ..interop.export_files import write_pybamm
 
     res = write_pybamm(args.model, args.out, record=args.record, soc0=args.soc0,
@@ -131,7 +131,7 @@ def _pybamm(args) -> None:
             f"; dropped {', '.join(ex.dropped)}: {ex.summary['rms_mv']:.3g} mV RMS, "
             f"{ex.summary['max_abs_mv']:.3g} mV at most on {args.record}; wrote {res.cost}"
         )
-    notes = flag_lines(args.model, model.at_bounds(), model.intervals)
+    notes = diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals)
     line = _check_notes(args, res, line, notes)
     inputs.warn(notes)
     print(line)

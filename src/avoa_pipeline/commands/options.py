@@ -1,6 +1,6 @@
 """What the commands share: the parser (one-line usage errors), the argument types, the parent
-parsers of options several commands take, the output checks and the warning lines about a
-model. Imports nothing numerical (``python -m avoa_pipeline --help`` stays fast; tested)."""
+parsers of options several commands take, the output checks. Imports nothing numerical
+(``python -m avoa_pipeline --help`` stays fast; tested)."""
 
 from __future__ import annotations
 
@@ -101,16 +101,3 @@ def csv_and_sidecar(out, inputs):
     check_output(out, inputs=inputs)
     check_output(sidecar_of(out), inputs=inputs, what="--out's sidecar")
     return out, sidecar_of(out)
-
-
-def flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:
-    """One warning line per flagged parameter of a model (``FittedModel.at_bounds`` and the
-    flags of its intervals, ``model/intervals.py``): ``diagnose`` says them of the model it
-    writes, ``simulate`` and ``export`` of the model they run."""
-    lines = [f"{source}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
-             f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
-             for f in at_bounds]  # fmt: skip
-    flags = (intervals or {}).get("flags", ())
-    # those at a bound were named above, with their values
-    return lines + [f"{source}: {flag}" for flag in flags
-                    if not flag.endswith("at a bound of its fit")]  # fmt: skip

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .options import CURRENT_SIGN, CYCLER, flag_lines, number
+from .options import CURRENT_SIGN, CYCLER, number
 from .registry import register
 
 
@@ -54,12 +54,12 @@ def expected_line(model) -> str:
 
 
 def _warn(args, model, rec, pred) -> None:
-    from .. import inputs
+    from .. import diagnosis, inputs
     from ..ambient import unused_ambient
     from ..model import heat
 
     inputs.warn(rec.warnings)
-    inputs.warn(flag_lines(args.model, model.at_bounds(), model.intervals))
+    inputs.warn(diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals))
     if model.heat is not None:
         inputs.warn(f"{args.model}: {flag}" for flag in heat.flags(model.heat))
     inputs.warn(unused_ambient(args.ambient_c, args.model, pred))

@@ -17,9 +17,10 @@ withheld-effect datasets' (:func:`avoa_pipeline.gap.withheld.sensor`).
 
 Protocol, as a user's (:data:`SPLITS`): training = the split's records at the training ambient,
 ``--ocv`` = the slow test, the cell's other records (both ambients) unseen. The diagnosis runs
-through the package function behind ``python -m avoa_pipeline diagnose`` (inputs read from the
-written CSV files by ``inputs.read_inputs``); fixed 1RC and 2RC circuits on the same training
-records and the ``--ocv`` table (``inputs.read_ocv``) are fitted by ``model.fitted.fit_model``.
+through the pipeline behind ``python -m avoa_pipeline diagnose`` (``avoa_pipeline.diagnosis``,
+its inputs read from the written CSV files; ``benchmarks/bench_transfer.py`` drives it); fixed
+1RC and 2RC circuits on the same training records and the ``--ocv`` table (``inputs.read_ocv``)
+are fitted by ``model.fitted.fit_model``.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .. import __version__, inputs, seeds
+from .. import __version__, seeds
 from ..errors import ConfigError
 from ..model.ecm import Config
 from ..model.fitted import fit_model
@@ -147,10 +148,10 @@ def default_panasonic_root() -> Path:
 def drive_c_rate(profile: str, root: Path, seconds: int) -> np.ndarray:
     """``seconds`` of a Panasonic drive cycle's current at 1 s, in C-rates of the Panasonic cell
     (positive = discharge). Read by the project's importer
-    (``real.importers.panasonic.read_mat``); each 1-s value is the exact mean of the logged
+    (``importers.panasonic.read_mat``); each 1-s value is the exact mean of the logged
     current (held between its 0.1-s samples) over that second, so the replayed charge is the
     logged one."""
-    from ..real.importers import panasonic
+    from ..importers import panasonic
 
     df = panasonic.read_mat(root / PANASONIC_DRIVE[profile])
     t = df["Time"].to_numpy()
@@ -348,34 +349,27 @@ def fit_fixed(frames, table) -> dict:
     return {key: fit_model(frames, Config(effects, table)) for key, effects in FIXED.items()}
 
 
-def diagnose_split(paths: dict[str, Path], cell: str, split: str, out: Path, ambients,
-                   profiles) -> list[dict]:  # fmt: skip
-    """Diagnose one cell's split as a user would and predict its unseen records; one row per
-    unseen record with every model's RMSE (mV). Writes ``diagnosis.json`` and ``model.json``
-    (and the fixed circuits' ``model_1rc.json``, ``model_2rc.json``) into ``out``."""
-    from . import diagnose
-
+def split_inputs(paths: dict[str, Path], cell: str, split: str, ambients,
+                 profiles) -> tuple[list[str], list[str], str]:  # fmt: skip
+    """One cell's split as a user gives it: (training records, unseen records, the slow test
+    given as ``--ocv``). The benchmark diagnoses them through the one pipeline
+    (``avoa_pipeline.diagnosis``, called from ``benchmarks/bench_transfer.py``: a layer above
+    this one)."""
     train = [str(paths[record_name(cell, p, TRAIN_AMBIENT_C)]) for p in SPLITS[split]]
     unseen = [str(paths[record_name(cell, p, a)]) for a in ambients for p in profiles
               if str(paths[record_name(cell, p, a)]) not in train]  # fmt: skip
-    slow = str(paths[record_name(cell, SLOW, TRAIN_AMBIENT_C)])
-    read = inputs.read_inputs(train, unseen, slow)
-    report, _, model = diagnose.diagnose_records(
-        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "diagnosis.json").write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
-    (out / "model.json").write_text(json.dumps(model.to_json(), indent=1, allow_nan=False) + "\n")
+    return train, unseen, str(paths[record_name(cell, SLOW, TRAIN_AMBIENT_C)])
 
-    fixed, train_mv = {}, {}
-    for key, fit in fit_fixed([c.frame for c in read.train], inputs.read_ocv(slow)).items():
-        fixed[key], train_mv[key] = fit.model, fit.train_rmse_mv
-        (out / f"model_{key}.json").write_text(
-            json.dumps(fit.model.to_json(), indent=1, allow_nan=False) + "\n")  # fmt: skip
 
+def unseen_rows(cell: str, split: str, report: dict, unseen, fixed: dict,
+                train_mv: dict) -> list[dict]:  # fmt: skip
+    """One row per unseen record (``records.Checked``, the diagnosis's validation records) with
+    every model's RMSE (mV): the diagnosis's (``report``: its validation rows) and the fixed
+    circuits' (``fixed``: key → FittedModel; ``train_mv``: key → training RMSE)."""
     verdict = report["selected"]["name"]
     by = {(r["record"], r["model"]): r for r in report["validation"]}
     rows = []
-    for c in read.validate:
+    for c in unseen:
         v = c.frame["voltage_v"].to_numpy()
         sel, base = by[(c.source, "handed_over")], by[(c.source, "base")]
         side = json.loads(Path(c.source).with_suffix(".json").read_text())

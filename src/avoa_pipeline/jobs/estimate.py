@@ -1,5 +1,10 @@
 """The jobs of ``workflow/rules/estimate.smk``: SOC estimation with the selected models on the
-unseen Panasonic cycles (issue 29; docs/real-data.md "SOC estimation (issue 29)")."""
+unseen Panasonic cycles (issue 29; docs/real-data.md "SOC estimation (issue 29)").
+
+``python -m avoa_pipeline.jobs.estimate --models DIR --canonical DIR --out CSV`` runs the same
+job without Snakemake (DIR/<temperature>/model.json, the cycles of ``soc_estimation.UNSEEN``;
+``--one-model M`` instead runs one model at every temperature, issue 28's joint model). It lives
+here, not in the experiment, because it draws: experiments never import ``report``."""
 
 from __future__ import annotations
 
@@ -22,3 +27,30 @@ def soc_estimation(models: dict, tests: dict, out_csv, figure_stem, log=None) ->
     by_temp = ", ".join(f"{t} {100 * v:.2f} %" for t, v in worst.items())
     write_log(log, f"wrote {out_csv}, {figure_stem}.png: {len(table)} runs; largest RMSE after "
                    f"5 min: {by_temp}")  # fmt: skip
+
+
+def main(argv=None) -> None:
+    import argparse
+    from pathlib import Path
+
+    from ..real.experiments import soc_estimation as se
+
+    p = argparse.ArgumentParser(description=se.__doc__.splitlines()[0])
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--models", help="DIR/<temperature>/model.json")
+    which.add_argument("--one-model", help="one model.json for every temperature (issue 28's)")
+    p.add_argument("--canonical", required=True, help="the canonical records' folder")
+    p.add_argument("--temperatures", nargs="+", default=list(se.UNSEEN))
+    p.add_argument("--out", required=True, help="CSV; the figure goes beside it (.png, .pdf)")
+    args = p.parse_args(argv)
+    if args.one_model:
+        models = dict.fromkeys(args.temperatures, args.one_model)
+    else:
+        models = {t: str(Path(args.models) / t / "model.json") for t in args.temperatures}
+    tests = {t: {c: str(Path(args.canonical) / f"panasonic_{t}_{c}.csv") for c in se.UNSEEN[t]}
+             for t in args.temperatures}  # fmt: skip
+    soc_estimation(models, tests, args.out, str(Path(args.out).with_suffix("")))
+
+
+if __name__ == "__main__":
+    main()

@@ -13,7 +13,7 @@ from ..plan import real_section
 
 
 def panasonic_import(cfg, name: str, out_csv, log=None) -> None:
-    from ..real.importers import panasonic
+    from ..importers import panasonic
 
     side = panasonic.import_named(cfg, name, out_csv)
     write_log(log, f"wrote {out_csv}: {side['n_samples']} samples, {side['discharged_ah']:.4f} Ah "
@@ -116,24 +116,17 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     """The diagnosis (``gap.diagnose``) of the training records (fitted together), with ``ocv``
     (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
     ``out_dir``/diagnosis.json and model.json (the handed-over model, docs/handover-rule.md), as
-    ``python -m avoa_pipeline diagnose`` writes them (its figure left out; docs/real-data.md
-    says why)."""
-    from .. import handover, inputs
-    from ..gap import diagnose
-    from ..io import write_json
-    from ..model import heat
+    ``python -m avoa_pipeline diagnose`` writes them (``diagnosis.diagnose``, the one pipeline;
+    its figure left out, docs/real-data.md says why)."""
+    from .. import diagnosis, handover
 
-    read = inputs.read_inputs(list(train_csvs), list(tests.values()), ocv)
-    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
-    report, _, model = diagnose.diagnose_records(
-        read.train, ocv_table=read.ocv, validate=read.validate, warnings=read.warnings)  # fmt: skip
-    heat_line = heat.attach(model, read.train)  # as the command does
+    d = diagnosis.diagnose(list(train_csvs), list(tests.values()), ocv)
     out = Path(out_dir)
-    write_json(report, out / "diagnosis.json")
-    model.save(out / "model.json")
+    d.write(out, figure=False)
+    report = d.report
     write_log(log, f"{', '.join(map(str, train_csvs))}: verdict's model "
                    f"{report['selected']['name']}; "
-                   f"{handover.summary_line(report['handed_over'])} (model.json); {heat_line}; "
+                   f"{handover.summary_line(report['handed_over'])} (model.json); {d.heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
                    f"{report['wall_s']:.0f} s")  # fmt: skip
 
@@ -323,7 +316,7 @@ def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=N
 
 
 def samsung_import(cfg, temperature: str, out_csv, log=None) -> None:
-    from ..real.importers import samsung
+    from ..importers import samsung
 
     real_section(cfg, "samsung")
     frame, side = samsung.import_hppc(cfg, temperature, out_csv)
@@ -373,7 +366,7 @@ def selected_on(diagnoses: Mapping[str, str], unseen_csv, out_csv, log=None) -> 
 
 
 def nasa_import(cfg, out_csv, log=None) -> None:
-    from ..real.importers import nasa
+    from ..importers import nasa
 
     real_section(cfg, "nasa")
     frame, side = nasa.import_b0005(cfg, out_csv)

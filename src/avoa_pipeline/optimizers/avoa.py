@@ -93,6 +93,7 @@ equations and (d) mealpy 3.0.2 ``OriginalAVOA``; **choice** = what this module d
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -129,6 +130,13 @@ class BestTwo:
         """Per run: B2 holds a vulture."""
         return self.f2 < np.inf
 
+    def guides(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each run's B1 and B2 as the moves read them: an unset B2 is B1 (item 2 of the module
+        docstring), an unset B1 the run's first vulture (only if every value was NaN or inf)."""
+        b1 = np.where(self.set1[:, None], self.x1, X[:, 0])
+        b2 = np.where(self.set2[:, None], self.x2, b1)
+        return b1, b2
+
     def update(self, f: np.ndarray, X: np.ndarray) -> None:
         """The reference update, vulture by vulture in index order, for every run at once:
         B1 takes any strictly better value; B2 takes a value strictly between B1 (as updated so
@@ -155,6 +163,107 @@ class BestTwo:
             self.f1[m], self.x1[m] = v1[m], X[m, k1[m]]
 
 
+def check_settings(p1, p2, p3, alpha, beta, gamma) -> None:
+    """The reference's probabilities are probabilities, L1 + L2 = 1 and gamma > 0."""
+    for name, value in (("p1", p1), ("p2", p2), ("p3", p3), ("alpha", alpha), ("beta", beta)):
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f"{name} must be in [0, 1], got {value}")
+    if not math.isclose(alpha + beta, 1.0):
+        raise ValueError(f"alpha + beta must be 1 (L1 + L2 = 1), got {alpha} + {beta}")
+    if gamma <= 0:
+        raise ValueError(f"gamma must be positive, got {gamma}")
+
+
+def hunger_scale(frac: float, h: np.ndarray, r: np.ndarray, gamma: float) -> np.ndarray:
+    """Each run's P1 = (2 r + 1)(1 - t/T) + g with g = h (sin(pi/2 t/T)^gamma + cos(pi/2 t/T)
+    - 1), ``frac`` = t/T and ``h`` ~ U(-2, 2) (Fahmy eq. 18; drawn once per iteration): a
+    vulture's hunger F is P1 times its sign factor."""
+    g = h * (math.sin(math.pi / 2.0 * frac) ** gamma + math.cos(math.pi / 2.0 * frac) - 1.0)
+    return (2.0 * r + 1.0) * (1.0 - frac) + g
+
+
+@dataclass(slots=True)  # read some forty times a move
+class Vultures:
+    """Every run's vultures of one iteration as rows (run by run): the position ``x``, hunger
+    ``F``, guide ``R`` and best two ``B1``, ``B2`` (rows of (n, D) or (n, 1)), the branch draw
+    ``u``, the move's two uniforms ``r1``, ``r2`` and the Lévy step ``levy``."""
+
+    x: np.ndarray
+    F: np.ndarray
+    R: np.ndarray
+    B1: np.ndarray
+    B2: np.ndarray
+    u: np.ndarray
+    r1: np.ndarray
+    r2: np.ndarray
+    levy: np.ndarray
+
+    @classmethod
+    def drawn(cls, X, P1, per, normals, b1, b2, alpha: float, sigma: float) -> Vultures:
+        """The rows from each run's positions ``X`` (runs, P, D), its ``P1``, its per-vulture
+        uniforms ``per`` (5, n: hunger sign, guide choice, branch, r1, r2) and its normals
+        (runs, 2, P, D), guided by B1 with probability ``alpha`` (eq. 15), else by B2."""
+        S, P, D = X.shape
+        n = S * P
+        F = (np.repeat(P1, P) * (2.0 * per[0] - 1.0))[:, None]  # (n, 1), eq. 17
+        B1, B2 = np.repeat(b1, P, axis=0), np.repeat(b2, P, axis=0)
+        R = np.where((per[1] <= alpha)[:, None], B1, B2)
+        levy = (normals[:, 0] * sigma / np.abs(normals[:, 1]) ** (1.0 / LEVY_BETA)).reshape(n, D)
+        return cls(X.reshape(n, D), F, R, B1, B2, per[2], per[3][:, None], per[4][:, None], levy)
+
+
+def explore(new: np.ndarray, v: Vultures, m: np.ndarray, first: np.ndarray, lb, ub) -> None:
+    """|F| >= 1 (eq. 19), the rows ``m`` of ``new``: ``first`` (rand < p1) moves to the guide
+    at a distance |C R - X|, C = 2 rand (eqs. 19a, 20), the others to a random point of the box
+    shifted by the guide (eq. 19b)."""
+    k = m & first
+    Rm, Xm, Fm = v.R[k], v.x[k], v.F[k]
+    new[k] = Rm - np.abs(2.0 * v.r1[k] * Rm - Xm) * Fm
+    k = m & ~first
+    new[k] = v.R[k] - v.F[k] + v.r1[k] * ((ub - lb) * v.r2[k] + lb)
+
+
+def exploit_medium(new: np.ndarray, v: Vultures, m: np.ndarray, compete: np.ndarray) -> None:
+    """0.5 <= |F| < 1, the rows ``m``: food competition where ``compete`` (rand < p3; eqs.
+    21-22), else the rotating flight (eqs. 23-25)."""
+    k = m & compete
+    Rm, Xm = v.R[k], v.x[k]
+    new[k] = np.abs(2.0 * v.r1[k] * Rm - Xm) * (v.F[k] + v.r2[k]) - (Rm - Xm)
+    k = m & ~compete
+    Rm, Xm = v.R[k], v.x[k]
+    s1 = Rm * (v.r1[k] * Xm / (2.0 * np.pi)) * np.cos(Xm)
+    s2 = Rm * (v.r2[k] * Xm / (2.0 * np.pi)) * np.sin(Xm)
+    new[k] = Rm - (s1 + s2)
+
+
+def exploit_late(new: np.ndarray, v: Vultures, m: np.ndarray, gather: np.ndarray) -> None:
+    """|F| < 0.5, the rows ``m``: aggregation at the best two where ``gather`` (rand < p2;
+    eqs. 26-28), else the attack with a Lévy flight (eq. 29)."""
+    k = m & gather
+    B1m, B2m, Xm, Fm = v.B1[k], v.B2[k], v.x[k], v.F[k]
+    a1 = B1m - (B1m * Xm) / (B1m - Xm**2) * Fm
+    a2 = B2m - (B2m * Xm) / (B2m - Xm**2) * Fm
+    new[k] = (a1 + a2) / 2.0
+    k = m & ~gather
+    Rm = v.R[k]
+    new[k] = Rm - np.abs(Rm - v.x[k]) * v.F[k] * v.levy[k]
+
+
+def move(v: Vultures, p1: float, p2: float, p3: float, lb, ub) -> np.ndarray:
+    """Every vulture's new position (unclipped; NaN where a move divided 0 by 0): the stage
+    its |F| puts it in, the branch its draw ``u`` picks there."""
+    absF = np.abs(v.F[:, 0])
+    far = absF >= 1.0  # exploration
+    late = absF < 0.5
+    medium = ~far & ~late
+    new = np.empty_like(v.x)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        explore(new, v, far, v.u < p1, lb, ub)
+        exploit_medium(new, v, medium, v.u < p3)
+        exploit_late(new, v, late, v.u < p2)
+    return new
+
+
 @register("avoa")
 def avoa(
     runs: Runs,
@@ -176,79 +285,30 @@ def avoa(
     are the same whether drawn one call at a time or in one call, and ``uniform(-2, 2)`` is
     ``-2 + 4 d`` of the same double), then the Lévy flight's two normal arrays (one
     ``standard_normal`` call)."""
-    for name, value in (("p1", p1), ("p2", p2), ("p3", p3), ("alpha", alpha), ("beta", beta)):
-        if not 0.0 <= value <= 1.0:
-            raise ValueError(f"{name} must be in [0, 1], got {value}")
-    if not math.isclose(alpha + beta, 1.0):
-        raise ValueError(f"alpha + beta must be 1 (L1 + L2 = 1), got {alpha} + {beta}")
-    if gamma <= 0:
-        raise ValueError(f"gamma must be positive, got {gamma}")
-
+    check_settings(p1, p2, p3, alpha, beta, gamma)
     S, P, D = runs.n, pop_size, runs.dim
-    n = S * P  # every seed's vultures
-    lb, ub = runs.lb, runs.ub
     sigma = levy_sigma()
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
+    X, f = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
     best = BestTwo(S, D)
-    best.update((yield from runs.ask(X)), X)
-    runs.end_iteration()
+    best.update(f, X)
     T = runs.planned_iterations(P)
     draws = np.empty((S, 2 + 5 * P))
     normals = np.empty((S, 2, P, D))
 
     while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
-        t = int(runs.iteration[0])  # the reference's current_iter (0..T-1)
-        b1 = np.where(best.set1[:, None], best.x1, X[:, 0])  # X[0]: only if all was NaN/inf
-        b2 = np.where(best.set2[:, None], best.x2, b1)
-        frac = t / T
+        frac = int(runs.iteration[0]) / T  # the reference's current_iter (0..T-1) over T
+        b1, b2 = best.guides(X)
         for s, rng in enumerate(rngs):
             rng.random(out=draws[s])
-            normals[s] = rng.standard_normal((2, P, D))
-        g = (-2.0 + 4.0 * draws[:, 0]) * (
-            math.sin(math.pi / 2.0 * frac) ** gamma + math.cos(math.pi / 2.0 * frac) - 1.0
-        )
-        P1 = (2.0 * draws[:, 1] + 1.0) * (1.0 - frac) + g
-
+            rng.standard_normal(out=normals[s])  # in place: the same doubles, no copy
+        P1 = hunger_scale(frac, -2.0 + 4.0 * draws[:, 0], draws[:, 1], gamma)
         # per-vulture draws (one scalar each, as the MATLAB rand() calls), Levy per dimension;
         # every seed's vultures as rows, seed by seed: the one-seed code's statements on n rows
-        per = draws[:, 2:].reshape(S, 5, P).transpose(1, 0, 2).reshape(5, n)
-        F = (np.repeat(P1, P) * (2.0 * per[0] - 1.0))[:, None]  # (n, 1)
-        B1, B2 = np.repeat(b1, P, axis=0), np.repeat(b2, P, axis=0)
-        R = np.where((per[1] <= alpha)[:, None], B1, B2)
-        u = per[2]  # the branch draw: rand < p1 / p3 / p2
-        r1, r2 = per[3][:, None], per[4][:, None]
-        levy = (normals[:, 0] * sigma / np.abs(normals[:, 1]) ** (1.0 / LEVY_BETA)).reshape(n, D)
-
-        x = X.reshape(n, D)
-        absF = np.abs(F[:, 0])
-        explore = absF >= 1.0
-        late = absF < 0.5
-        medium = ~explore & ~late
-        new = np.empty_like(x)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            m = explore & (u < p1)  # eq. 19a with D = |C R - X|, C = 2 rand
-            Rm, Xm, Fm = R[m], x[m], F[m]
-            new[m] = Rm - np.abs(2.0 * r1[m] * Rm - Xm) * Fm
-            m = explore & ~(u < p1)  # eq. 19b
-            new[m] = R[m] - F[m] + r1[m] * ((ub - lb) * r2[m] + lb)
-            m = medium & (u < p3)  # competition, eqs. 21-22
-            Rm, Xm = R[m], x[m]
-            new[m] = np.abs(2.0 * r1[m] * Rm - Xm) * (F[m] + r2[m]) - (Rm - Xm)
-            m = medium & ~(u < p3)  # rotating flight, eqs. 23-25
-            Rm, Xm = R[m], x[m]
-            s1 = Rm * (r1[m] * Xm / (2.0 * np.pi)) * np.cos(Xm)
-            s2 = Rm * (r2[m] * Xm / (2.0 * np.pi)) * np.sin(Xm)
-            new[m] = Rm - (s1 + s2)
-            m = late & (u < p2)  # aggregation, eqs. 26-28
-            B1m, B2m, Xm, Fm = B1[m], B2[m], x[m], F[m]
-            a1 = B1m - (B1m * Xm) / (B1m - Xm**2) * Fm
-            a2 = B2m - (B2m * Xm) / (B2m - Xm**2) * Fm
-            new[m] = (a1 + a2) / 2.0
-            m = late & ~(u < p2)  # attack with Levy flight, eq. 29
-            Rm = R[m]
-            new[m] = Rm - np.abs(Rm - x[m]) * F[m] * levy[m]
-        X = runs.clip(np.where(np.isnan(new), x, new)).reshape(S, P, D)
+        per = draws[:, 2:].reshape(S, 5, P).transpose(1, 0, 2).reshape(5, S * P)
+        v = Vultures.drawn(X, P1, per, normals, b1, b2, alpha, sigma)
+        new = move(v, p1, p2, p3, runs.lb, runs.ub)
+        X = runs.clip(np.where(np.isnan(new), v.x, new)).reshape(S, P, D)
 
         best.update((yield from runs.ask(X)), X)
         runs.end_iteration()

@@ -117,6 +117,12 @@ def evaluate_rows(
     return np.asarray(objective(X), dtype=float).reshape(X.shape[0])
 
 
+def uniform_in_box(rng: np.random.Generator, lb: np.ndarray, ub: np.ndarray, k: int) -> np.ndarray:
+    """``k`` uniform points in the box ``[lb, ub]`` from ``rng`` (``k`` × D doubles), shape
+    (k, D): every start of a search, a population's or a local search's restart."""
+    return lb + rng.random((k, lb.size)) * (ub - lb)
+
+
 class Runs:
     """The accounts of ``n`` runs of one algorithm stepped as one (a fit block's seeds), as arrays
     over the runs: evaluations, iterations, each run's best point, its history and its clock.
@@ -318,7 +324,18 @@ class Runs:
     def random_uniform(self, rngs: Sequence[np.random.Generator], k: int) -> np.ndarray:
         """``k`` uniform points in the box per run, each from its own generator, shape
         (n, k, D)."""
-        return np.stack([self.lb + rng.random((k, self.dim)) * (self.ub - self.lb) for rng in rngs])
+        return np.stack([uniform_in_box(rng, self.lb, self.ub, k) for rng in rngs])
+
+    def initial_population(
+        self, rngs: Sequence[np.random.Generator], k: int
+    ) -> Generator[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """``X, f = yield from runs.initial_population(rngs, k)``: a population method's start,
+        :meth:`random_uniform`'s ``k`` points per run, their values (:meth:`ask`) and iteration
+        0 of the history closed."""
+        X = self.random_uniform(rngs, k)
+        f = yield from self.ask(X)
+        self.end_iteration()
+        return X, f
 
     # --- clocks and results -------------------------------------------------------------------
     def charge_moves(self, seconds: float, runs: np.ndarray) -> None:

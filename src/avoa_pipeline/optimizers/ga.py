@@ -128,6 +128,34 @@ def adaptive_feasible(
     return np.clip(child, lb, ub)  # rounding only; the step is already feasible
 
 
+def generation_sizes(P: int, elite_count: int | None, crossover_fraction: float):
+    """The elite, crossover children and mutation children of a generation of ``P`` (MATLAB's
+    ``EliteCount``, default ``ceil(0.05 P)``, and ``CrossoverFraction`` of the rest, rounded)."""
+    n_elite = math.ceil(0.05 * P) if elite_count is None else int(elite_count)
+    if not 0 <= n_elite < P:
+        raise ValueError(f"elite_count must be in [0, pop_size), got {n_elite}")
+    if not 0.0 <= crossover_fraction <= 1.0:
+        raise ValueError(f"crossover_fraction must be in [0, 1], got {crossover_fraction}")
+    n_xover = math.floor(crossover_fraction * (P - n_elite) + 0.5)  # MATLAB round()
+    return n_elite, n_xover, P - n_elite - n_xover
+
+
+def scattered_crossover(X: np.ndarray, parents: np.ndarray, take_first: np.ndarray) -> np.ndarray:
+    """``crossoverscattered`` of every run: child k takes each coordinate from parent 2k where
+    ``take_first`` (a uniform below 1/2), else from parent 2k + 1."""
+    which = np.arange(X.shape[0])[:, None]  # each run's own rows in fancy indexing
+    n_xover = take_first.shape[1]
+    p1, p2 = parents[:, 0 : 2 * n_xover : 2], parents[:, 1 : 2 * n_xover : 2]
+    return np.where(take_first, X[which, p1], X[which, p2])
+
+
+def adapted_step(delta: np.ndarray, best_last: np.ndarray, best_before: np.ndarray):
+    """``mutationadaptfeasible``'s step of every run: four times larger (at most 1) after a
+    generation that improved the best score, four times smaller (at least sqrt(eps)) else."""
+    improved = best_last < best_before
+    return np.where(improved, np.minimum(1.0, 4.0 * delta), np.maximum(_SQRT_EPS, delta / 4.0))
+
+
 @register("ga")
 def ga(
     runs: Runs,
@@ -149,22 +177,14 @@ def ga(
     S, P, D = runs.n, int(pop_size), runs.dim
     if mutation not in ("adaptfeasible", "gaussian"):
         raise ValueError(f"mutation must be 'adaptfeasible' or 'gaussian', got {mutation!r}")
-    n_elite = math.ceil(0.05 * P) if elite_count is None else int(elite_count)
-    if not 0 <= n_elite < P:
-        raise ValueError(f"elite_count must be in [0, pop_size), got {n_elite}")
-    if not 0.0 <= crossover_fraction <= 1.0:
-        raise ValueError(f"crossover_fraction must be in [0, 1], got {crossover_fraction}")
-    n_xover = math.floor(crossover_fraction * (P - n_elite) + 0.5)  # MATLAB round()
-    n_mut = P - n_elite - n_xover
+    n_elite, n_xover, n_mut = generation_sizes(P, elite_count, crossover_fraction)
     n_kids = n_xover + n_mut
     n_parents = 2 * n_xover + n_mut
     lb, ub = runs.lb, runs.ub
     adaptive = mutation == "adaptfeasible"
     which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
-    score = yield from runs.ask(X)
-    runs.end_iteration()
+    X, score = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
     best_before, best_last = np.full(S, np.nan), score.min(axis=1)  # the last two generations'
     delta = np.ones(S)
     offset = np.empty(S)
@@ -188,17 +208,12 @@ def ga(
         parents = np.take_along_axis(parents, perm, axis=1)
         elite = order[:, :n_elite]
 
-        p1, p2 = parents[:, 0 : 2 * n_xover : 2], parents[:, 1 : 2 * n_xover : 2]
         take_first = uniforms[:, : n_xover * D].reshape(S, n_xover, D) < 0.5
-        xover_kids = np.where(take_first, X[which, p1], X[which, p2])
-
+        xover_kids = scattered_crossover(X, parents, take_first)
         mut_parents = X[which, parents[:, 2 * n_xover :]]
         if adaptive:
             if t > 2:
-                improved = best_last < best_before
-                delta = np.where(
-                    improved, np.minimum(1.0, 4.0 * delta), np.maximum(_SQRT_EPS, delta / 4.0)
-                )
+                delta = adapted_step(delta, best_last, best_before)
             unit = -1.0 + 2.0 * uniforms[:, n_xover * D :].reshape(S, n_mut, D)  # U(-1, 1)
             mut_kids = adaptive_feasible(unit, mut_parents, delta, lb, ub)
         else:

@@ -159,6 +159,84 @@ def _follow_silverback(GX, X, silverback, L, follow) -> None:
                 GX[s, i, d] = L[s] * M * (X[s, i, d] - silverback[s, d]) + X[s, i, d]
 
 
+class _Draws:
+    """Every run's random numbers of one iteration, drawn in the one-run code's order: C's and
+    L's uniforms, u_unknown, u_known, r (P each) and Z (P x D) in ``uniform``, the rows X_r,
+    GX_r1, GX_r2 in ``idx``; after the exploration evaluation, only by a run that competes,
+    the vector/scalar choice, E's normals (P x D, then P) and Q's uniforms (zeros until drawn:
+    a following run's are never used)."""
+
+    def __init__(self, S: int, P: int, D: int):
+        self.P = P
+        self.uniform = np.empty((S, 2 + 3 * P + P * D))
+        self.idx = np.empty((S, P, 3), dtype=np.int64)
+        self.choice = np.zeros((S, P))
+        self.normals = np.zeros((S, P * D + P))
+        self.q = np.zeros((S, P))
+
+    def exploration(self, rngs: list[np.random.Generator], decay: float) -> np.ndarray:
+        """Draw the exploration's numbers of every run; its C, with libm's ``math.cos`` run by
+        run (the module docstring says why)."""
+        C = np.empty(len(rngs))
+        for s, rng in enumerate(rngs):
+            rng.random(out=self.uniform[s])
+            self.idx[s] = rng.integers(0, self.P, size=(self.P, 3))
+            C[s] = (math.cos(2.0 * self.uniform[s, 0]) + 1.0) * decay
+        return C
+
+    def competition(self, rngs: list[np.random.Generator], compete: np.ndarray) -> None:
+        """Draw the competition's numbers of the runs in the mask ``compete``."""
+        for s in np.flatnonzero(compete):
+            rng = rngs[s]
+            rng.random(out=self.choice[s])
+            rng.standard_normal(out=self.normals[s])
+            rng.random(out=self.q[s])
+
+
+def explore(X, GX, draws: _Draws, C, L, p: float, lb, ub) -> np.ndarray:
+    """Every gorilla's exploration candidate (unclipped; ``GX`` is the last candidates, read by
+    the move toward other gorillas): migration to an unknown place (rand < p), to a known place
+    (rand >= 0.5) or toward other gorillas."""
+    S, P, D = X.shape
+    Cb, Lb = C[:, None, None], L[:, None, None]
+    per = draws.uniform[:, 2 : 2 + 3 * P].reshape(S, 3, P)
+    unknown = per[:, 0] < p
+    known = ~unknown & (per[:, 1] >= 0.5)
+    others = ~unknown & ~known
+    r = per[:, 2]  # r1 / r2 / r3 of the one move each gorilla makes
+    lo = -Cb
+    Z = lo + (Cb - lo) * draws.uniform[:, 2 + 3 * P :].reshape(S, P, D)  # rng.uniform(-C, C)
+    which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
+    new = np.where(
+        unknown[:, :, None],
+        (ub - lb) * r[:, :, None] + lb,
+        (r[:, :, None] - Cb) * X[which, draws.idx[:, :, 0]] + Lb * Z * X,
+    )
+    _move_to_others(new, GX, X, draws.idx, others, L, r)
+    return new
+
+
+def exploit(GX, X, silverback, draws: _Draws, L, follow, beta: float) -> np.ndarray:
+    """Every gorilla's exploitation candidate (unclipped): the runs in ``follow`` (C >= w)
+    follow the silverback (``GX`` changed in place, row by row), the others compete for adult
+    females."""
+    S, P, D = GX.shape
+    compete = ~follow
+    new = GX
+    if follow.any():  # follow the silverback; the mean of GX changes as its rows are replaced
+        _follow_silverback(GX, X, silverback, L, follow)
+    if compete.any():  # competition for adult females
+        E = np.where(
+            (draws.choice >= 0.5)[:, :, None],
+            draws.normals[:, : P * D].reshape(S, P, D),
+            draws.normals[:, P * D :, None],
+        )
+        Q = 2.0 * draws.q[:, :, None] - 1.0
+        competed = silverback[:, None] - (silverback[:, None] * Q - X * Q) * (beta * E)
+        new = np.where(follow[:, None, None], GX, competed)
+    return new
+
+
 @register("gto")
 def gto(
     runs: Runs,
@@ -174,77 +252,26 @@ def gto(
         raise ValueError(f"p must be in [0, 1], got {p}")
 
     S, P, D = runs.n, pop_size, runs.dim
-    lb, ub = runs.lb, runs.ub
-    which = np.arange(S)[:, None]  # each run's own rows in fancy indexing
-
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
-    troop = _Troop(X, (yield from runs.ask(X)))
+    X, cost = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
+    troop = _Troop(X, cost)
     GX = X.copy()
-    runs.end_iteration()
     T = runs.planned_iterations(2 * P)
-
-    # per run and iteration: C's and L's uniforms, u_unknown, u_known, r (P each), Z (P x D)
-    draws = np.empty((S, 2 + 3 * P + P * D))
-    idx = np.empty((S, P, 3), dtype=np.int64)  # X_r, GX_r1, GX_r2
-    C = np.empty(S)
-    # the competition's draws, per run that competes: the vector/scalar choice, E's normals
-    # (P x D, then P), Q's uniforms; zeros until drawn (a following run's are never used)
-    choice = np.zeros((S, P))
-    normals = np.zeros((S, P * D + P))
-    q = np.zeros((S, P))
+    draws = _Draws(S, P, D)
 
     while not runs.done.all():  # the runs move in step: one budget, the same evaluations each
         It = int(runs.iteration[0]) + 1
-        decay = max(0.0, 1.0 - It / T)
-        for s, rng in enumerate(rngs):
-            rng.random(out=draws[s])
-            idx[s] = rng.integers(0, P, size=(P, 3))
-            C[s] = (math.cos(2.0 * draws[s, 0]) + 1.0) * decay  # libm's rounding, as one run
-        L = C * (2.0 * draws[:, 1] - 1.0)
+        C = draws.exploration(rngs, max(0.0, 1.0 - It / T))
+        L = C * (2.0 * draws.uniform[:, 1] - 1.0)
         X = troop.X
-        Cb, Lb = C[:, None, None], L[:, None, None]
 
-        # --- exploration ----------------------------------------------------------------------
-        per = draws[:, 2 : 2 + 3 * P].reshape(S, 3, P)
-        unknown = per[:, 0] < p
-        known = ~unknown & (per[:, 1] >= 0.5)
-        others = ~unknown & ~known
-        r = per[:, 2]  # r1 / r2 / r3 of the one move each gorilla makes
-        lo = -Cb
-        Z = lo + (Cb - lo) * draws[:, 2 + 3 * P :].reshape(S, P, D)  # rng.uniform(-C, C)
-        old = GX
-        GX = np.where(
-            unknown[:, :, None],
-            (ub - lb) * r[:, :, None] + lb,
-            (r[:, :, None] - Cb) * X[which, idx[:, :, 0]] + Lb * Z * X,
-        )
-        _move_to_others(GX, old, X, idx, others, L, r)
-        GX = runs.clip(GX)
+        GX = runs.clip(explore(X, GX, draws, C, L, p, runs.lb, runs.ub))
         troop.group_formation(GX, (yield from runs.ask(GX)))
         if runs.done.all():
             break
 
-        # --- exploitation (the silverback after the exploration evaluation) --------------------
-        sb = troop.silverback
+        # the silverback after the exploration evaluation
         follow = w <= C
-        compete = ~follow
-        for s in np.flatnonzero(compete):
-            rng = rngs[s]
-            rng.random(out=choice[s])
-            rng.standard_normal(out=normals[s])
-            rng.random(out=q[s])
-        new = GX
-        if follow.any():  # follow the silverback; the mean of GX changes as its rows are replaced
-            _follow_silverback(GX, X, sb, L, follow)
-        if compete.any():  # competition for adult females
-            E = np.where(
-                (choice >= 0.5)[:, :, None],
-                normals[:, : P * D].reshape(S, P, D),
-                normals[:, P * D :, None],
-            )
-            Q = 2.0 * q[:, :, None] - 1.0
-            competed = sb[:, None] - (sb[:, None] * Q - X * Q) * (beta * E)
-            new = np.where(follow[:, None, None], GX, competed)
-        GX = runs.clip(new)
+        draws.competition(rngs, ~follow)
+        GX = runs.clip(exploit(GX, X, troop.silverback, draws, L, follow, beta))
         troop.group_formation(GX, (yield from runs.ask(GX)))
         runs.end_iteration()

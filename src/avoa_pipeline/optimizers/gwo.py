@@ -113,9 +113,8 @@ def gwo(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) 
     leader_pos = np.zeros((S, 3, D))  # alpha, beta, delta (reference: zeros(1, dim))
     leader_score = np.full((S, 3), np.inf)
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
-    update_leaders((yield from runs.ask(X)), X, leader_pos, leader_score)
-    runs.end_iteration()
+    X, f = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
+    update_leaders(f, X, leader_pos, leader_score)
     draws = np.empty((S, 2, 3, P, D))  # per run: r1, r2
 
     t = 0

@@ -83,7 +83,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Runs, Steps, register
+from .base import Runs, Steps, register, uniform_in_box
 
 __all__ = [
     "NM_OPTIONS",
@@ -212,13 +212,27 @@ class Simplexes:
 
         Every branch is computed for every seed (a few dozen seeds: an operation on all of them
         costs what one on a few does) and kept where the seed is in it."""
-        N, sim, fsim, point = self.N, self.sim, self.fsim, self.point
         code = np.where(alive, self.phase, -1)  # the branch each live seed was in when it asked
-        completed = np.zeros(alive.size, dtype=bool)  # ended an iteration
-        initialised = np.zeros(alive.size, dtype=bool)  # evaluated its whole initial simplex
+        completed, initialised = self._vertex_told(f, code)
+        replaced, moving = self._move_told(f, code)
+        completed |= replaced
+        self.iterations += completed
+        stopped, reflecting = self._begin_iterations(completed | initialised, initialised)
+        moving |= reflecting
+        if moving.any():
+            self._next_points(moving)
+        # a call past maxfev ends the search instead (scipy's _MaxFuncCallError)
+        return alive & (stopped | (self.fcalls >= self.maxfev))
 
+    def _vertex_told(self, f: np.ndarray, code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Vertex by vertex, the initial simplex and a shrink: the seeds whose simplex is now
+        evaluated, those of a shrink (``completed``: the iteration ended) and those of an
+        initial simplex (``initialised``); the others' next vertex is their ``point``."""
+        N, sim, fsim, point = self.N, self.sim, self.fsim, self.point
+        completed = np.zeros(code.size, dtype=bool)
+        initialised = np.zeros(code.size, dtype=bool)
         vertex = (code == INIT) | (code == SHRINK)
-        if vertex.any():  # vertex by vertex: the initial simplex, a shrink
+        if vertex.any():
             s = np.flatnonzero(vertex)
             k = self.idx[s]
             fsim[s, k] = f[s]
@@ -230,7 +244,13 @@ class Simplexes:
             init = code[last] == INIT
             initialised[last[init]] = True
             completed[last[~init]] = True
+        return completed, initialised
 
+    def _move_told(self, f: np.ndarray, code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The value of a reflected, expanded or contracted point: the seeds whose worst vertex
+        was replaced (their iteration ended) and those that go on to a second point (expansion
+        or contraction); a failed contraction starts the shrink."""
+        sim, fsim, point = self.sim, self.fsim, self.point
         # reflection: expand if f(xr) < f_0, take xr if f(xr) < f_{N-1}, else contract, outside
         # if f(xr) < f_N, inside otherwise
         reflect = code == REFLECT
@@ -250,7 +270,6 @@ class Simplexes:
         replace = take_xr | take | expanded
         np.copyto(sim[:, -1], np.where(take[:, None], point, self.xr), where=replace[:, None])
         fsim[:, -1] = np.where(replace, np.where(take | take_xr, f, fxr), fsim[:, -1])
-        completed |= replace
         shrink = (code >= CONTRACT_OUT) & (code <= CONTRACT_IN) & ~take
         self.fxr = np.where(reflect, f, fxr)
         self.phase = np.where(moving, np.where(below_best, EXPAND, contraction), self.phase)
@@ -262,35 +281,41 @@ class Simplexes:
             self.phase[s] = SHRINK
             self.idx[s] = 1
             point[s] = sim[s, 1]
+        return replace, moving
 
-        self.iterations += completed
-        starting = completed | initialised
-        stopped = np.zeros(alive.size, dtype=bool)
-        if starting.any():
-            if initialised.any():  # scipy sorts the initial simplex twice
-                self._sort(initialised)
-            self._sort(starting)
-            sim, fsim = self.sim, self.fsim
-            # the head of scipy's loop: its condition, then the convergence test, then reflection
-            go = starting & (self.fcalls < self.maxfev) & (self.iterations < self.maxiter)
-            spread_x = np.abs((sim[:, 1:] - sim[:, :1]).reshape(len(sim), -1)).max(axis=1)
-            spread_f = np.abs(fsim[:, :1] - fsim[:, 1:]).max(axis=1)
-            go &= ~((spread_x <= self.xatol) & (spread_f <= self.fatol))
-            stopped = starting & ~go
-            if go.any():
-                xbar = centroid(sim)
-                self.xbar = np.where(go[:, None], xbar, self.xbar)
-                self.phase = np.where(go, REFLECT, self.phase)
-                moving |= go
+    def _begin_iterations(
+        self, starting: np.ndarray, initialised: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The head of scipy's loop for the seeds ``starting`` an iteration: sort, its
+        condition, the convergence test, then the centroid of the reflection. Returns the seeds
+        that stopped and those that reflect."""
+        stopped = np.zeros(starting.size, dtype=bool)
+        go = np.zeros(starting.size, dtype=bool)
+        if not starting.any():
+            return stopped, go
+        if initialised.any():  # scipy sorts the initial simplex twice
+            self._sort(initialised)
+        self._sort(starting)
+        sim, fsim = self.sim, self.fsim
+        go = starting & (self.fcalls < self.maxfev) & (self.iterations < self.maxiter)
+        spread_x = np.abs((sim[:, 1:] - sim[:, :1]).reshape(len(sim), -1)).max(axis=1)
+        spread_f = np.abs(fsim[:, :1] - fsim[:, 1:]).max(axis=1)
+        go &= ~((spread_x <= self.xatol) & (spread_f <= self.fatol))
+        stopped = starting & ~go
+        if go.any():
+            xbar = centroid(sim)
+            self.xbar = np.where(go[:, None], xbar, self.xbar)
+            self.phase = np.where(go, REFLECT, self.phase)
+        return stopped, go
 
-        if moving.any():  # scipy's xr, xe, xc, xcc: a xbar + b x_N, clipped
-            coef = self.coef[self.phase]
-            new = self.clip(coef[:, :1] * self.xbar + coef[:, 1:] * sim[:, -1])
-            self.point = np.where(moving[:, None], new, point)
-            reflecting = moving & (self.phase == REFLECT)
-            self.xr = np.where(reflecting[:, None], new, self.xr)
-        # a call past maxfev ends the search instead (scipy's _MaxFuncCallError)
-        return alive & (stopped | (self.fcalls >= self.maxfev))
+    def _next_points(self, moving: np.ndarray) -> None:
+        """The next point of the seeds ``moving``: scipy's xr, xe, xc, xcc of their branch, a
+        xbar + b x_N, clipped."""
+        coef = self.coef[self.phase]
+        new = self.clip(coef[:, :1] * self.xbar + coef[:, 1:] * self.sim[:, -1])
+        self.point = np.where(moving[:, None], new, self.point)
+        reflecting = moving & (self.phase == REFLECT)
+        self.xr = np.where(reflecting[:, None], new, self.xr)
 
 
 @register("nelder_mead")
@@ -302,13 +327,11 @@ def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **se
     if unknown:
         raise TypeError(f"nelder_mead: unknown settings {sorted(unknown)}; known: {NM_OPTIONS}")
     search = Simplexes(runs.lb, runs.ub, runs.n, **settings)
-    span = runs.ub - runs.lb
 
     def restart(which: np.ndarray) -> None:
         s = np.flatnonzero(which)
-        # Runs.random_uniform's start, one draw of D doubles per seed when its search starts
-        u = np.stack([rngs[i].random((1, runs.dim))[0] for i in s])
-        search.restart(s, runs.lb + u * span)
+        # one draw of D doubles per seed when its search starts
+        search.restart(s, np.concatenate([uniform_in_box(rngs[i], runs.lb, runs.ub, 1) for i in s]))
 
     alive = ~runs.done
     restart(alive)

@@ -83,7 +83,7 @@ import numpy as np
 # private: scipy exposes no public reverse-communication L-BFGS-B; see the module docstring
 from scipy.optimize import _lbfgsb
 
-from .base import Runs, Steps, register
+from .base import Runs, Steps, register, uniform_in_box
 
 LBFGSB_DEFAULTS = {
     "ftol": 2.2204460492503131e-09,
@@ -198,10 +198,9 @@ class LbfgsbSearch:
                 task[0], task[1] = _STOP, _STOP_EVALUATIONS
 
 
-@register("quasi_newton")
-def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
-    """L-BFGS-B restarted until the budget is spent, every seed's forward-difference gradient
-    (``D + 1`` points) in one ask per step (see the module docstring)."""
+def parse_settings(settings: dict) -> tuple[float, dict]:
+    """``rel_step`` (the forward difference's step, relative to the box) and the L-BFGS-B
+    options, checked."""
     settings = dict(settings)
     rel_step = float(settings.pop("rel_step", np.sqrt(np.finfo(float).eps)))
     unknown = set(settings) - set(LBFGSB_OPTIONS)
@@ -211,33 +210,79 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
         )
     if not rel_step > 0:
         raise ValueError(f"rel_step must be positive, got {rel_step}")
-    S, D, P = runs.n, runs.dim, pop_size
-    lb, ub = runs.lb, runs.ub
-    h = rel_step * (ub - lb)
-    core = LbfgsbCore(lb, ub, settings)
+    return rel_step, settings
 
-    cap = runs.evaluation_cap(P)  # an iteration is P evaluations, as for Nelder–Mead
 
-    searches: list[LbfgsbSearch | None] = [None] * S
-    again = [False] * S  # the point has a NaN: MemoizeJac evaluates it twice
-    f_first = [0.0] * S  # fun's f at such a point, from its first evaluation
-    diagonal = np.arange(D)
-    shifts = np.zeros((S, D, D))
+class Restarts:
+    """Every seed's running L-BFGS-B search, a new one from a random point once it ends, and
+    the seeds whose point has a NaN (scipy's ``MemoizeJac`` evaluates it twice: f from the
+    first evaluation, g from the second)."""
 
-    def moves_on(s: int, done: bool) -> bool:
+    def __init__(self, rngs: list[np.random.Generator], core: LbfgsbCore):
+        self.rngs, self.core = rngs, core
+        self.searches: list[LbfgsbSearch | None] = [None] * len(rngs)
+        self.again = [False] * len(rngs)  # the point has a NaN: evaluated a second time
+        self.f_first = [0.0] * len(rngs)  # fun's f at such a point, from its first evaluation
+
+    def points(self) -> np.ndarray:
+        """Where each seed wants f and g (the lower bound for a seed that never started)."""
+        lb = self.core.lb
+        return np.array([lb if search is None else search.point for search in self.searches])
+
+    def moves_on(self, s: int, done: bool) -> bool:
         """Seed ``s``'s search to its next point, or a new search once it has ended (restart_loop:
         none once the budget is spent, False)."""
-        search = searches[s]
+        search = self.searches[s]
         if search is not None and search.advance():
             return True
         if done:
             return False
-        x0 = lb + rngs[s].random((1, D)) * (ub - lb)  # Runs.random_uniform
-        searches[s] = LbfgsbSearch(x0[0], core)
+        x0 = uniform_in_box(self.rngs[s], self.core.lb, self.core.ub, 1)[0]
+        self.searches[s] = LbfgsbSearch(x0, self.core)
         return True
 
+    def tell(self, s: int, f: float, g: np.ndarray, has_nan: bool, done: bool) -> bool:
+        """Seed ``s``'s ``fun`` at its point; whether it asks again."""
+        if self.again[s]:  # the second evaluation gives g; f is the first's
+            self.again[s] = False
+            f = self.f_first[s]
+        elif has_nan:
+            self.again[s] = True
+            self.f_first[s] = f
+            return True
+        self.searches[s].tell(f, g)
+        return self.moves_on(s, done)
+
+
+def ask_rows_that_fit(runs: Runs, X: np.ndarray, live: list[int], room: list[int]):
+    """``F = yield from ask_rows_that_fit(...)``: the values of the first ``room[s]`` rows of
+    each live seed's ``X`` (the rest +inf), in one ask unless the budgets left differ."""
+    S, k_all = X.shape[0], X.shape[1]
+    if len(live) == S and all(k == k_all for k in room):  # every seed asks a whole call
+        return (yield from runs.ask(X))
+    F = np.full((S, k_all), np.inf)
+    for k in sorted({room[s] for s in live}):
+        group = np.zeros(S, dtype=bool)
+        group[[s for s in live if room[s] == k]] = True
+        F[group, :k] = (yield from runs.ask(X[:, :k], group))[group]
+    return F
+
+
+@register("quasi_newton")
+def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **settings) -> Steps:
+    """L-BFGS-B restarted until the budget is spent, every seed's forward-difference gradient
+    (``D + 1`` points) in one ask per step (see the module docstring)."""
+    rel_step, settings = parse_settings(settings)
+    S, D, P = runs.n, runs.dim, pop_size
+    lb, ub = runs.lb, runs.ub
+    h = rel_step * (ub - lb)
+    seeds = Restarts(rngs, LbfgsbCore(lb, ub, settings))
+    cap = runs.evaluation_cap(P)  # an iteration is P evaluations, as for Nelder–Mead
+    diagonal = np.arange(D)
+    shifts = np.zeros((S, D, D))
+
     done = runs.done.tolist()
-    live = [s for s in range(S) if moves_on(s, done[s])]  # the seeds whose run goes on
+    live = [s for s in range(S) if seeds.moves_on(s, done[s])]  # the seeds whose run goes on
     while True:
         room = np.minimum(D + 1, cap - runs.nfe).tolist()  # rows that fit into each budget
         live = [s for s in live if room[s] > 0]  # nothing fits: the run ends (BudgetExhausted)
@@ -245,19 +290,12 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
             return
 
         # every seed's fun(x) as one array operation (the rows of ended runs are not asked)
-        points = np.array([lb if search is None else search.point for search in searches])
+        points = seeds.points()
         x = np.clip(points, lb, ub)
         steps = np.where(x + h <= ub, h, -h)
         shifts[:, diagonal, diagonal] = steps
         X = np.concatenate([x[:, None, :], x[:, None, :] + shifts], axis=1)  # (S, D + 1, D)
-        if len(live) == S and all(k == D + 1 for k in room):  # every seed asks a whole call
-            F = yield from runs.ask(X)
-        else:
-            F = np.full((S, D + 1), np.inf)
-            for k in sorted({room[s] for s in live}):  # one ask unless the budgets differ
-                group = np.zeros(S, dtype=bool)
-                group[[s for s in live if room[s] == k]] = True
-                F[group, :k] = (yield from runs.ask(X[:, :k], group))[group]
+        F = yield from ask_rows_that_fit(runs, X, live, room)
         runs.close_spent(P)
         with np.errstate(invalid="ignore", over="ignore"):  # inf - inf, huge / step
             G = (F[:, 1:] - F[:, :1]) / steps
@@ -270,15 +308,6 @@ def quasi_newton(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **s
             if room[s] < D + 1:  # a cut call ends the run (BudgetExhausted)
                 continue
             f, g = (f0[s], G[s]) if math.isfinite(f0[s]) else (_BIG, np.zeros(D))
-            if again[s]:  # the second evaluation gives g; f is the first's
-                again[s] = False
-                f = f_first[s]
-            elif has_nan[s]:
-                again[s] = True
-                f_first[s] = f
-                moving.append(s)
-                continue
-            searches[s].tell(f, g)
-            if moves_on(s, done[s]):
+            if seeds.tell(s, f, g, has_nan[s], done[s]):
                 moving.append(s)
         live = moving

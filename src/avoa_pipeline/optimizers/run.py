@@ -472,9 +472,7 @@ def run(
         raise ValueError(f"RUN needs pop_size >= 4 (three partners besides the agent), got {P}")
     lb, ub = runs.lb, runs.ub
 
-    X = runs.random_uniform(rngs, P)  # (S, P, D)
-    cost = yield from runs.ask(X)
-    runs.end_iteration()
+    X, cost = yield from runs.initial_population(rngs, P)  # X: (S, P, D)
     ib = np.argmin(cost, axis=1)
     best_x, best_f = X[np.arange(S), ib], cost[np.arange(S), ib]
     draws = _Draws(S, P, D)

@@ -1,2 +1,2 @@
-"""Measured cell data: :mod:`.importers` (raw files → canonical records) and :mod:`.experiments`
-(what ``model/`` makes of them); see docs/real-data.md."""
+"""Measured cells: :mod:`.experiments` (what ``model/`` makes of the records that
+:mod:`avoa_pipeline.importers` wrote); see docs/real-data.md."""

@@ -314,6 +314,14 @@ def _arrow(ax, points, text=None, text_at=None, fontsize=7.4):
         ax.text(tx, ty, text, fontsize=fontsize, ha="left", va="center", color="0.15")
 
 
+_FIG03_X, _FIG03_W = 6.0, 7.4
+"""Figure 3's spine: the centre and width of its full-width boxes."""
+_FIG03_STAGES = (2.05, 6.0, 9.95)
+"""Figure 3's three stage columns (exploration, medium and late exploitation)."""
+_FIG03_MOVES = (1.88, 1.55, 5.0)
+"""Figure 3's move boxes: width, height and centre height."""
+
+
 def fig03(stem, cfg: dict | None = None) -> None:
     """Figure 3: the AVOA flowchart of this package's implementation (the reference code's).
 
@@ -324,8 +332,6 @@ def fig03(stem, cfg: dict | None = None) -> None:
     equations differ). ``cfg`` (optional) adds the population size and iteration budget.
     """
     s = avoa_settings()
-    p1, p2, p3 = s["p1"], s["p2"], s["p3"]
-    alpha, beta, gamma = s["alpha"], s["beta"], s["gamma"]
     budget = ""
     if cfg is not None:
         b = cfg["budget"]
@@ -337,151 +343,170 @@ def fig03(stem, cfg: dict | None = None) -> None:
         ax.set_xlim(0, 12)
         ax.set_ylim(0.4, 16.2)
         ax.set_axis_off()
-        X = 6.0
-        W = 7.4
-        _box(
-            ax,
-            X,
-            15.6,
-            4.6,
-            0.7,
-            f"Start{budget}\n"
-            f"p1 = {p1:g}, p2 = {p2:g}, p3 = {p3:g}, α = L1 = {alpha:g}, "
-            f"β = L2 = {beta:g}, γ (k) = {gamma:g}",
-            fc="#e0ecf4",
-            round_=True,
-        )
-        _box(ax, X, 14.55, W, 0.6, "Initialise P vultures uniformly in [lb, ub];  t = 0")
-        _box(
-            ax,
-            X,
-            13.45,
-            W,
-            0.8,
-            "Evaluate the ISE of every vulture (eq. 13)\n"
-            "update the best-two memories B1 (best so far), B2 (second best)  [stage 1]",
-        )
-        _diamond(ax, X, 12.15, 2.6, 1.0, "t ≥ T ?\n(budget spent)")
-        _box(ax, 10.3, 12.15, 2.6, 0.7, "Stop:\nreturn B1 and its ISE", fc="#e0ecf4", round_=True)
-        _box(
-            ax,
-            X,
-            10.7,
-            W,
-            1.05,
-            "Hunger, stage 2 (eqs. 17–18): once per iteration h ~ U(−2, 2), r ~ U(0, 1)\n"
-            r"$g = h\,(\sin^{\gamma}(\frac{\pi}{2}\frac{t}{T}) + \cos(\frac{\pi}{2}\frac{t}{T})"
-            r" - 1)$,   "
-            r"$F_i = [(2r+1)(1 - t/T) + g]\,(2r_i - 1)$" + f"   (γ = {gamma:g})",
-        )
-        _box(
-            ax,
-            X,
-            9.45,
-            W,
-            0.75,
-            "Guide vulture, eq. 15 (roulette on L1, L2):\n"
-            rf"$R_i = B_1$ if $r_i \leq \alpha = {alpha:g}$, else $B_2$  "
-            f"(β = {beta:g})",
-        )
-        _diamond(ax, X, 8.25, 2.4, 0.95, r"$|F_i|$ ?")
-
-        xs = (2.05, 6.0, 9.95)
-        dw = 1.96  # decision width: its side corners sit above the two move boxes
-        _diamond(ax, xs[0], 6.85, dw, 0.9, f"rand < p1 = {p1:g} ?")
-        _diamond(ax, xs[1], 6.85, dw, 0.9, f"rand < p3 = {p3:g} ?")
-        _diamond(ax, xs[2], 6.85, dw, 0.9, f"rand < p2 = {p2:g} ?")
-        for xc, title in zip(
-            xs,
-            ("exploration, stage 3", "medium exploitation, stage 4", "late exploitation, stage 5"),
-            strict=True,
-        ):
-            ax.text(xc + 0.1, 7.52, title, ha="left", fontsize=8, weight="bold")
-        bw, bh, by = 1.88, 1.55, 5.0
-        moves = (
-            (
-                "eqs. 19a, 20\n" r"$X = R - |2rR - X|\,F$",
-                "eq. 19b\n" r"$X = R - F$" "\n" r"$+\, r\,((ub - lb)\,r' + lb)$",
-            ),
-            (
-                "food competition\neqs. 21–22\n" r"$X = |2rR - X|\,(F + r')$" "\n" r"$-\,(R - X)$",
-                "rotating flight\neqs. 23–25\n"
-                r"$X = R - (S_1 + S_2)$"
-                "\n"
-                r"$S_1 = R\,\frac{rX}{2\pi}\cos X$"
-                "\n"
-                r"$S_2 = R\,\frac{r'X}{2\pi}\sin X$",
-            ),
-            (
-                "aggregation\neqs. 26–28\n"
-                r"$X = (A_1 + A_2)/2$"
-                "\n"
-                r"$A_k = B_k - \frac{B_k X}{B_k - X^2}F$",
-                "attack, Lévy flight\neqs. 29–31\n"
-                r"$X = R - |R - X|\,F\,\mathrm{Levy}$"
-                "\n"
-                f"(β = {s['levy_beta']:g}, σ = {s['levy_sigma']:.4f})",
-            ),
-        )
-        for xc, (yes, no) in zip(xs, moves, strict=True):
-            for dx, text, tag in ((-0.98, yes, "yes"), (0.98, no, "no")):
-                _box(ax, xc + dx, by, bw, bh, text, fc="#f7fcf5", fontsize=7.2)
-                _arrow(
-                    ax,
-                    [(xc + dx, 6.85), (xc + dx, by + bh / 2)],
-                    tag,
-                    (xc + dx + 0.06, 6.6),
-                    fontsize=7,
-                )
-
-        _box(
-            ax,
-            X,
-            3.15,
-            W,
-            0.85,
-            "Bounds: X ← clip(X, lb, ub) (a NaN coordinate keeps its old value)\n"
-            "t ← t + 1   (no greedy selection: every vulture moves; B1, B2 keep the elite)",
-        )
-        # main spine
-        _arrow(ax, [(X, 15.25), (X, 14.85)])
-        _arrow(ax, [(X, 14.25), (X, 13.85)])
-        _arrow(ax, [(X, 13.05), (X, 12.65)])
-        _arrow(ax, [(X + 1.3, 12.15), (10.3 - 1.3, 12.15)], "yes", (X + 1.4, 12.3))
-        _arrow(ax, [(X, 11.65), (X, 11.225)], "no", (X + 0.1, 11.45))
-        _arrow(ax, [(X, 10.175), (X, 9.825)])
-        _arrow(ax, [(X, 9.075), (X, 8.725)])
-        # three-way split on |F|
-        _arrow(ax, [(X - 1.2, 8.25), (xs[0], 8.25), (xs[0], 7.75)], r"$|F_i| \geq 1$", (2.25, 8.42))
-        _arrow(ax, [(X, 7.775), (X, 7.3)])
-        ax.text(X - 0.1, 7.56, r"$0.5 \leq |F_i| < 1$", ha="right", fontsize=7.4, color="0.15")
-        _arrow(ax, [(X + 1.2, 8.25), (xs[2], 8.25), (xs[2], 7.75)], r"$|F_i| < 0.5$", (8.3, 8.42))
-        # all six moves join the bounds box
-        for xc in xs:
-            for dx in (-0.98, 0.98):
-                ax.plot([xc + dx, xc + dx], [by - bh / 2, 3.95], color="0.2", lw=1.0)
-        ax.plot([xs[0] - 0.98, xs[2] + 0.98], [3.95, 3.95], color="0.2", lw=1.0)
-        _arrow(ax, [(X, 3.95), (X, 3.575)])
-        # loop back to the evaluation
-        _arrow(ax, [(X, 2.725), (X, 2.25), (0.25, 2.25), (0.25, 13.45), (X - W / 2, 13.45)])
-        ax.text(0.32, 8.9, "next iteration", rotation=90, fontsize=7.5, va="center")
-        ax.text(
-            X,
-            1.2,
-            "Per vulture i (vectorised): r, r', rand ~ U(0, 1) are one scalar per vulture, "
-            "Levy is drawn per dimension.\n"
-            "Branch conditions and defaults as in the authors' reference code "
-            "(avoa_pipeline.optimizers.avoa); "
-            "Fahmy et al. print p2 for the medium and p3 for the late stage.",
-            ha="center",
-            va="center",
-            fontsize=7.6,
-            color="0.25",
-        )
+        _fig03_iteration_head(ax, s, budget)
+        _fig03_stages(ax, s)
+        _fig03_bounds_and_loop(ax)
         fig.suptitle("Figure 3. AVOA flowchart (as implemented)", fontsize=11, y=0.985)
         save(fig, stem)
     finally:
         fig.clear()
+
+
+def _fig03_iteration_head(ax, s: dict, budget: str) -> None:
+    """Figure 3 from the start to the |F| decision: the start and its settings, the
+    initialisation, the evaluation, the stop test, the hunger and the guide vulture."""
+    p1, p2, p3 = s["p1"], s["p2"], s["p3"]
+    alpha, beta, gamma = s["alpha"], s["beta"], s["gamma"]
+    X, W = _FIG03_X, _FIG03_W
+    _box(
+        ax,
+        X,
+        15.6,
+        4.6,
+        0.7,
+        f"Start{budget}\n"
+        f"p1 = {p1:g}, p2 = {p2:g}, p3 = {p3:g}, α = L1 = {alpha:g}, "
+        f"β = L2 = {beta:g}, γ (k) = {gamma:g}",
+        fc="#e0ecf4",
+        round_=True,
+    )
+    _box(ax, X, 14.55, W, 0.6, "Initialise P vultures uniformly in [lb, ub];  t = 0")
+    _box(
+        ax,
+        X,
+        13.45,
+        W,
+        0.8,
+        "Evaluate the ISE of every vulture (eq. 13)\n"
+        "update the best-two memories B1 (best so far), B2 (second best)  [stage 1]",
+    )
+    _diamond(ax, X, 12.15, 2.6, 1.0, "t ≥ T ?\n(budget spent)")
+    _box(ax, 10.3, 12.15, 2.6, 0.7, "Stop:\nreturn B1 and its ISE", fc="#e0ecf4", round_=True)
+    _box(
+        ax,
+        X,
+        10.7,
+        W,
+        1.05,
+        "Hunger, stage 2 (eqs. 17–18): once per iteration h ~ U(−2, 2), r ~ U(0, 1)\n"
+        r"$g = h\,(\sin^{\gamma}(\frac{\pi}{2}\frac{t}{T}) + \cos(\frac{\pi}{2}\frac{t}{T})"
+        r" - 1)$,   "
+        r"$F_i = [(2r+1)(1 - t/T) + g]\,(2r_i - 1)$" + f"   (γ = {gamma:g})",
+    )
+    _box(
+        ax,
+        X,
+        9.45,
+        W,
+        0.75,
+        "Guide vulture, eq. 15 (roulette on L1, L2):\n"
+        rf"$R_i = B_1$ if $r_i \leq \alpha = {alpha:g}$, else $B_2$  "
+        f"(β = {beta:g})",
+    )
+    _diamond(ax, X, 8.25, 2.4, 0.95, r"$|F_i|$ ?")
+
+
+def _fig03_stages(ax, s: dict) -> None:
+    """Figure 3's three stages: each column's branch decision and its two moves."""
+    p1, p2, p3 = s["p1"], s["p2"], s["p3"]
+    xs = _FIG03_STAGES
+    dw = 1.96  # decision width: its side corners sit above the two move boxes
+    _diamond(ax, xs[0], 6.85, dw, 0.9, f"rand < p1 = {p1:g} ?")
+    _diamond(ax, xs[1], 6.85, dw, 0.9, f"rand < p3 = {p3:g} ?")
+    _diamond(ax, xs[2], 6.85, dw, 0.9, f"rand < p2 = {p2:g} ?")
+    for xc, title in zip(
+        xs,
+        ("exploration, stage 3", "medium exploitation, stage 4", "late exploitation, stage 5"),
+        strict=True,
+    ):
+        ax.text(xc + 0.1, 7.52, title, ha="left", fontsize=8, weight="bold")
+    bw, bh, by = _FIG03_MOVES
+    moves = (
+        (
+            "eqs. 19a, 20\n" r"$X = R - |2rR - X|\,F$",
+            "eq. 19b\n" r"$X = R - F$" "\n" r"$+\, r\,((ub - lb)\,r' + lb)$",
+        ),
+        (
+            "food competition\neqs. 21–22\n" r"$X = |2rR - X|\,(F + r')$" "\n" r"$-\,(R - X)$",
+            "rotating flight\neqs. 23–25\n"
+            r"$X = R - (S_1 + S_2)$"
+            "\n"
+            r"$S_1 = R\,\frac{rX}{2\pi}\cos X$"
+            "\n"
+            r"$S_2 = R\,\frac{r'X}{2\pi}\sin X$",
+        ),
+        (
+            "aggregation\neqs. 26–28\n"
+            r"$X = (A_1 + A_2)/2$"
+            "\n"
+            r"$A_k = B_k - \frac{B_k X}{B_k - X^2}F$",
+            "attack, Lévy flight\neqs. 29–31\n"
+            r"$X = R - |R - X|\,F\,\mathrm{Levy}$"
+            "\n"
+            f"(β = {s['levy_beta']:g}, σ = {s['levy_sigma']:.4f})",
+        ),
+    )
+    for xc, (yes, no) in zip(xs, moves, strict=True):
+        for dx, text, tag in ((-0.98, yes, "yes"), (0.98, no, "no")):
+            _box(ax, xc + dx, by, bw, bh, text, fc="#f7fcf5", fontsize=7.2)
+            _arrow(
+                ax,
+                [(xc + dx, 6.85), (xc + dx, by + bh / 2)],
+                tag,
+                (xc + dx + 0.06, 6.6),
+                fontsize=7,
+            )
+
+
+def _fig03_bounds_and_loop(ax) -> None:
+    """Figure 3 below the moves: the bounds box, every arrow between the boxes, the loop back
+    to the evaluation and the footnote."""
+    X, W, xs = _FIG03_X, _FIG03_W, _FIG03_STAGES
+    _, bh, by = _FIG03_MOVES
+    _box(
+        ax,
+        X,
+        3.15,
+        W,
+        0.85,
+        "Bounds: X ← clip(X, lb, ub) (a NaN coordinate keeps its old value)\n"
+        "t ← t + 1   (no greedy selection: every vulture moves; B1, B2 keep the elite)",
+    )
+    # main spine
+    _arrow(ax, [(X, 15.25), (X, 14.85)])
+    _arrow(ax, [(X, 14.25), (X, 13.85)])
+    _arrow(ax, [(X, 13.05), (X, 12.65)])
+    _arrow(ax, [(X + 1.3, 12.15), (10.3 - 1.3, 12.15)], "yes", (X + 1.4, 12.3))
+    _arrow(ax, [(X, 11.65), (X, 11.225)], "no", (X + 0.1, 11.45))
+    _arrow(ax, [(X, 10.175), (X, 9.825)])
+    _arrow(ax, [(X, 9.075), (X, 8.725)])
+    # three-way split on |F|
+    _arrow(ax, [(X - 1.2, 8.25), (xs[0], 8.25), (xs[0], 7.75)], r"$|F_i| \geq 1$", (2.25, 8.42))
+    _arrow(ax, [(X, 7.775), (X, 7.3)])
+    ax.text(X - 0.1, 7.56, r"$0.5 \leq |F_i| < 1$", ha="right", fontsize=7.4, color="0.15")
+    _arrow(ax, [(X + 1.2, 8.25), (xs[2], 8.25), (xs[2], 7.75)], r"$|F_i| < 0.5$", (8.3, 8.42))
+    # all six moves join the bounds box
+    for xc in xs:
+        for dx in (-0.98, 0.98):
+            ax.plot([xc + dx, xc + dx], [by - bh / 2, 3.95], color="0.2", lw=1.0)
+    ax.plot([xs[0] - 0.98, xs[2] + 0.98], [3.95, 3.95], color="0.2", lw=1.0)
+    _arrow(ax, [(X, 3.95), (X, 3.575)])
+    # loop back to the evaluation
+    _arrow(ax, [(X, 2.725), (X, 2.25), (0.25, 2.25), (0.25, 13.45), (X - W / 2, 13.45)])
+    ax.text(0.32, 8.9, "next iteration", rotation=90, fontsize=7.5, va="center")
+    ax.text(
+        X,
+        1.2,
+        "Per vulture i (vectorised): r, r', rand ~ U(0, 1) are one scalar per vulture, "
+        "Levy is drawn per dimension.\n"
+        "Branch conditions and defaults as in the authors' reference code "
+        "(avoa_pipeline.optimizers.avoa); "
+        "Fahmy et al. print p2 for the medium and p3 for the late stage.",
+        ha="center",
+        va="center",
+        fontsize=7.6,
+        color="0.25",
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -831,6 +856,23 @@ def _before_after_panels(problem, after, before, after_label, **subplots):
     return fig, axes, panels
 
 
+def _time_axis_and_grids(top, bottom) -> None:
+    """A column of Figures 20-21: time (min) under it, light grids on both panels."""
+    bottom.set_xlabel("time (min)")
+    top.grid(True, color="0.9", lw=0.6)
+    bottom.grid(True, color="0.9", lw=0.6)
+
+
+def _finish_before_after(fig, axes, problem, ylabels, legend_loc: str, title: str, stem) -> None:
+    """Figures 20-21's labels of the left column (top, bottom), the legend of the top-left
+    panel, the title over the problem's description; written to ``stem``."""
+    axes[0, 0].set_ylabel(ylabels[0])
+    axes[1, 0].set_ylabel(ylabels[1])
+    axes[0, 0].legend(fontsize=8, loc=legend_loc)
+    fig.suptitle(title + "\n" + _subtitle(problem), fontsize=10)
+    save(fig, stem)
+
+
 def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
     """Figure 20: the model's voltage characteristics before (a) and after (b) optimisation.
 
@@ -854,18 +896,16 @@ def fig20(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
             twin = bottom.twinx()
             twin.plot(t, st["battery_current_a"], color="#08519c", lw=0.8, alpha=0.6)
             twin.set_ylabel(r"$I_{batt}$ (A)", color="#08519c", fontsize=9)
-            bottom.set_xlabel("time (min)")
-            top.grid(True, color="0.9", lw=0.6)
-            bottom.grid(True, color="0.9", lw=0.6)
-        axes[0, 0].set_ylabel("voltage (V)")
-        axes[1, 0].set_ylabel(r"transient voltage $V_{tr}$ (mV)")
-        axes[0, 0].legend(fontsize=8, loc="lower left")
-        fig.suptitle(
-            "Figure 20. Battery voltage characteristics before and after optimisation\n"
-            + _subtitle(problem),
-            fontsize=10,
+            _time_axis_and_grids(top, bottom)
+        _finish_before_after(
+            fig,
+            axes,
+            problem,
+            ("voltage (V)", r"transient voltage $V_{tr}$ (mV)"),
+            "lower left",
+            "Figure 20. Battery voltage characteristics before and after optimisation",
+            stem,
         )
-        save(fig, stem)
     finally:
         fig.clear()
 
@@ -895,18 +935,16 @@ def fig21(problem, after, stem, before=None, after_label: str = "AVOA") -> None:
                 f"error: RMS {1e3 * rms:.3g} mV, max |e| {1e3 * np.max(np.abs(err)):.3g} mV",
                 fontsize=8.5,
             )
-            bottom.set_xlabel("time (min)")
-            top.grid(True, color="0.9", lw=0.6)
-            bottom.grid(True, color="0.9", lw=0.6)
-        axes[0, 0].set_ylabel("terminal voltage (V)")
-        axes[1, 0].set_ylabel("error model − measured (mV)")
-        axes[0, 0].legend(fontsize=8, loc="lower right")
-        fig.suptitle(
-            "Figure 21. Measured and model voltage before and after optimisation\n"
-            + _subtitle(problem),
-            fontsize=10,
+            _time_axis_and_grids(top, bottom)
+        _finish_before_after(
+            fig,
+            axes,
+            problem,
+            ("terminal voltage (V)", "error model − measured (mV)"),
+            "lower right",
+            "Figure 21. Measured and model voltage before and after optimisation",
+            stem,
         )
-        save(fig, stem)
     finally:
         fig.clear()
 

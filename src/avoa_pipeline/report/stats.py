@@ -35,22 +35,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats as st
 
+# median_position lives in aggregate (below the experiments, which also pick their median run by
+# it); the tables and figures read it as stats.median_position.
+from ..aggregate import median_position  # noqa: F401
 from ..optimizers import ALGORITHMS, PAPER_LABELS
 
 KEYS = ["scenario", "case", "algorithm", "seed"]
-
-
-def median_position(values, ties=None) -> int | None:
-    """Position of the median run among ``values`` (a run's best ISE or training error): for an
-    even count the lower of the two middle ones, so that it is a real run, not an average; ties
-    broken by ``ties`` (the seed), then by position; non-finite values left out (a run that
-    never finished). None if no value is finite. The one median-run rule of the paper's
-    parameter tables, its fit figures and the real-cell experiments."""
-    v = np.asarray(values, dtype=float)
-    pos = np.arange(v.size)
-    keys = (pos, pos if ties is None else np.asarray(ties), v)  # lexsort: last key first
-    order = [k for k in np.lexsort(keys) if np.isfinite(v[k])]
-    return int(order[(len(order) - 1) // 2]) if order else None
 
 
 DELTA_V = 1e-4

@@ -371,18 +371,9 @@ def param_table(
     """
     if case not in CASES:
         raise ValueError(f"unknown case {case}")
-    free = CASES[case].free
     sub = stats.with_excess(runs[(runs["scenario"] == scenario) & (runs["case"] == case)])
-    pp = _paper(paper_params)
-    paper = {}
-    if len(pp):
-        pp = pp[(pp["scenario"] == scenario) & (pp["case"] == case)]
-        paper = {
-            (a, p): float(v)
-            for a, p, v in zip(pp["algorithm"], pp["parameter"], pp["value"], strict=True)
-        }
-    algos = list(ALGORITHMS)
-    med = {a: median_run(sub[sub["algorithm"] == a]) for a in algos}
+    paper = _paper_values(paper_params, scenario, case)
+    med = {a: median_run(sub[sub["algorithm"] == a]) for a in ALGORITHMS}
 
     def true_of(col: str) -> float:
         if col in sub and sub[col].notna().any():
@@ -390,77 +381,110 @@ def param_table(
         name = col.removeprefix("true_")
         return float((truth or {}).get(name, np.nan)) if name in PARAM_NAMES else np.nan
 
-    rows = []
-
-    def add(quantity, row, true, values):
-        rows.append([quantity, row, true, *[values(a) for a in algos]])
-
-    for p in free:
-        q, t = param_label(p), true_of(f"true_{p}")
-
-        def est(a, p=p):
-            return np.nan if med[a] is None else float(med[a].get(f"est_{p}", np.nan))
-
-        def rel(a, p=p, t=t):
-            if med[a] is None:
-                return np.nan
-            v = med[a].get(f"relerr_{p}", np.nan)
-            return 100.0 * (float(v) if pd.notna(v) else _ratio(est(a), t) - 1.0)
-
-        def rel_all(a, p=p, t=t):
-            r = sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]
-            if r.empty:
-                return np.nan
-            e = r[f"relerr_{p}"] if f"relerr_{p}" in r else r[f"est_{p}"] / t - 1.0
-            return float(100.0 * e.abs().median())
-
-        add(q, "ours (median-ISE run)", t, est)
-        add(q, "paper", t, lambda a, p=p: paper.get((a, p), np.nan))
-        add(q, "ours rel. err. (%)", np.nan, rel)
-        add(
-            q,
-            "paper rel. err. (%)",
-            np.nan,
-            lambda a, p=p, t=t: 100.0 * (_ratio(paper.get((a, p), np.nan), t) - 1.0),
-        )
-        add(q, "ours median abs. rel. err. (%)", np.nan, rel_all)
-
-    g = {a: sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]["best_ise"] for a in algos}
-
-    def agg(fn):
-        return lambda a: float(fn(g[a])) if len(g[a]) else np.nan
-
-    t_ise = true_of("true_ise")
-    add(ISE_LABEL, "ours mean", t_ise, agg(np.mean))
-    add(
-        ISE_LABEL, "ours sd", np.nan, lambda a: float(g[a].std(ddof=1)) if len(g[a]) > 1 else np.nan
-    )
-    add(ISE_LABEL, "ours median", t_ise, agg(np.median))
-    add(ISE_LABEL, "ours best", t_ise, agg(np.min))
-    add(ISE_LABEL, "ours worst", t_ise, agg(np.max))
-    add(ISE_LABEL, "paper", np.nan, lambda a: paper.get((a, "ise"), np.nan))
-    ex = {a: 100.0 * sub.loc[g[a].index, "excess_ise"].dropna() for a in algos}
-    t_ex = 0.0 if any(len(v) for v in ex.values()) else np.nan
-    for row, q in zip(EXCESS_ROWS, (0.5, 0.25, 0.75), strict=True):
-        add(ISE_LABEL, row, t_ex, lambda a, q=q: float(ex[a].quantile(q)) if len(ex[a]) else np.nan)
+    table = _WideRows()
+    for p in CASES[case].free:
+        _parameter_rows(table, p, true_of(f"true_{p}"), sub, med, paper)
+    g = {a: sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]["best_ise"] for a in ALGORITHMS}
+    _ise_rows(table, true_of("true_ise"), sub, g, paper)
     acc = stats.accuracy_shares(sub).set_index("algorithm")
     for tol, row in ACCURACY_ROWS.items():
         col = stats.share_column(tol)
-        add(
+        table.add(
             ACCURACY_QUANTITY,
             row,
             np.nan,
             lambda a, col=col: 100.0 * float(acc.loc[a, col]) if a in acc.index else np.nan,
         )
-    add(
+    table.add(
         "Runs", "seed of median run", np.nan, lambda a: np.nan if med[a] is None else med[a]["seed"]
     )
-    add("Runs", "seeds", np.nan, lambda a: float(len(g[a])))
-    cols = ["Quantity", "Row", "True", *[PAPER_LABELS[a] for a in algos]]
-    out = pd.DataFrame(rows, columns=cols)
-    for c in cols[2:]:
-        out[c] = out[c].astype(float)
-    return out
+    table.add("Runs", "seeds", np.nan, lambda a: float(len(g[a])))
+    return table.frame()
+
+
+def _paper_values(paper_params: pd.DataFrame | None, scenario: int, case: int) -> dict:
+    """The paper's printed value of each (algorithm, parameter or "ise") of one scenario × case."""
+    pp = _paper(paper_params)
+    if not len(pp):
+        return {}
+    pp = pp[(pp["scenario"] == scenario) & (pp["case"] == case)]
+    keys = zip(pp["algorithm"], pp["parameter"], strict=True)
+    return {key: float(v) for key, v in zip(keys, pp["value"], strict=True)}
+
+
+class _WideRows:
+    """The rows of Tables 4-19: ``Quantity``, ``Row``, ``True``, then one number per algorithm
+    (paper headings, paper order)."""
+
+    def __init__(self):
+        self.rows: list[list] = []
+
+    def add(self, quantity: str, row: str, true: float, values) -> None:
+        """A row whose algorithm ``a`` holds ``values(a)``."""
+        self.rows.append([quantity, row, true, *[values(a) for a in ALGORITHMS]])
+
+    def frame(self) -> pd.DataFrame:
+        cols = ["Quantity", "Row", "True", *[PAPER_LABELS[a] for a in ALGORITHMS]]
+        out = pd.DataFrame(self.rows, columns=cols)
+        for c in cols[2:]:
+            out[c] = out[c].astype(float)
+        return out
+
+
+def _parameter_rows(table: _WideRows, p: str, t: float, sub, med: dict, paper: dict) -> None:
+    """Parameter ``p``'s five rows (true value ``t``): the median run's estimate, the paper's,
+    their relative errors, and the median over seeds of ours."""
+    q = param_label(p)
+
+    def est(a):
+        return np.nan if med[a] is None else float(med[a].get(f"est_{p}", np.nan))
+
+    def rel(a):
+        if med[a] is None:
+            return np.nan
+        v = med[a].get(f"relerr_{p}", np.nan)
+        return 100.0 * (float(v) if pd.notna(v) else _ratio(est(a), t) - 1.0)
+
+    def rel_all(a):
+        r = sub[(sub["algorithm"] == a) & sub["best_ise"].notna()]
+        if r.empty:
+            return np.nan
+        e = r[f"relerr_{p}"] if f"relerr_{p}" in r else r[f"est_{p}"] / t - 1.0
+        return float(100.0 * e.abs().median())
+
+    table.add(q, "ours (median-ISE run)", t, est)
+    table.add(q, "paper", t, lambda a: paper.get((a, p), np.nan))
+    table.add(q, "ours rel. err. (%)", np.nan, rel)
+    table.add(
+        q,
+        "paper rel. err. (%)",
+        np.nan,
+        lambda a: 100.0 * (_ratio(paper.get((a, p), np.nan), t) - 1.0),
+    )
+    table.add(q, "ours median abs. rel. err. (%)", np.nan, rel_all)
+
+
+def _ise_rows(table: _WideRows, t_ise: float, sub, g: dict, paper: dict) -> None:
+    """The ISE rows (``g``: each algorithm's ISEs; ``t_ise``: the truth's): ours over seeds,
+    the paper's, and the excess over the truth's ISE (its median and quartiles, in %)."""
+
+    def agg(fn):
+        return lambda a: float(fn(g[a])) if len(g[a]) else np.nan
+
+    table.add(ISE_LABEL, "ours mean", t_ise, agg(np.mean))
+    table.add(
+        ISE_LABEL, "ours sd", np.nan, lambda a: float(g[a].std(ddof=1)) if len(g[a]) > 1 else np.nan
+    )
+    table.add(ISE_LABEL, "ours median", t_ise, agg(np.median))
+    table.add(ISE_LABEL, "ours best", t_ise, agg(np.min))
+    table.add(ISE_LABEL, "ours worst", t_ise, agg(np.max))
+    table.add(ISE_LABEL, "paper", np.nan, lambda a: paper.get((a, "ise"), np.nan))
+    ex = {a: 100.0 * sub.loc[g[a].index, "excess_ise"].dropna() for a in ALGORITHMS}
+    t_ex = 0.0 if any(len(v) for v in ex.values()) else np.nan
+    for row, q in zip(EXCESS_ROWS, (0.5, 0.25, 0.75), strict=True):
+        table.add(
+            ISE_LABEL, row, t_ex, lambda a, q=q: float(ex[a].quantile(q)) if len(ex[a]) else np.nan
+        )
 
 
 # ------------------------------------------------------------------------- Tables 20 to 23
@@ -506,51 +530,13 @@ def objective_table(
     rk = stats.ranks(sub)
     rows = []
     for c in cases:
-        fr = stats.friedman(sub, scenario, c) if len(sub[sub["case"] == c]) else {"p": np.nan}
-        has_avoa = (
-            (sub["case"] == c) & (sub["algorithm"] == "avoa") & sub["best_ise"].notna()
-        ).any()
-        hw = stats.holm_wilcoxon(sub, scenario, c, "avoa", alpha) if has_avoa else pd.DataFrame()
-        hw = hw.set_index("other") if len(hw) else hw
-        on_excess = stats.value_column(sub) == "excess_ise"  # what holm_wilcoxon compares
-        pct = 100.0 if on_excess else np.nan  # a difference in V² is not a percentage
-        margin = pct * stats.margin_of(sub, scenario, c)
-        ex = sub[(sub["case"] == c) & sub["best_ise"].notna()].groupby("algorithm")["excess_ise"]
-        ex_q = 100.0 * ex.quantile([0.25, 0.5, 0.75]).unstack()
+        tests = _case_tests(sub, scenario, c, alpha)
         rkc = rk[rk["case"] == c].set_index("algorithm")
         poc = po[po["case"] == c].set_index("algorithm") if len(po) else po
         for a in ALGORITHMS:
             r = rkc.loc[a] if a in rkc.index else None
             p = poc.loc[a] if len(poc) and a in poc.index else None
-            h = hw.loc[a] if len(hw) and a in hw.index else None
-            q = ex_q.loc[a] if a in ex_q.index else None
-            rows.append(
-                {
-                    "Case": int(c),
-                    "Algorithm": PAPER_LABELS[a],
-                    "Seeds": int(r["n_seeds"]) if r is not None else 0,
-                    "Mean ISE": r["mean_ise"] if r is not None else np.nan,
-                    "Median ISE": r["median_ise"] if r is not None else np.nan,
-                    "Median excess (%)": q[0.5] if q is not None else np.nan,
-                    "Excess q25 (%)": q[0.25] if q is not None else np.nan,
-                    "Excess q75 (%)": q[0.75] if q is not None else np.nan,
-                    "Rank (mean)": r["rank_by_mean"] if r is not None else pd.NA,
-                    "Rank (median)": r["rank_by_median"] if r is not None else pd.NA,
-                    "Mean rank": r["mean_rank"] if r is not None else np.nan,
-                    "Paper ISE": float(p["ise"]) if p is not None else np.nan,
-                    "Paper rank (printed)": str(p["rank_printed"]) if p is not None else "",
-                    "Paper rank": int(p["rank"]) if p is not None else pd.NA,
-                    "AVOA vs this": VERDICT_TEXT[h["verdict"]] if h is not None else "",
-                    "p (Holm)": h["p_holm"] if h is not None else np.nan,
-                    "AVOA − this (median, % of ISE_true)": (
-                        pct * h["median_diff"] if h is not None else np.nan
-                    ),
-                    "Margin (%)": margin,
-                    "AVOA vs this (size)": SIZE_TEXT[h["size_verdict"]] if h is not None else "",
-                    "p equiv. (Holm)": h["p_tost_holm"] if h is not None else np.nan,
-                    "Friedman p": fr["p"],
-                }
-            )
+            rows.append(_objective_row(c, a, r, p, tests))
     out = pd.DataFrame(rows)
     if out.empty:
         return out
@@ -561,6 +547,56 @@ def objective_table(
     for col in out.columns.difference(list(text)):
         out[col] = out[col].astype(float)
     return out
+
+
+def _case_tests(sub: pd.DataFrame, scenario: int, c: int, alpha: float) -> dict:
+    """What Tables 20-23 say of case ``c`` beyond each algorithm's ranks: the Friedman test
+    (``friedman``), AVOA against each rival (``holm``, indexed by the rival), the scale of a
+    difference (``pct``: 100 on the excess, NaN on the ISE), the equivalence ``margin`` and
+    the excess's quartiles (``excess``, in %, indexed by algorithm)."""
+    fr = stats.friedman(sub, scenario, c) if len(sub[sub["case"] == c]) else {"p": np.nan}
+    has_avoa = ((sub["case"] == c) & (sub["algorithm"] == "avoa") & sub["best_ise"].notna()).any()
+    hw = stats.holm_wilcoxon(sub, scenario, c, "avoa", alpha) if has_avoa else pd.DataFrame()
+    hw = hw.set_index("other") if len(hw) else hw
+    on_excess = stats.value_column(sub) == "excess_ise"  # what holm_wilcoxon compares
+    pct = 100.0 if on_excess else np.nan  # a difference in V² is not a percentage
+    margin = pct * stats.margin_of(sub, scenario, c)
+    ex = sub[(sub["case"] == c) & sub["best_ise"].notna()].groupby("algorithm")["excess_ise"]
+    ex_q = 100.0 * ex.quantile([0.25, 0.5, 0.75]).unstack()
+    return {"friedman": fr, "holm": hw, "pct": pct, "margin": margin, "excess": ex_q}
+
+
+def _objective_row(c: int, a: str, r, p, tests: dict) -> dict:
+    """Algorithm ``a``'s row of case ``c``: its ranks ``r`` (None without runs), the paper's
+    ``p`` (None if not printed) and the case's ``tests`` (:func:`_case_tests`)."""
+    hw, ex_q, pct = tests["holm"], tests["excess"], tests["pct"]
+    h = hw.loc[a] if len(hw) and a in hw.index else None
+    q = ex_q.loc[a] if a in ex_q.index else None
+    return {
+        "Case": int(c),
+        "Algorithm": PAPER_LABELS[a],
+        "Seeds": int(r["n_seeds"]) if r is not None else 0,
+        "Mean ISE": r["mean_ise"] if r is not None else np.nan,
+        "Median ISE": r["median_ise"] if r is not None else np.nan,
+        "Median excess (%)": q[0.5] if q is not None else np.nan,
+        "Excess q25 (%)": q[0.25] if q is not None else np.nan,
+        "Excess q75 (%)": q[0.75] if q is not None else np.nan,
+        "Rank (mean)": r["rank_by_mean"] if r is not None else pd.NA,
+        "Rank (median)": r["rank_by_median"] if r is not None else pd.NA,
+        "Mean rank": r["mean_rank"] if r is not None else np.nan,
+        "Paper ISE": float(p["ise"]) if p is not None else np.nan,
+        "Paper rank (printed)": str(p["rank_printed"]) if p is not None else "",
+        "Paper rank": int(p["rank"]) if p is not None else pd.NA,
+        "AVOA vs this": VERDICT_TEXT[h["verdict"]] if h is not None else "",
+        "p (Holm)": h["p_holm"] if h is not None else np.nan,
+        "AVOA − this (median, % of ISE_true)": (
+            pct * h["median_diff"] if h is not None else np.nan
+        ),
+        "Margin (%)": tests["margin"],
+        "AVOA vs this (size)": SIZE_TEXT[h["size_verdict"]] if h is not None else "",
+        "p equiv. (Holm)": h["p_tost_holm"] if h is not None else np.nan,
+        "Friedman p": tests["friedman"]["p"],
+    }
 
 
 def accuracy_table(runs: pd.DataFrame, scenario: int | None = None) -> pd.DataFrame:

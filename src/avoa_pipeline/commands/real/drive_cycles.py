@@ -23,9 +23,9 @@ def run_experiment(cfg: dict, out_dir, temps: list[str] | None):
     C/20 circuits, the diagnosis (training cycle + HPPC, the C/20 test as OCV, the unseen cycles
     as validation), the gap comparison and the cross-cycle diagnostic, then the table."""
     from ... import plan
+    from ...importers import panasonic
     from ...jobs import real as jobs
     from ...real.experiments import drive_cycles as dc
-    from ...real.importers import panasonic
 
     exp = dc.experiment(cfg)
     temps = temps or dc.temperatures(cfg)

@@ -9,7 +9,7 @@ from . import load_config
 @register("list", "the Panasonic records the config names", arguments=lambda p: None,
           group="real", output=None)  # fmt: skip
 def run_list(args) -> None:
-    from ...real.importers import panasonic
+    from ...importers import panasonic
 
     for name, rec in panasonic.records(load_config(args)).items():
         print(f"{name}\t{rec['test_type']}\t{'; '.join(rec['keys'])}")

@@ -21,7 +21,7 @@ def arguments(p) -> None:
 def run_panasonic_import(args) -> None:
     from pathlib import Path  # here, not above: --help stays without pathlib's imports
 
-    from ...real.importers import panasonic
+    from ...importers import panasonic
 
     out = Path(args.out)
     side = panasonic.import_named(load_config(args), args.name, out)

@@ -282,86 +282,99 @@ def _summary(x, ln_y, slope_col: int, level: float, prefactor_col) -> dict:
     }
 
 
+def _pulse_rows(rc: pd.DataFrame, q: str, label: str, level: float) -> list[dict]:
+    """One Arrhenius fit of quantity ``q`` per pulse seen at two temperatures or more."""
+    rows = []
+    for pulse, sub in rc.groupby("pulse"):
+        if sub["ambient_c"].nunique() < 2:
+            continue
+        fit = arrhenius(sub["cell_temp_c"] + ZERO_C, sub[q], level)
+        ratio = sub.sort_values("ambient_c")[q].to_numpy()
+        rows.append(
+            {
+                "quantity": q,
+                "scope": "pulse",
+                "pulse": pulse,
+                "soc_pct": float(sub["soc_pct"].mean()),
+                "soc_range_pct": "",
+                "temperatures": label,
+                **fit,
+                "ratio_low_high": ratio[0] / ratio[-1],
+            }
+        )
+    return rows
+
+
+def _pooled_rows(rc: pd.DataFrame, q: str, temps: list, label: str, level: float) -> list[dict]:
+    """Quantity ``q`` pooled over the pulses seen at every temperature: one fit with a level per
+    pulse, one of the SOC-adjusted run means, and one per pair of neighbouring runs."""
+    rows = []
+    pool = rc[rc["pooled"]]
+    complete = pool.groupby("pulse")["ambient_c"].transform("nunique") == len(temps)
+    pool = pool[complete]
+    if pool.empty:
+        return []
+    soc_range = f"{pool['soc_pct'].min():.0f}-{pool['soc_pct'].max():.0f}"
+    fit = arrhenius_pooled(pool["cell_temp_c"] + ZERO_C, pool[q], pool["pulse"], level)
+    # SOC-adjusted run means: ln R minus its pulse's mean over temperatures, averaged per run
+    ln = np.log(pool[q].to_numpy())
+    adj = ln - pool.assign(ln=ln).groupby("pulse")["ln"].transform("mean").to_numpy()
+    runs = (
+        pool.assign(adj=adj, tk=pool["cell_temp_c"] + ZERO_C)
+        .groupby("ambient_c")[["adj", "tk"]]
+        .mean()
+        .sort_index()
+    )
+    ratio_runs = float(np.exp(runs["adj"].iloc[0] - runs["adj"].iloc[-1]))
+    rows.append(
+        {
+            "quantity": q,
+            "scope": "pooled_pulses",
+            "soc_pct": np.nan,
+            "temperatures": label,
+            "soc_range_pct": soc_range,
+            **fit,
+            "ratio_low_high": ratio_runs,
+        }
+    )
+    runs_fit = arrhenius(runs["tk"].to_numpy(), np.exp(runs["adj"].to_numpy()), level)
+    runs_fit["prefactor"] = np.nan  # relative to the pulse means: not a resistance
+    rows.append(
+        {
+            "quantity": q,
+            "scope": "pooled_runs",
+            "soc_pct": np.nan,
+            "temperatures": label,
+            "soc_range_pct": soc_range,
+            **runs_fit,
+            "ratio_low_high": ratio_runs,
+        }
+    )
+    for (t1, r1), (t2, r2) in zip(runs.iloc[:-1].iterrows(), runs.iloc[1:].iterrows(), strict=True):
+        pair = arrhenius([r1["tk"], r2["tk"]], np.exp([r1["adj"], r2["adj"]]), level)
+        pair["prefactor"] = np.nan
+        rows.append(
+            {
+                "quantity": q,
+                "scope": "pair",
+                "soc_pct": np.nan,
+                "temperatures": f"{t1:g},{t2:g}",
+                "soc_range_pct": soc_range,
+                **pair,
+                "ratio_low_high": float(np.exp(r1["adj"] - r2["adj"])),
+            }
+        )
+    return rows
+
+
 def arrhenius_table(rc: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
     """Every Arrhenius fit of :data:`QUANTITIES`: per pulse, pooled two ways, and pairs."""
     rows = []
     temps = sorted(rc["ambient_c"].unique())
     label = ",".join(f"{t:g}" for t in temps)
     for q in QUANTITIES:
-        for pulse, sub in rc.groupby("pulse"):
-            if sub["ambient_c"].nunique() < 2:
-                continue
-            fit = arrhenius(sub["cell_temp_c"] + ZERO_C, sub[q], level)
-            ratio = sub.sort_values("ambient_c")[q].to_numpy()
-            rows.append(
-                {
-                    "quantity": q,
-                    "scope": "pulse",
-                    "pulse": pulse,
-                    "soc_pct": float(sub["soc_pct"].mean()),
-                    "soc_range_pct": "",
-                    "temperatures": label,
-                    **fit,
-                    "ratio_low_high": ratio[0] / ratio[-1],
-                }
-            )
-        pool = rc[rc["pooled"]]
-        complete = pool.groupby("pulse")["ambient_c"].transform("nunique") == len(temps)
-        pool = pool[complete]
-        if pool.empty:
-            continue
-        soc_range = f"{pool['soc_pct'].min():.0f}-{pool['soc_pct'].max():.0f}"
-        fit = arrhenius_pooled(pool["cell_temp_c"] + ZERO_C, pool[q], pool["pulse"], level)
-        # SOC-adjusted run means: ln R minus its pulse's mean over temperatures, averaged per run
-        ln = np.log(pool[q].to_numpy())
-        adj = ln - pool.assign(ln=ln).groupby("pulse")["ln"].transform("mean").to_numpy()
-        runs = (
-            pool.assign(adj=adj, tk=pool["cell_temp_c"] + ZERO_C)
-            .groupby("ambient_c")[["adj", "tk"]]
-            .mean()
-            .sort_index()
-        )
-        ratio_runs = float(np.exp(runs["adj"].iloc[0] - runs["adj"].iloc[-1]))
-        rows.append(
-            {
-                "quantity": q,
-                "scope": "pooled_pulses",
-                "soc_pct": np.nan,
-                "temperatures": label,
-                "soc_range_pct": soc_range,
-                **fit,
-                "ratio_low_high": ratio_runs,
-            }
-        )
-        runs_fit = arrhenius(runs["tk"].to_numpy(), np.exp(runs["adj"].to_numpy()), level)
-        runs_fit["prefactor"] = np.nan  # relative to the pulse means: not a resistance
-        rows.append(
-            {
-                "quantity": q,
-                "scope": "pooled_runs",
-                "soc_pct": np.nan,
-                "temperatures": label,
-                "soc_range_pct": soc_range,
-                **runs_fit,
-                "ratio_low_high": ratio_runs,
-            }
-        )
-        for (t1, r1), (t2, r2) in zip(
-            runs.iloc[:-1].iterrows(), runs.iloc[1:].iterrows(), strict=True
-        ):
-            pair = arrhenius([r1["tk"], r2["tk"]], np.exp([r1["adj"], r2["adj"]]), level)
-            pair["prefactor"] = np.nan
-            rows.append(
-                {
-                    "quantity": q,
-                    "scope": "pair",
-                    "soc_pct": np.nan,
-                    "temperatures": f"{t1:g},{t2:g}",
-                    "soc_range_pct": soc_range,
-                    **pair,
-                    "ratio_low_high": float(np.exp(r1["adj"] - r2["adj"])),
-                }
-            )
+        rows += _pulse_rows(rc, q, label, level)
+        rows += _pooled_rows(rc, q, temps, label, level)
     return pd.DataFrame(rows, columns=list(ARRHENIUS_COLUMNS))
 
 

@@ -1,17 +1,11 @@
-"""Experiment 1's table, from the workflow's outputs alone (or a small demo run); its figure is
-``report.real_figures.drive_cycle_figure``.
+"""Experiment 1's table, from the workflow's outputs alone (or the small demo run of
+``jobs.drive_cycle_demo``); its figure is ``report.real_figures.drive_cycle_figure``.
 
-- :func:`summary_table`: RMSE per unseen cycle, one row per model and temperature, with the median
-  over the unseen cycles (the goal's figure of merit) and the median maximum error.
-- :func:`demo`: the same three inputs from a reduced experiment (25 °C, US06 unseen, Nelder–Mead
-  with one seed and a small budget), so the notebook runs on its own.
+:func:`summary_table`: RMSE per unseen cycle, one row per model and temperature, with the median
+over the unseen cycles (the goal's figure of merit) and the median maximum error.
 """
 
 from __future__ import annotations
-
-import copy
-import tempfile
-from pathlib import Path
 
 import pandas as pd
 
@@ -28,43 +22,3 @@ def summary_table(rmse: pd.DataFrame) -> pd.DataFrame:
     out = wide.reset_index().sort_values(["temperature_c", "median_rmse_mv"],
                                          ascending=[False, True])  # fmt: skip
     return out.reset_index(drop=True)
-
-
-def demo(cfg: dict, out_dir=None) -> dict:
-    """A reduced experiment 1 (25 °C, LA92 → US06, Nelder–Mead seed 1 at 10 × 30, the C/20
-    circuits) written to ``out_dir``; the notebook's inputs when the workflow's are not given."""
-    from ... import plan
-    from ...jobs import real as jobs
-    from ..importers import panasonic
-    from . import drive_cycles as dc
-
-    out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))
-    cfg = copy.deepcopy(cfg)
-    pan = cfg["real"]["panasonic"]
-    exp = pan["experiment"]
-    exp.update(
-        train={"25degC": "la92"},
-        algorithms=["nelder_mead"],
-        seeds=[1],
-        budget={"pop_size": 10, "iterations": 30},
-        figure_cycle={"25degC": "us06"},
-    )
-    t25 = pan["temperatures"]["25degC"]
-    t25["drive_cycles"] = {c: t25["drive_cycles"][c] for c in ("la92", "us06")}
-    pan["temperatures"] = {"25degC": t25}
-    paths = {}
-    for name in ("25degC/la92", "25degC/us06", "25degC/ocv_c20"):
-        paths[name] = out / f"{plan.canonical_name(name)}.csv"
-        panasonic.import_named(cfg, name, paths[name])
-    ocv = out / "ocv_c20.csv"
-    jobs.panasonic_ocv(paths["25degC/ocv_c20"], ocv)
-    tests = {"us06": paths["25degC/us06"]}
-    fits = [out / "paper_rc.json", out / "c20.json"]
-    jobs.paper_fit_one(dc.fit_settings(cfg, "25degC"), cfg["base_seed"], "25degC", "paper_rc",
-                       "nelder_mead", paths["25degC/la92"], tests, fits[0])  # fmt: skip
-    jobs.c20_fit_one("25degC", paths["25degC/la92"], tests, ocv, fits[1])
-    res = {"rmse_csv": out / "drive_cycle_rmse.csv", "runs_csv": out / "drive_cycle_runs.csv",
-           "predictions": out / "figure_predictions.parquet", "train": exp["train"]}  # fmt: skip
-    jobs.drive_cycle_table(cfg, fits, {}, {"25degC/us06": paths["25degC/us06"]}, res["rmse_csv"],
-                           res["runs_csv"], res["predictions"])  # fmt: skip
-    return res

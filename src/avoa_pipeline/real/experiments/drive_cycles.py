@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 from ... import problem, seeds
+from ...aggregate import median_position
 from ...errors import ConfigError, DataError
 from ...io import uniform_step
 from ...model import ecm
@@ -169,9 +170,7 @@ def paper_fit(exp: dict, base_seed: int, temp: str, model: str, algorithm: str,
 
 
 def median_run(runs: list[dict]) -> dict:
-    """The run with the median training RMSE (``report.stats.median_position``)."""
-    from ...report.stats import median_position
-
+    """The run with the median training RMSE (``aggregate.median_position``)."""
     return runs[median_position([r["train_rmse_mv"] for r in runs])]
 
 

@@ -54,8 +54,8 @@ from scipy.optimize import least_squares
 
 from ... import records
 from ...errors import DataError
+from ...importers.nasa import discharge_slices
 from ...io import atomic_path
-from ..importers.nasa import discharge_slices
 
 LOAD_ON_FRACTION = 0.0
 """Where in the interval between the last rest sample and the first loaded sample the load is

@@ -9,8 +9,8 @@ counting with the tester's current from the true start, which the library's one 
 rule fixes from the record's opening (``FittedModel.initial_soc``). One flat row per cycle and
 run, beside plain coulomb counting from the same guess with the same current.
 
-``python -m avoa_pipeline.real.experiments.soc_estimation --models DIR --canonical DIR --out
-CSV`` runs it without Snakemake (DIR/<temperature>/model.json, the cycles of :data:`UNSEEN`;
+``python -m avoa_pipeline.jobs.estimate --models DIR --canonical DIR --out CSV`` runs it
+without Snakemake (DIR/<temperature>/model.json, the cycles of :data:`UNSEEN`;
 ``--one-model M`` instead runs one model at every temperature, issue 28's joint model).
 """
 
@@ -75,34 +75,3 @@ def soc_estimation_table(models: dict[str, str], tests: dict[str, dict[str, str]
         for cycle, path in cycles.items():
             rows += cycle_rows(model, records.read(path).frame, temp, cycle, str(models[temp]))
     return pd.DataFrame(rows)
-
-
-def main(argv=None) -> None:
-    import argparse
-    from pathlib import Path
-
-    from ...io import atomic_path
-    from ...report import estimate_figures
-
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument("--models", help="DIR/<temperature>/model.json")
-    which.add_argument("--one-model", help="one model.json for every temperature (issue 28's)")
-    p.add_argument("--canonical", required=True, help="the canonical records' folder")
-    p.add_argument("--temperatures", nargs="+", default=list(UNSEEN))
-    p.add_argument("--out", required=True, help="CSV; the figure goes beside it (.png, .pdf)")
-    args = p.parse_args(argv)
-    if args.one_model:
-        models = dict.fromkeys(args.temperatures, args.one_model)
-    else:
-        models = {t: str(Path(args.models) / t / "model.json") for t in args.temperatures}
-    tests = {t: {c: str(Path(args.canonical) / f"panasonic_{t}_{c}.csv") for c in UNSEEN[t]}
-             for t in args.temperatures}  # fmt: skip
-    table = soc_estimation_table(models, tests)
-    with atomic_path(args.out) as tmp:
-        table.to_csv(tmp, index=False)
-    estimate_figures.soc_estimation_figure(table, str(Path(args.out).with_suffix("")), GOALS)
-
-
-if __name__ == "__main__":
-    main()

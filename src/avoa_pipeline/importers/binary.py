@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import DataError, UserError
+from ..errors import DataError, UserError
 
 FORMATS = {".nda": "neware", ".ndax": "neware", ".mpr": "biologic", ".res": "arbin"}
 """Binary file extension → the cycler whose software writes it."""

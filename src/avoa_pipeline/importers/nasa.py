@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import records
-from ...errors import ConfigError, DataError
-from ...io import read_csv
+from .. import records
+from ..errors import ConfigError, DataError
+from ..io import read_csv
 from .samsung import data_root, read_numeric_csv
 
 SOURCE_COLUMNS = ("voltage", "current", "temperature", "time")
@@ -110,6 +110,67 @@ def _listing_sha256(entries: list[tuple[str, str]]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def _discharge_frame(index_path, k: int, cap_name: float, ix, path, raw, start_s: float):
+    """Discharge ``k``'s canonical frame, its time from the index's start (``start_s``), after
+    checking it against its index row ``ix`` (capacity, last time) and by the records layer."""
+    if abs(ix["capacity"] - cap_name) > CAPACITY_MATCH_AH:
+        raise DataError(
+            f"{index_path}: row {k + 1} field 'capacity' {ix['capacity']:.6f} Ah does not "
+            f"match {path.name} ({cap_name:.6f} Ah): index and discharge files are out of step"
+        )
+    if abs(ix["time"] - raw["time"].iloc[-1]) > RECORD_END_MATCH_S:
+        raise DataError(
+            f"{index_path}: row {k + 1} field 'time' {ix['time']:.3f} s is not the last time "
+            f"of {path.name} ({raw['time'].iloc[-1]:.3f} s)"
+        )
+    frame = pd.DataFrame(
+        {
+            "time_s": start_s + raw["time"].to_numpy(),
+            "current_a": -raw["current"].to_numpy(),
+            "voltage_v": raw["voltage"].to_numpy(),
+            "temperature_c": raw["temperature"].to_numpy(),
+        }
+    )
+    # the record's own checks first, so a message names the discharge file, not the merge
+    frame = records.validate(frame, str(path), required=records.COLUMNS)
+    records.require_sign(frame["time_s"], frame["current_a"], frame["voltage_v"],
+                         str(path), "column 'current'",
+                         "negative = discharge (PROVENANCE.md)")  # fmt: skip
+    return frame
+
+
+def _b0005_sidecar(n: dict, n_discharges: int, listing, discharges: list[dict],
+                   n_samples: int) -> dict:  # fmt: skip
+    """The merged record's sidecar: the cell, the test, the sources and their digest, what each
+    column is, and one entry per discharge."""
+    return {
+        "cell": n["cell"],
+        "nominal_capacity_ah": float(n["nominal_capacity_ah"]),
+        "ambient_temperature_c": float(n["ambient_c"]),
+        "test_type": "ageing: CC discharge at 2 A to 2.7 V (then load off, relaxation), after a "
+        "CC-CV charge (1.5 A to 4.2 V, 20 mA), repeated at each ageing state",
+        "source_file": f"{n['discharge_dir']}/dis_<k>_cap_<Ah>.csv (k = 1..{n_discharges}) and "
+        f"{n['index']}",
+        "source_sha256": _listing_sha256(listing),
+        "source_sha256_of": "the sha256sum-style listing '<sha256>  <file>' of the index and then "
+        "discharges 1..K (each file's own sha256 is in the config's real.sources)",
+        "citation": n["citation"],
+        "licence": n["licence"],
+        "time_s": "seconds since the start of discharge 1: index 'date_time' of discharge k "
+        "(local time, 1 s resolution) + the record's 'time'; samples where measured (uneven, "
+        "about 18.7 s early and 9.4 s later), not resampled",
+        "current_a": "source column 'current' (Current_measured) negated (source: negative = "
+        "discharge); the sign was checked against the voltage at the load steps of every record",
+        "temperature_c": "source column 'temperature' (cell), unchanged",
+        "dropped_columns": {
+            "current_load": "current at the load; its sign convention flips between records",
+            "voltage_load": "voltage at the load",
+        },
+        "discharges": discharges,
+        "n_samples": n_samples,
+    }
+
+
 def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None):
     """Check, read and merge every B0005 discharge into ``out_csv`` (+ sidecar)."""
     n = nasa_cfg(cfg)
@@ -132,30 +193,8 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
         path = records.check_source(root / key, sources[key], key=key)
         listing.append((key, sources[key]))
         raw = read_numeric_csv(path, SOURCE_COLUMNS)
-        if abs(ix["capacity"] - cap_name) > CAPACITY_MATCH_AH:
-            raise DataError(
-                f"{index_path}: row {k + 1} field 'capacity' {ix['capacity']:.6f} Ah does not "
-                f"match {path.name} ({cap_name:.6f} Ah): index and discharge files are out of step"
-            )
-        if abs(ix["time"] - raw["time"].iloc[-1]) > RECORD_END_MATCH_S:
-            raise DataError(
-                f"{index_path}: row {k + 1} field 'time' {ix['time']:.3f} s is not the last time "
-                f"of {path.name} ({raw['time'].iloc[-1]:.3f} s)"
-            )
         start_s = (ix["start"] - t_first).total_seconds()
-        frame = pd.DataFrame(
-            {
-                "time_s": start_s + raw["time"].to_numpy(),
-                "current_a": -raw["current"].to_numpy(),
-                "voltage_v": raw["voltage"].to_numpy(),
-                "temperature_c": raw["temperature"].to_numpy(),
-            }
-        )
-        # the record's own checks first, so a message names the discharge file, not the merge
-        frame = records.validate(frame, str(path), required=records.COLUMNS)
-        records.require_sign(frame["time_s"], frame["current_a"], frame["voltage_v"],
-                             str(path), "column 'current'",
-                             "negative = discharge (PROVENANCE.md)")  # fmt: skip
+        frame = _discharge_frame(index_path, k, cap_name, ix, path, raw, start_s)
         if frame["time_s"].iloc[0] <= prev_end:
             raise DataError(
                 f"{index_path}: row {k + 1} field 'date_time': discharge {k} starts before "
@@ -178,32 +217,7 @@ def import_b0005(cfg: dict, out_csv: str | Path, root: str | Path | None = None)
         row += len(frame)
         frames.append(frame)
     merged = pd.concat(frames, ignore_index=True)
-    sidecar = {
-        "cell": n["cell"],
-        "nominal_capacity_ah": float(n["nominal_capacity_ah"]),
-        "ambient_temperature_c": float(n["ambient_c"]),
-        "test_type": "ageing: CC discharge at 2 A to 2.7 V (then load off, relaxation), after a "
-        "CC-CV charge (1.5 A to 4.2 V, 20 mA), repeated at each ageing state",
-        "source_file": f"{n['discharge_dir']}/dis_<k>_cap_<Ah>.csv (k = 1..{len(keys)}) and "
-        f"{n['index']}",
-        "source_sha256": _listing_sha256(listing),
-        "source_sha256_of": "the sha256sum-style listing '<sha256>  <file>' of the index and then "
-        "discharges 1..K (each file's own sha256 is in the config's real.sources)",
-        "citation": n["citation"],
-        "licence": n["licence"],
-        "time_s": "seconds since the start of discharge 1: index 'date_time' of discharge k "
-        "(local time, 1 s resolution) + the record's 'time'; samples where measured (uneven, "
-        "about 18.7 s early and 9.4 s later), not resampled",
-        "current_a": "source column 'current' (Current_measured) negated (source: negative = "
-        "discharge); the sign was checked against the voltage at the load steps of every record",
-        "temperature_c": "source column 'temperature' (cell), unchanged",
-        "dropped_columns": {
-            "current_load": "current at the load; its sign convention flips between records",
-            "voltage_load": "voltage at the load",
-        },
-        "discharges": discharges,
-        "n_samples": len(merged),
-    }
+    sidecar = _b0005_sidecar(n, len(keys), listing, discharges, len(merged))
     records.write(merged, sidecar, out_csv)
     return merged, sidecar
 

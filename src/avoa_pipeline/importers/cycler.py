@@ -65,10 +65,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import records
-from ...errors import DataError, UserError
-from ...io import regular_file, sha256
-from ...names import CURRENT_FROM
+from .. import records
+from ..errors import DataError, UserError
+from ..io import regular_file, sha256
+from ..names import CURRENT_FROM
 from . import binary
 
 CONVENTION = "charge-positive"  # what every supported cycler writes (docs/cyclers.md)
@@ -596,15 +596,7 @@ def read_columns(path: str | Path, cycler_name: str,
         (sheet,) = choose_sheets(path, cycler_name)
     where = f"{path}" + (f": sheet {sheet!r}" if sheet is not None else "")
     cls = _reader(cycler, sheet)
-    with _quiet_pyprobe():
-        try:
-            columns = [str(c) for c in cls.read_file(str(path)).collect_schema().names()]
-        except Exception:  # any reader failure is a file that is not this cycler's: its own
-            # words (e.g. "cannot access local variable 'start_time_line'") would not say so
-            raise DataError(
-                f"{where}: not readable as {cycler.article} {cycler.label} export (its reader "
-                f"needs {cycler.expects})" + _hint(path, cycler_name)
-            ) from None
+    columns = _column_names(path, where, cls, cycler_name)
     layout = _layout(where, cycler, columns)
     used = {
         "time": _find(where, "time", layout.time, columns),
@@ -613,12 +605,7 @@ def read_columns(path: str | Path, cycler_name: str,
         "step": _find(where, "step", layout.step, columns),
     }
     temperatures = _temperatures(where, layout, columns)
-    counters = None
-    for option in layout.counters:
-        found = [_find(where, "charge counter", (p,), columns, False) for p in option.columns]
-        if all(found):
-            counters = (option, found)
-            break
+    counters = _counters(where, layout, columns)
     mode = _find(where, "mode", layout.mode, columns, False) if layout.mode else None
     own = layout is cycler.layouts[0]  # PyProBE maps its own layout; the others we add
     label = f"{cycler.article} {cycler.label}"
@@ -652,6 +639,29 @@ def read_columns(path: str | Path, cycler_name: str,
     return arrays, info
 
 
+def _column_names(path: Path, where: str, cls, cycler_name: str) -> list[str]:
+    """The export's column names, as the cycler's PyProBE reader sees them."""
+    cycler = CYCLERS[cycler_name]
+    with _quiet_pyprobe():
+        try:
+            return [str(c) for c in cls.read_file(str(path)).collect_schema().names()]
+        except Exception:  # any reader failure is a file that is not this cycler's: its own
+            # words (e.g. "cannot access local variable 'start_time_line'") would not say so
+            raise DataError(
+                f"{where}: not readable as {cycler.article} {cycler.label} export (its reader "
+                f"needs {cycler.expects})" + _hint(path, cycler_name)
+            ) from None
+
+
+def _counters(where: str, layout: Layout, columns: list[str]):
+    """(the layout's first counter option whose columns are all there, those columns), or None."""
+    for option in layout.counters:
+        found = [_find(where, "charge counter", (p,), columns, False) for p in option.columns]
+        if all(found):
+            return option, found
+    return None
+
+
 def _temperature(where, values: np.ndarray, used: int, candidates: list[tuple[str, str]]):
     """The temperature (°C) of the first channel with readings, which column it came from, and
     a note naming the channels not used. A column labelled K is converted; one in °C that holds
@@ -683,19 +693,13 @@ def _signed(path, frame: dict, used: dict, mode_column: str) -> tuple[np.ndarray
     )
 
 
-def _import(path, cls, used: dict, counters, mode=None, own: bool = True,
-            temperatures: list[tuple[str, str]] = (), label: str = "the cycler's",
-            where: str = "") -> dict[str, np.ndarray]:  # fmt: skip
-    """PyProBE's frame of the export, with the raw counters, every temperature channel (and a
-    mode column, and for a layout PyProBE does not know its time, current, voltage and step)
-    added as extra importers. ``temperature``: the first channel with readings, the index of
-    its column in ``temperatures`` as ``temperature_from``."""
+def _extra_importers(used: dict, counters, mode, own: bool, temperatures) -> list:
+    """PyProBE's column maps for what its own map of the cycler lacks: the raw counters, every
+    temperature channel, a mode column, and (``own`` false: a layout PyProBE does not know) the
+    time, current, voltage and step."""
     import polars as pl
 
-    where = where or str(path)  # messages name the sheet too
-
     column_maps = _pyprobe("pyprobe.cyclers.column_maps")
-
     extra = []
     if not own:
         extra += [
@@ -719,6 +723,21 @@ def _import(path, cls, used: dict, counters, mode=None, own: bool = True,
                 extra.append(column_maps.ConvertUnitsMap(f"counter{j}", pattern))
             else:  # Maccor: no unit in the header; its exports are in Ah
                 extra.append(column_maps.CastAndRenameMap(f"counter{j}", column, pl.Float64))
+    return extra
+
+
+def _import(path, cls, used: dict, counters, mode=None, own: bool = True,
+            temperatures: list[tuple[str, str]] = (), label: str = "the cycler's",
+            where: str = "") -> dict[str, np.ndarray]:  # fmt: skip
+    """PyProBE's frame of the export, with the raw counters, every temperature channel (and a
+    mode column, and for a layout PyProBE does not know its time, current, voltage and step)
+    added as extra importers. ``temperature``: the first channel with readings, the index of
+    its column in ``temperatures`` as ``temperature_from``."""
+    import polars as pl
+
+    where = where or str(path)  # messages name the sheet too
+
+    extra = _extra_importers(used, counters, mode, own, temperatures)
     with _quiet_pyprobe(), tempfile.TemporaryDirectory() as tmp:
         try:
             reader = cls(
@@ -842,19 +861,9 @@ def _events(step: np.ndarray, part: np.ndarray | None = None) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(change)])
 
 
-def _join(path, parts: list[tuple[dict, dict]]):
-    """One record of the sheets read (each ``read_columns``'s arrays and columns), in order:
-    (arrays, columns, net charge or None, counter info, step occurrences, sheets info).
-
-    Each sheet's charge is counted on its own rows. A sheet whose time starts at or after the
-    previous one's last row continues that test: its clock is kept, and the counters' change
-    over the join is counted with the same rule as any interval's. A sheet whose time starts
-    over (a test of its own) is placed one of its own median sampling intervals after the last
-    row (the gap between two tests is unknown, so the join is a short rest: nothing is counted
-    over it)."""
-    keys = [k for k in parts[0][1] if k not in ("sheet", "notes")]
-    first = {k: parts[0][1][k] for k in keys}
-    sheet_names = [c.get("sheet") for _, c in parts]
+def _check_sheets(path, parts, keys: list[str], first: dict, first_sheet) -> None:
+    """Sheets joined have the first one's columns, at least 2 rows each and a time that never
+    goes backwards within a sheet."""
     for arrays, columns in parts:
         where = f"{path}" + (f": sheet {columns['sheet']!r}" if "sheet" in columns else "")
         other = {k: columns[k] for k in columns if k not in ("sheet", "notes")}
@@ -869,7 +878,7 @@ def _join(path, parts: list[tuple[dict, dict]]):
 
             raise DataError(
                 f"{where}: its {diff} column {named(other.get(diff))} differs from sheet "
-                f"{sheet_names[0]!r}'s {named(first.get(diff))}; sheets joined by --sheets "
+                f"{first_sheet!r}'s {named(first.get(diff))}; sheets joined by --sheets "
                 "concat must have the same columns"
             )
         t = arrays["time"]
@@ -879,6 +888,37 @@ def _join(path, parts: list[tuple[dict, dict]]):
         if back.size:
             raise DataError(f"{where}: column {columns['time']['column']!r} data row "
                             f"{int(back[0]) + 2}: time goes backwards")  # fmt: skip
+
+
+def _merged_counter_info(total: dict, info: dict) -> dict:
+    """The counters' account of the sheets so far (``total``; empty before the first) and of
+    one more sheet: restarts and dips summed, the largest dip, the finer resolution."""
+    if not total:
+        return info
+    total["restarts"] += info["restarts"]
+    total["dips"] += info["dips"]
+    total["largest_dip_ah"] = max(total["largest_dip_ah"], info["largest_dip_ah"])
+    total["resolution_ah"] = [
+        min(a, b) if a > 0 and b > 0 else max(a, b)
+        for a, b in zip(total["resolution_ah"], info["resolution_ah"], strict=True)
+    ]
+    return total
+
+
+def _join(path, parts: list[tuple[dict, dict]]):
+    """One record of the sheets read (each ``read_columns``'s arrays and columns), in order:
+    (arrays, columns, net charge or None, counter info, step occurrences, sheets info).
+
+    Each sheet's charge is counted on its own rows. A sheet whose time starts at or after the
+    previous one's last row continues that test: its clock is kept, and the counters' change
+    over the join is counted with the same rule as any interval's. A sheet whose time starts
+    over (a test of its own) is placed one of its own median sampling intervals after the last
+    row (the gap between two tests is unknown, so the join is a short rest: nothing is counted
+    over it)."""
+    keys = [k for k in parts[0][1] if k not in ("sheet", "notes")]
+    first = {k: parts[0][1][k] for k in keys}
+    sheet_names = [c.get("sheet") for _, c in parts]
+    _check_sheets(path, parts, keys, first, sheet_names[0])
     kind = first["counters"]["kind"] if "counters" in first else None
     out: dict = {k: [] for k in parts[0][0] if k != "counters"}
     charge, offsets, joins, sheet_of = [], [], [], []
@@ -911,18 +951,7 @@ def _join(path, parts: list[tuple[dict, dict]]):
             qj, info = net_charge(arrays, kind)
             charge.append(qj + end_q + join_q)
             end_q = float(charge[-1][-1])
-            if not counter_info:
-                counter_info = info
-            else:
-                counter_info["restarts"] += info["restarts"]
-                counter_info["dips"] += info["dips"]
-                counter_info["largest_dip_ah"] = max(counter_info["largest_dip_ah"],
-                                                     info["largest_dip_ah"])  # fmt: skip
-                counter_info["resolution_ah"] = [
-                    min(a, b) if a > 0 and b > 0 else max(a, b)
-                    for a, b in zip(counter_info["resolution_ah"], info["resolution_ah"],
-                                    strict=True)
-                ]  # fmt: skip
+            counter_info = _merged_counter_info(counter_info, info)
         end_t = float(t[-1] + offset)
     arrays = {k: np.concatenate(v) for k, v in out.items()}
     part = np.concatenate(sheet_of)
@@ -989,6 +1018,77 @@ def _thin_rests(t: np.ndarray, events: np.ndarray, rest_event: np.ndarray, rest_
     return keep
 
 
+def _check_options(cycler_name: str, rest_dt: float | None, current_from: str) -> None:
+    """convert's options, each refused in one line before the file is opened."""
+    if current_from not in CURRENT_FROM:
+        raise UserError(f"--current-from must be one of {', '.join(CURRENT_FROM)}")
+    if rest_dt is not None and not (np.isfinite(rest_dt) and rest_dt > 0):
+        raise UserError(f"--rest-dt must be a positive number of seconds, got {rest_dt}")
+    if cycler_name not in CYCLERS:
+        raise UserError(f"unknown cycler {cycler_name!r}; choose from {', '.join(CYCLERS)}")
+
+
+def _written_rows(t, q, i_ch, events, rows, rest_dt: float | None):
+    """(rows written, as indices of the raw rows; the interval currents between them, charge
+    positive; rest rows thinned). An interval's current is ΔQ/Δt of the counters ``q``, or
+    (``q`` None) the channel held: over rest rows merged by thinning, the first row's reading (a
+    rest). Rests are thinned to ``rest_dt`` (:func:`_thin_rests`: existing samples only)."""
+
+    def intervals(idx):
+        return np.diff(q[idx]) * 3600.0 / np.diff(t[idx]) if q is not None else i_ch[idx][:-1]
+
+    idx = np.flatnonzero(rows)
+    interval = intervals(idx)
+    if rest_dt is None:
+        return idx, interval, 0
+    i99 = float(np.quantile(np.abs(interval), 0.99))
+    ev = events[idx]
+    load = np.zeros(int(ev[-1]) + 1, dtype=bool)
+    inside = ev[:-1] == ev[1:]  # an interval into the next step carries that step's current
+    busy = ~records.at_rest(interval, max(i99, 1e-12))
+    np.logical_or.at(load, ev[:-1][inside], busy[inside])
+    present = np.zeros_like(load)
+    present[ev] = True
+    thin = _thin_rests(t[idx], ev, present & ~load, rest_dt)
+    idx = idx[thin]
+    return idx, intervals(idx), int((~thin).sum())
+
+
+def _voltage_sign(path, out: pd.DataFrame, channel, column: str, cycler: Cycler):
+    """(the sign evidence, its note) from the voltage's answer to the channel: its reading is
+    the current at the voltage's instant (the interval means of a coarse or stalled counter are
+    checked again when the written record is read). A contradiction is refused."""
+    ev = records.sign_evidence(out["time_s"], -channel, out["voltage_v"])
+    if ev.contradicts:
+        raise DataError(
+            f"{path}: column {column!r}: the voltage falls when the {cycler.label} "
+            f"current rises (negated to discharge positive: {ev.describe()}): "
+            f"the export is not {CONVENTION} as {cycler.label} writes it"
+        )
+    if ev.verdict != records.CANNOT_TELL:
+        return ev, []
+    return ev, [f"{path}: column {column!r}: the voltage does not tell the "
+                f"current's sign ({ev.describe()}); {cycler.label}'s {CONVENTION} "
+                "convention is taken as it is"]  # fmt: skip
+
+
+def _counter_notes(path, agreement: dict | None, counter_info: dict, column: str) -> list[str]:
+    """A warning where the counters and the channel differ on steady intervals by more than the
+    line between rest and load."""
+    if not agreement or "rms_difference_steady_a" not in agreement:
+        return []
+    rms, scale = agreement["rms_difference_steady_a"], agreement["current_scale_a"]
+    if rms <= records.REST_FRACTION * scale:
+        return []
+    q_ah = ", ".join(f"{x:.3g}" for x in counter_info["resolution_ah"])
+    return [
+        f"{path}: the charge counters and column {column!r} differ by "
+        f"{rms:.3g} A RMS on steady intervals, over {records.REST_FRACTION:.0%} of the "
+        f"99th-percentile |I| (the line between rest and load); the counters step by "
+        f"{q_ah} Ah. Export them with more digits, or use --current-from channel"
+    ]
+
+
 def convert(
     path: str | Path,
     cycler_name: str,
@@ -1003,24 +1103,17 @@ def convert(
     [, temperature_c]) and its sidecar dict. One-line DataError/UserError on bad input.
     A workbook: its one data sheet, ``sheet``, or (``concat``) all of them in order
     (:func:`choose_sheets`, :func:`_join`)."""
-    if current_from not in CURRENT_FROM:
-        raise UserError(f"--current-from must be one of {', '.join(CURRENT_FROM)}")
-    if rest_dt is not None and not (np.isfinite(rest_dt) and rest_dt > 0):
-        raise UserError(f"--rest-dt must be a positive number of seconds, got {rest_dt}")
+    _check_options(cycler_name, rest_dt, current_from)
     path = Path(path)
-    if cycler_name not in CYCLERS:
-        raise UserError(f"unknown cycler {cycler_name!r}; choose from {', '.join(CYCLERS)}")
     regular_file(path, f"{cycler_name}'s export")
     chosen = choose_sheets(path, cycler_name, sheet, concat)
     parts = [read_columns(path, cycler_name, s) for s in chosen]
     # net charge at every raw row (before rows are dropped, so no interval's charge is lost)
     arrays, columns, q, counter_info, events, sheets_info = _join(path, parts)
     notes = [n for _, c in parts for n in c["notes"]]
-    cycler = CYCLERS[cycler_name]
     t, step, i_ch, v = (arrays[k] for k in ("time", "step", "current", "voltage"))
-    name = {q: columns[q]["column"] for q in ("time", "current", "voltage", "step")}
-    have_counters = q is not None
-    use_counters = have_counters and current_from == "counters"
+    name = {k: columns[k]["column"] for k in ("time", "current", "voltage", "step")}
+    use_counters = q is not None and current_from == "counters"
 
     # repeated time stamps: the later row stays (time going backwards: refused in _join)
     unique = np.append(np.diff(t) > 0, True)
@@ -1028,32 +1121,9 @@ def convert(
     rows = unique & keep_steps
     if rows.sum() < 2:
         raise DataError(f"{path}: fewer than 2 rows left after the step selection")
-
-    # interval currents (charge positive) on the rows kept: ΔQ/Δt, or the channel held (over
-    # rest rows merged by thinning, the first row's reading: a rest)
-    def intervals(idx):
-        return np.diff(q[idx]) * 3600.0 / np.diff(t[idx]) if use_counters else i_ch[idx][:-1]
-
-    idx = np.flatnonzero(rows)
-    interval = intervals(idx)
-    i99 = float(np.quantile(np.abs(interval), 0.99))
-
-    # rests thinned (existing samples only)
-    rest_rows = 0
-    if rest_dt is not None:
-        ev = events[idx]
-        load = np.zeros(int(ev[-1]) + 1, dtype=bool)
-        inside = ev[:-1] == ev[1:]  # an interval into the next step carries that step's current
-        busy = ~records.at_rest(interval, max(i99, 1e-12))
-        np.logical_or.at(load, ev[:-1][inside], busy[inside])
-        present = np.zeros_like(load)
-        present[ev] = True
-        thin = _thin_rests(t[idx], ev, present & ~load, rest_dt)
-        rest_rows = int((~thin).sum())
-        idx = idx[thin]
-        interval = intervals(idx)
+    idx, interval, rest_rows = _written_rows(t, q if use_counters else None, i_ch, events, rows,
+                                             rest_dt)  # fmt: skip
     tk = t[idx]
-
     current_cp = np.append(interval, i_ch[idx[-1]])  # the last row: its channel reading
     out = pd.DataFrame({"time_s": tk - tk[0], "current_a": 0.0 - current_cp, "voltage_v": v[idx]})
     if "temperature" in arrays:
@@ -1061,94 +1131,94 @@ def convert(
 
     # the counters against the channel: units, sign, lag
     sign_agreement, agreement = None, None
-    if have_counters:
+    if q is not None:
         sign_agreement, agreement = _agreement(
             path, q, t, i_ch, events, unique & keep_steps, columns, records.STEP_FRACTION
         )
-
     # the scale of one cell, the records layer's limits, named by the raw columns
     # (and the temperature's, where records checks it: named by the raw column as the others)
     raw_names = {"time_s": name["time"], "current_a": name["current"], "voltage_v": name["voltage"]}
     if "temperature" in columns:
         raw_names["temperature_c"] = columns["temperature"]["column"]
     notes += list(records.check_scale(out, str(path), names=raw_names) or ())  # its warnings
-
-    # the sign, from the voltage's answer to the channel: its reading is the current at the
-    # voltage's instant (the interval means of a coarse or stalled counter are checked again
-    # when the written record is read)
-    ev = records.sign_evidence(out["time_s"], -i_ch[idx], out["voltage_v"])
-    if ev.contradicts:
-        raise DataError(
-            f"{path}: column {name['current']!r}: the voltage falls when the {cycler.label} "
-            f"current rises (negated to discharge positive: {ev.describe()}): "
-            f"the export is not {CONVENTION} as {cycler.label} writes it"
-        )
-
-    if ev.verdict == records.CANNOT_TELL:
-        notes.append(f"{path}: column {name['current']!r}: the voltage does not tell the "
-                     f"current's sign ({ev.describe()}); {cycler.label}'s {CONVENTION} "
-                     "convention is taken as it is")  # fmt: skip
-    if use_counters and agreement and "rms_difference_steady_a" in agreement:
-        rms, scale = agreement["rms_difference_steady_a"], agreement["current_scale_a"]
-        if rms > records.REST_FRACTION * scale:
-            q_ah = ", ".join(f"{x:.3g}" for x in counter_info["resolution_ah"])
-            notes.append(
-                f"{path}: the charge counters and column {name['current']!r} differ by "
-                f"{rms:.3g} A RMS on steady intervals, over {records.REST_FRACTION:.0%} of the "
-                f"99th-percentile |I| (the line between rest and load); the counters step by "
-                f"{q_ah} Ah. Export them with more digits, or use --current-from channel"
-            )
+    ev, sign_note = _voltage_sign(path, out, i_ch[idx], name["current"], CYCLERS[cycler_name])
+    notes += sign_note
+    if use_counters:
+        notes += _counter_notes(path, agreement, counter_info, name["current"])
 
     kept = np.zeros(t.size, dtype=bool)
     kept[np.flatnonzero(rows)] = True
-    table = _steps_table(t, step, events, i_ch, kept)
     charge_out = float(np.sum(out["current_a"].to_numpy()[:-1] * np.diff(tk))) / 3600.0
     info = {
-        "source_file": str(path),
-        "source_sha256": sha256(path),
-        "cycler": cycler_name,
-        "reader": columns.get("reader")
-        or f"pyprobe-data {_pyprobe_version()} ({cycler.reader.split(':')[1]})",
-        "columns": {k: c for k, c in columns.items() if k not in ("notes", "sheet", "reader")},
-        **({"sheets": sheets_info} if sheets_info else {}),
+        **_source_info(path, cycler_name, columns, sheets_info),
         "sign": {
             "cycler_convention": CONVENTION,
             "output": "discharge-positive",
             "voltage_check": {**ev.as_dict(), "confirmed": ev.verdict == records.SIGNS[0]},
             "counters_vs_channel": sign_agreement,
         },
-        "current": {
-            "source": "charge counters" if use_counters else "current channel (held)",
-            "hold": "zero-order: row k's current is the mean over [t_k, t_k+1); the last row "
-            "has its channel reading",
-            **({"counters": counter_info} if have_counters else {}),
-            **({"counters_vs_channel": agreement} if agreement else {}),
-        },
+        "current": _current_info(use_counters, None if q is None else counter_info, agreement),
         "charge": {
             "discharged_ah_output": charge_out,
-            **({"discharged_ah_counters": -float(q[idx[-1]] - q[idx[0]])} if have_counters else {}),
+            **({"discharged_ah_counters": -float(q[idx[-1]] - q[idx[0]])} if q is not None else {}),
         },
-        "rows": {
-            "raw": int(t.size),
-            "repeated_time_dropped": int((~unique).sum()),
-            "outside_steps_dropped": int((unique & ~keep_steps).sum()),
-            "rest_thinned": rest_rows,
-            "written": int(idx.size),
-        },
-        "steps": {
-            "selection": f"{steps[0]}-{steps[1]}" if steps else "all",
-            "kept": [s for s in table if s["kept"]],
-            "dropped": [s for s in table if not s["kept"]],
-        },
+        "rows": _row_counts(unique, keep_steps, rest_rows, int(idx.size)),
+        "steps": _steps_info(_steps_table(t, step, events, i_ch, kept), steps),
         "warnings": notes,
-        "resampling": (
-            "none: the cycler's own samples; voltage and temperature never interpolated"
-            if rest_dt is None
-            else f"rests thinned to {REST_POINTS_PER_DECADE} samples per decade of rest time, "
-            f"at most {rest_dt:g} s apart (existing samples kept, none interpolated)"
-        ),
+        "resampling": _resampling(rest_dt),
     }
     return out, info
+
+
+def _source_info(path: Path, cycler_name: str, columns: dict, sheets_info) -> dict:
+    """The sidecar's account of the source: the file and its digest, the cycler, the reader,
+    the raw columns used, the sheets joined."""
+    reader = CYCLERS[cycler_name].reader.split(":")[1]
+    return {
+        "source_file": str(path),
+        "source_sha256": sha256(path),
+        "cycler": cycler_name,
+        "reader": columns.get("reader") or f"pyprobe-data {_pyprobe_version()} ({reader})",
+        "columns": {k: c for k, c in columns.items() if k not in ("notes", "sheet", "reader")},
+        **({"sheets": sheets_info} if sheets_info else {}),
+    }
+
+
+def _current_info(use_counters: bool, counters: dict | None, agreement) -> dict:
+    """How the current was made: from the counters (None: the export has none) or the channel."""
+    return {
+        "source": "charge counters" if use_counters else "current channel (held)",
+        "hold": "zero-order: row k's current is the mean over [t_k, t_k+1); the last row "
+        "has its channel reading",
+        **({"counters": counters} if counters is not None else {}),
+        **({"counters_vs_channel": agreement} if agreement else {}),
+    }
+
+
+def _row_counts(unique, keep_steps, rest_rows: int, written: int) -> dict:
+    """Where the raw rows went."""
+    return {
+        "raw": int(unique.size),
+        "repeated_time_dropped": int((~unique).sum()),
+        "outside_steps_dropped": int((unique & ~keep_steps).sum()),
+        "rest_thinned": rest_rows,
+        "written": written,
+    }
+
+
+def _steps_info(table: list[dict], steps: tuple[int, int] | None) -> dict:
+    return {
+        "selection": f"{steps[0]}-{steps[1]}" if steps else "all",
+        "kept": [s for s in table if s["kept"]],
+        "dropped": [s for s in table if not s["kept"]],
+    }
+
+
+def _resampling(rest_dt: float | None) -> str:
+    if rest_dt is None:
+        return "none: the cycler's own samples; voltage and temperature never interpolated"
+    return (f"rests thinned to {REST_POINTS_PER_DECADE} samples per decade of rest time, "
+            f"at most {rest_dt:g} s apart (existing samples kept, none interpolated)")  # fmt: skip
 
 
 def _agreement(path, q, t, i_ch, events, rows, columns,

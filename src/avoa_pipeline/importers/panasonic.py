@@ -47,8 +47,8 @@ import pandas as pd
 import scipy.io
 from scipy.interpolate import PPoly, make_interp_spline
 
-from ...errors import ConfigError, DataError
-from ...records import check_source, require_sign, write
+from ..errors import ConfigError, DataError
+from ..records import check_source, require_sign, write
 
 FIELDS = ("TimeStamp", "Time", "Current", "Voltage", "Ah", "Battery_Temp_degC")
 _NUMERIC = FIELDS[1:]

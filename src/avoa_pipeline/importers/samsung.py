@@ -18,10 +18,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ... import records
-from ...config import REPO_ROOT
-from ...errors import ConfigError, DataError
-from ...io import read_csv
+from .. import records
+from ..errors import ConfigError, DataError
+from ..io import REPO_ROOT, read_csv
 
 SOURCE_COLUMNS = ("current", "voltage", "temperature", "soc")
 

@@ -1,0 +1,177 @@
+"""The Python API (issue 39): what the commands do, returning frames and objects instead of
+writing files, for a notebook (docs/api.md).
+
+    from avoa_pipeline import diagnose, load_model, read_record
+
+``read_record`` is the input layer's (``inputs.read_record``: a canonical CSV, or a cycler's
+export, checked once); ``diagnose`` is the one diagnose pipeline (``diagnosis.diagnose``);
+``load_model`` wraps a model.json (``model.fitted.FittedModel.load``, its one refusal) in a
+:class:`Model` that simulates, estimates and exports as ``simulate``, ``estimate`` and
+``export`` do. The wrapper lives here, above ``estimate.py`` and ``interop/``, not on
+``FittedModel``: ``model/`` is a lower layer than both. Every refusal is the commands' one-line
+DataError or UserError.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from .names import CURRENT_SIGNS
+
+
+def read_record(path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0],
+                rest_ok: bool = False):  # fmt: skip
+    """One checked record (``records.Checked``: ``.frame``, ``.source``, ``.warnings``) of a
+    canonical CSV or, with ``cycler``, of that cycler's raw export; ``rest_ok``: a record that
+    only rests passes (``estimate`` reads one)."""
+    from . import inputs
+
+    return inputs.read_record(str(path), cycler=cycler, current_sign=current_sign,
+                              rest_ok=rest_ok)  # fmt: skip
+
+
+def load_model(path) -> Model:
+    """The model in a model.json (``FittedModel.load``: checked before any of it is used)."""
+    from .model.fitted import FittedModel
+
+    return Model(FittedModel.load(path), str(path))
+
+
+@dataclass
+class Model:
+    """A fitted model (``fitted``: the ``FittedModel``; ``source``: its file, named in
+    messages) with the commands' uses of it."""
+
+    fitted: object  # model.fitted.FittedModel
+    source: str = "model.json"
+
+    def record(self, record, rest_ok: bool = False):
+        """A record of this model's cell, checked: a path (:func:`read_record`), a
+        ``records.Checked`` or a frame (``records.check``, named by ``attrs["source"]``), then
+        its units against the model's capacity (``records.check_scale``: minutes, mA)."""
+        import pandas as pd
+
+        from . import records
+        from .model.ecm import IDX
+
+        if isinstance(record, str | Path):
+            rec = read_record(record, rest_ok=rest_ok)
+        elif isinstance(record, pd.DataFrame):
+            name = str(record.attrs.get("source") or "frame")
+            rec = records.check(record, name, rest_ok=rest_ok)
+        elif isinstance(record, records.Checked):
+            rec = record
+        else:
+            raise TypeError(f"a record is a path, a records.Checked or a DataFrame, not "
+                            f"{type(record)!r}")  # fmt: skip
+        capacity = float(10.0 ** self.fitted.x[IDX["lq"]])
+        records.check_scale(rec.frame, rec.source, capacity, rest_ok=rest_ok)
+        return rec
+
+    def simulate(self, record, soc0: float | None = None, ambient_c: float | None = None):
+        """The model's voltage on a record, as ``simulate`` writes it: a frame of ``time_s``,
+        ``voltage_v``, ``model_v``, ``error_mv``, ``temperature_c_model``,
+        ``temperature_source`` (and the record's ``temperature_c``). The cell temperature is the
+        record's where it has one; predicted by the model's heat block from ``ambient_c`` (or,
+        where the model needs a temperature the record lacks, from the record's ambient,
+        ``heat.ambient_of``) otherwise."""
+        import numpy as np
+        import pandas as pd
+
+        from .errors import UserError
+
+        if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
+            raise UserError(f"soc0 must lie in [0, 1], got {soc0}")
+        rec = self.record(record)
+        frame = rec.frame
+        temp_c, where = self._temperature(rec, soc0, ambient_c)
+        run = frame if temp_c is None else frame.assign(temperature_c=temp_c)
+        v = self.fitted.predict(run, soc0=soc0, source=self.source)
+        out = pd.DataFrame({
+            "time_s": frame["time_s"], "voltage_v": frame["voltage_v"], "model_v": v,
+            "error_mv": 1e3 * (v - frame["voltage_v"].to_numpy()),
+            "temperature_c_model": np.nan if temp_c is None else temp_c,
+            "temperature_source": where,
+        })  # fmt: skip
+        if "temperature_c" in frame.columns:
+            out["temperature_c"] = frame["temperature_c"]
+        return out
+
+    def _temperature(self, rec, soc0, ambient_c):
+        """(°C per sample or None, what it is) for :meth:`simulate`."""
+        from .errors import UserError
+        from .model import elements, heat
+        from .model.ecm import T_DEFAULT_K
+
+        needs_t = sorted(e for e in self.fitted.config.effects
+                         if elements.get(e).needs_temperature)  # fmt: skip
+        has_t = "temperature_c" in rec.frame.columns
+        if ambient_c is None and has_t:
+            return rec.frame["temperature_c"].to_numpy(), "measured (the record's temperature_c)"
+        if ambient_c is None and not needs_t:  # the words simulate says
+            rtf = T_DEFAULT_K - heat.KELVIN
+            return None, (f"none (no temperature_c; the model has no temperature law: {rtf:g} °C "
+                          "in its 2RT/F)")  # fmt: skip
+        if self.fitted.heat is None:
+            why = "ambient_c" if ambient_c is not None else f"{rec.source} has no temperature_c"
+            raise UserError(f"{self.source}: field 'heat': missing ({why}; the model has "
+                            f"{', '.join(needs_t) or 'no temperature law'})")  # fmt: skip
+        if ambient_c is None:
+            ambient_c = heat.ambient_of(rec)[0]
+        else:
+            ambient_c = heat.check_ambient(ambient_c, "ambient_c")
+        pred = heat.predict(self.fitted, self.fitted.heat, rec.frame, ambient_c, soc0=soc0)
+        what = f"predicted from ambient {ambient_c:g} °C by {self.source}'s heat block"
+        return pred.temp_k - heat.KELVIN, what
+
+    def estimate(self, record, soc0: float | None = None, bias_a: float = 0.0,
+                 reference_soc0: float | None = None):  # fmt: skip
+        """The SOC filter on a record (``estimate.estimate_record``): its ``Result``, with
+        ``.frame`` (time_s, soc, soc_sd, model_v, innovation_v, ...) and ``.summary`` (what
+        ``estimate`` writes beside its CSV). ``soc0``: the start's guess (default: the library's
+        rule on the record's opening); ``bias_a``: added to the current the filter reads;
+        ``reference_soc0``: the known start, for the errors. A record that only rests is read."""
+        from . import estimate
+        from .errors import UserError
+
+        rec = self.record(record, rest_ok=True)
+        limit = estimate.bias_limit_a(self.fitted, rec.frame["current_a"].to_numpy())
+        if not abs(bias_a) <= limit:  # NaN fails too
+            raise UserError(f"bias_a {bias_a:g} A: beyond the currents of {rec.source} (|I| at "
+                            f"most {limit:.4g} A)")  # fmt: skip
+        return estimate.estimate_record(self.fitted, rec.frame, soc0, bias_a, reference_soc0,
+                                        source=self.source)  # fmt: skip
+
+    def export(self, to: str = "pybamm", *, record=None, soc0: float | None = None,
+               drop_unsupported: bool = False, soc=None, temperature_c=None,
+               file_name: str = "cell.py"):  # fmt: skip
+        """``to="pybamm"``: the PyBaMM parameter module's source (``interop.pybamm.export``;
+        ``interop.pybamm.load_source`` loads it), its initial SOC from ``record`` unless
+        ``soc0``; ``to="table"``: the BMS lookup table (``interop.table.export_table``) as a
+        frame, its sidecar in ``.attrs["sidecar"]``, on the grids ``soc`` and
+        ``temperature_c`` (defaults: the export's)."""
+        from .errors import UserError
+
+        if to == "table":
+            from .interop import table
+
+            if record is not None or soc0 is not None or drop_unsupported:
+                raise UserError("record, soc0 and drop_unsupported apply to to='pybamm'")
+            self.fitted.check_cell(None, None, self.source)  # what simulate refuses
+            frame, side = table.export_table(self.fitted, self.source, soc, temperature_c)
+            frame.attrs["sidecar"] = side
+            return frame
+        if to != "pybamm":
+            raise UserError(f"to must be 'pybamm' or 'table', got {to!r}")
+        if soc is not None or temperature_c is not None:
+            raise UserError("soc and temperature_c apply to to='table'")
+        from .interop import pybamm as to_pybamm
+
+        rec = None if record is None else self.record(record)
+        to_pybamm.check_exportable(self.fitted, self.source, drop_unsupported)
+        to_pybamm.require_pybamm()
+        frame, name = (None, None) if rec is None else (rec.frame, rec.source)
+        ex = to_pybamm.export(self.fitted, self.source, soc0, frame, name, drop_unsupported,
+                              file_name)  # fmt: skip
+        return ex.text

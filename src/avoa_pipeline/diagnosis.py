@@ -1,0 +1,213 @@
+"""The diagnose pipeline, once: records and options in, one :class:`Diagnosis` out, which writes
+itself (issue 39).
+
+:func:`diagnose` reads the inputs through the input layer (``inputs.py``; records already read
+are taken as they are), refuses a bad sidecar ambient before any fit (``heat.training_ambients``),
+runs the diagnosis (``gap.diagnose.diagnose_records``: the ladder's verdict and the model handed
+over, ``handover.py``) and fits the handed-over model's heat block where its training records
+allow (``heat.attach``). :meth:`Diagnosis.write` is the one writer of ``diagnosis.json``,
+``model.json`` and ``diagnosis.png`` (all or none, ``io.atomic_paths``), and the Diagnosis says
+the lines a command prints (:meth:`Diagnosis.warning_lines`, :meth:`Diagnosis.summary_line`).
+The ``diagnose`` command, the workflow's job (``jobs.real.diagnose_one``), the transfer
+benchmark (``jobs.transfer.diagnose_split``) and the Python API (``avoa_pipeline.diagnose``)
+all call it, so what one of them writes the others write too.
+
+Layer: beside the commands and jobs, above ``gap/`` and ``report/`` (it draws through
+``report.gap_figures``); docs/architecture.md. Its imports are made where they are used, so that
+``import avoa_pipeline`` and the CLI's start load none of the model library.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .names import CURRENT_SIGNS
+
+FILES = ("diagnosis.json", "diagnosis.png", "model.json")
+"""What :meth:`Diagnosis.write` writes, in the order the command checks them."""
+
+
+def _is_path(item) -> bool:
+    return isinstance(item, str | os.PathLike)
+
+
+def check_outputs(folder, given=(), figure: bool = True) -> None:
+    """Before any fit: ``folder`` and the files :meth:`Diagnosis.write` puts there can be
+    written and are none of the input files ``given`` (``io.check_output``, naming ``--out``)."""
+    from .io import check_output
+
+    out = Path(folder)
+    check_output(out, inputs=given, folder=True)
+    for name in FILES if figure else (FILES[0], FILES[2]):
+        check_output(out / name, inputs=given)
+
+
+def _read_given(data, validate, ocv, cycler, current_sign):
+    """The inputs of a diagnosis: paths, checked records (``records.Checked``) or frames. Paths
+    alone are read as the command reads them (``inputs.read_inputs``: the sign across files, the
+    same file twice refused); otherwise each one on its own, a frame checked under the name of
+    its ``attrs["source"]`` (else ``frame <k>``)."""
+    from . import inputs
+
+    if all(map(_is_path, (*data, *validate))) and (ocv is None or _is_path(ocv)):
+        return inputs.read_inputs([str(p) for p in data], [str(p) for p in validate],
+                                  None if ocv is None else str(ocv), cycler=cycler,
+                                  current_sign=current_sign)  # fmt: skip
+    train = [_one(x, k, cycler, current_sign) for k, x in enumerate(data)]
+    held = [_one(x, len(data) + k, cycler, current_sign) for k, x in enumerate(validate)]
+    table = ocv
+    if _is_path(ocv):
+        table = inputs.read_ocv(str(ocv), cycler=cycler, current_sign=current_sign)
+    notes = [w for c in (*train, *held) for w in c.warnings]
+    notes += list(getattr(table, "notes", ()))
+    return inputs.Inputs(train, held, table, tuple(notes))
+
+
+def _one(item, k: int, cycler, current_sign):
+    """One record of :func:`_read_given`'s mixed inputs, checked once."""
+    import pandas as pd
+
+    from . import inputs, records
+
+    if _is_path(item):
+        return inputs.read_record(str(item), cycler=cycler, current_sign=current_sign)
+    if isinstance(item, records.Checked):
+        return item
+    if isinstance(item, pd.DataFrame):
+        name = str(item.attrs.get("source") or f"frame {k}")
+        return records.check(item, name, current_sign=current_sign)
+    raise TypeError(f"a record is a path, a records.Checked or a DataFrame, not {type(item)!r}")
+
+
+@dataclass
+class Diagnosis:
+    """One diagnosis: the report (what diagnosis.json holds), the handed-over model (what
+    model.json holds; its heat block fitted where the records allow), the figure's arrays, the
+    inputs as read, and the summary of the heat fit (``heat.attach``)."""
+
+    report: dict
+    model: object  # model.fitted.FittedModel
+    arrays: dict
+    inputs: object  # inputs.Inputs
+    names: tuple[str, ...]  # the training records as given (the summary line's)
+    heat_line: str
+    given: tuple[str, ...] = field(default=())  # the input files (never an output)
+
+    @property
+    def verdict(self) -> dict:
+        return self.report["verdict"]
+
+    @property
+    def intervals(self) -> dict | None:
+        return self.report.get("intervals")
+
+    @property
+    def handed_over(self) -> dict:
+        return self.report["handed_over"]
+
+    @property
+    def warnings(self) -> list[str]:
+        """What :meth:`warning_lines` says, the files named without a folder."""
+        return self.warning_lines(None)
+
+    def write(self, folder, figure: bool = True) -> list[Path]:
+        """diagnosis.json, model.json and (``figure``) diagnosis.png in ``folder``: all of them
+        or none. The figure is drawn into its temporary first; a failure there leaves no JSON
+        either, and a failed rename puts back the files renamed before it. Returns the paths."""
+        from .io import atomic_paths
+        from .report import gap_figures
+
+        out = Path(folder)
+        check_outputs(out, self.given, figure)
+        report_text = json.dumps(self.report, indent=1, allow_nan=False) + "\n"
+        names = (FILES[1], FILES[0], FILES[2]) if figure else (FILES[0], FILES[2])
+        paths = [out / n for n in names]
+        with atomic_paths(*paths) as tmps:
+            if figure:
+                gap_figures.render(self.report, self.arrays, tmps[0])
+            tmps[-2].write_text(report_text)
+            tmps[-1].write_text(json.dumps(self.model.to_json(), indent=1, allow_nan=False) + "\n")
+        return paths
+
+    def warning_lines(self, folder) -> list[str]:
+        """The command's warnings, one line each (without ``warning:``): the inputs', the
+        model's flagged parameters and heat block, the elements the records may not identify,
+        the hand-over's. ``folder``: where the files were written (None: bare names)."""
+        from .model import heat
+
+        out = Path(folder) if folder is not None else None
+        model_json = FILES[2] if out is None else out / FILES[2]
+        report_json = FILES[0] if out is None else out / FILES[0]
+        lines = list(self.inputs.warnings)
+        lines += flag_lines(model_json, self.report.get("at_bounds", ()), self.intervals)
+        if self.model.heat is not None:
+            lines += [f"{model_json}: {flag}" for flag in heat.flags(self.model.heat)]
+        lines += [f"{report_json}: {u['effect']} selected, but {u['why']}: these records may "
+                  f"not identify it; would decide it: {u['would_decide']}"
+                  for u in self.report.get("undecided", ())]  # fmt: skip
+        return lines + [f"{report_json}: {w}" for w in self.handed_over["warnings"]]
+
+    def summary_line(self, folder, figure: bool = True) -> str:
+        """The command's one line: the verdict, the selected and handed-over models, the heat
+        block, and the files written into ``folder``."""
+        from . import handover
+
+        out = Path(folder)
+        v = self.verdict
+        wrote = [out / FILES[0], *([out / FILES[1]] if figure else []), out / FILES[2]]
+        return (
+            f"{', '.join(self.names)}: verdict {v['effect']}"
+            + (f" (held-out shrink {v['shrink']:.1%})" if v["effect"] != "none" else "")
+            + f"; selected {self.report['selected']['name']}; "
+            f"{handover.summary_line(self.handed_over)}; {self.heat_line}; wrote "
+            + ", ".join(map(str, wrote))
+        )
+
+
+def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | None = None,
+             soc0: float | None = None, current_accuracy_a: float | None = None,
+             cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0],
+             progress=True) -> Diagnosis:  # fmt: skip
+    """The diagnosis of one cell's training records ``data`` (paths, checked records or frames;
+    one or a list), fitted together; ``validate``: records never used for any choice; ``ocv``:
+    the cell's OCV (a table ``soc, ocv_v`` or a slow test, as a path, or an ``OcvTable``; None:
+    the rational curve). The options are the ``diagnose`` command's (``--capacity-ah``,
+    ``--soc0``, ``--current-accuracy-a``, ``--cycler``, ``--current-sign``); ``progress`` as
+    ``gap.diagnose.diagnose_records``. One-line DataError or UserError on bad input, before any
+    fit."""
+    from .gap import diagnose as gap_diagnose
+    from .model import heat
+
+    data = [data] if _is_path(data) or not isinstance(data, Sequence) else list(data)
+    validate = list(validate)
+    read = _read_given(data, validate, ocv, cycler, current_sign)
+    heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
+    report, arrays, model = gap_diagnose.diagnose_records(
+        read.train, capacity_ah, soc0, ocv_table=read.ocv, validate=read.validate,
+        warnings=read.warnings, progress=progress,
+        current_accuracy_a=current_accuracy_a)  # fmt: skip
+    heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
+    # the files read, never to be written over: paths, and checked records read from a file
+    given = [str(p) for p in (*data, *validate, *([ocv] if ocv is not None else ()))
+             if _is_path(p)]  # fmt: skip
+    given += [c.source for c in (*read.train, *read.validate) if c.origin.get("read_as") != "frame"]
+    names = tuple(str(x) if _is_path(x) else c.source
+                  for x, c in zip(data, read.train, strict=True))  # fmt: skip
+    return Diagnosis(report, model, arrays, read, names, heat_line, tuple(dict.fromkeys(given)))
+
+
+def flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:
+    """One warning line per flagged parameter of a model (``FittedModel.at_bounds`` and the
+    flags of its intervals, ``model/intervals.py``): ``diagnose`` says them of the model it
+    writes, ``simulate`` and ``export`` of the model they run."""
+    lines = [f"{source}: {f['parameter']} = {f['value']:.4g} at its {f['bound']} bound "
+             f"({f['bounds'][0]:.4g}..{f['bounds'][1]:.4g}): set by the bound, not by the records"
+             for f in at_bounds]  # fmt: skip
+    flags = (intervals or {}).get("flags", ())
+    # those at a bound were named above, with their values
+    return lines + [f"{source}: {flag}" for flag in flags
+                    if not flag.endswith("at a bound of its fit")]  # fmt: skip

@@ -1,1 +1,0 @@
-"""Importers: measured cells' raw files → checked canonical records; none imports ``model/``."""
