@@ -294,3 +294,135 @@ def test_simulate_refuses_a_sidecar_ambient_that_is_no_temperature(heat_files, c
     assert err.count("\n") == 1, err
     assert "r.json: field 'ambient_temperature_c': 'warm'" in err, err
     assert not path.exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# commands as registered modules (issue 39, item 4): main knows none by name
+
+
+def test_a_registered_command_runs_through_main_with_the_lock_it_declares(
+    tmp_path, capsys, monkeypatch
+):
+    """A command added from outside the package (its arguments, its run, the output it locks)
+    runs through ``main`` like the package's own: nothing in ``main`` names a command."""
+    from pathlib import Path
+
+    from avoa_pipeline.commands import registry
+    from avoa_pipeline.errors import UserError
+    from avoa_pipeline.io import LOCK_SUFFIX
+
+    monkeypatch.setattr(registry, "REGISTRY", dict(registry.REGISTRY))
+    held = []
+
+    def arguments(p):
+        p.add_argument("--out", required=True)
+        p.add_argument("--times", type=int, default=1)
+
+    @registry.register("toy", "a toy command", arguments=arguments)
+    def run_toy(args):
+        held.extend(p.name for p in tmp_path.iterdir())  # the lock, while the run runs
+        if args.times < 1:
+            raise UserError(f"--times must be positive, got {args.times}")
+        Path(args.out).write_text("x" * args.times)
+        print("toy ran")
+
+    out = tmp_path / "t.txt"
+    assert main(["toy", "--out", str(out), "--times", "3"]) == 0
+    assert out.read_text() == "xxx"
+    assert held == [f".t.txt{LOCK_SUFFIX}"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.txt"]  # the lock released
+    assert capsys.readouterr().out == "toy ran\n"
+    assert main(["toy", "--out", str(tmp_path / "u.txt"), "--times", "0"]) == 2
+    assert capsys.readouterr().err == "error: --times must be positive, got 0\n"
+
+    # a command that declares no output takes no lock (and needs no --out)
+    registry.register("quiet", "no output", arguments=lambda p: None,
+                      output=None)(lambda args: print("quiet ran"))  # fmt: skip
+    assert main(["quiet"]) == 0
+    assert capsys.readouterr().out == "quiet ran\n"
+
+
+def test_the_cli_module_names_no_command():
+    """``main`` and ``build_parser`` read the registry; the code of cli.py (its docstring
+    aside) names no registered command."""
+    from pathlib import Path
+
+    from avoa_pipeline import cli, commands
+
+    code = Path(cli.__file__).read_text().split('"""', 2)[2]
+    names = {name for _, name in commands.REGISTRY}
+    assert {"fit", "diagnose", "real", "fade"} <= names
+    assert [n for n in sorted(names) if f'"{n}"' in code or f"'{n}'" in code] == []
+
+
+def _subparsers(parser):
+    return next(a for a in parser._actions if a.dest == "command").choices
+
+
+def test_shared_options_are_defined_once_and_listed_where_they_were():
+    """The options several commands take come from one parent parser each (the same argparse
+    action in every command), and each --help still lists them in the order it did: the
+    scenario and case first, the current sign and the cycler last."""
+    from avoa_pipeline import cli
+
+    sub = _subparsers(cli.build_parser())
+
+    def action(command, option):
+        return next(a for a in sub[command]._actions if option in a.option_strings)
+
+    readers = ("diagnose", "simulate", "export", "estimate")
+    assert len({id(action(c, "--cycler")) for c in readers}) == 1
+    assert len({id(action(c, "--current-sign")) for c in readers[1:]}) == 1
+    grid = ("fit", "generate", "recovery")
+    assert len({id(action(c, "--scenario")) for c in grid}) == 1
+    for c in readers:
+        assert sub[c]._actions[-1].option_strings == ["--cycler"]
+        assert sub[c]._actions[-2].option_strings == ["--current-sign"]
+    for c in grid:
+        assert [a.option_strings for a in sub[c]._actions[1:3]] == [["--scenario"], ["--case"]]
+
+
+def test_real_data_commands_join_the_cli_and_keep_their_alias(tmp_path, capsys):
+    """``python -m avoa_pipeline real ...`` and ``python -m avoa_pipeline.real ...`` are one
+    parser and one run; each names itself in a usage error."""
+    from avoa_pipeline import cli
+    from avoa_pipeline.real import __main__ as alias
+
+    assert set(_subparsers(alias.build_parser())) == set(
+        _subparsers(_subparsers(cli.build_parser())["real"])
+    )
+    args = ["fade", "--record", str(tmp_path / "none.csv"), "--out-states",
+            str(tmp_path / "s.csv"), "--out-fits", str(tmp_path / "f.csv")]  # fmt: skip
+    assert main(["real", *args]) == 2
+    assert alias.main(args) == 2
+    first, second = capsys.readouterr().err.splitlines()
+    assert first == second
+    assert "none.csv" in first
+    assert main(["real", "nope"]) == 2
+    assert capsys.readouterr().err.startswith("error: avoa_pipeline real: argument command: ")
+    assert alias.main(["nope"]) == 2
+    assert capsys.readouterr().err.startswith(
+        "error: python -m avoa_pipeline.real: argument command: "
+    )
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_command_line_is_short_functions():
+    """Issue 39's goals for the command line: cli.py under 300 lines, and no function over 80
+    lines in it, in the commands or in the library modules that took their policy."""
+    import ast
+    from pathlib import Path
+
+    import avoa_pipeline
+
+    src = Path(avoa_pipeline.__file__).parent
+    assert len((src / "cli.py").read_text().splitlines()) < 300
+    files = [src / "cli.py", src / "ambient.py", src / "model_inputs.py",
+             src / "interop" / "export_files.py", *(src / "commands").rglob("*.py")]  # fmt: skip
+    long = [
+        f"{f.relative_to(src)}:{n.name} {n.end_lineno - n.lineno + 1}"
+        for f in files
+        for n in ast.walk(ast.parse(f.read_text()))
+        if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef) and n.end_lineno - n.lineno >= 80
+    ]
+    assert long == []
