@@ -414,3 +414,47 @@ def experiments(cfg, workdir) -> dict:
         work / "nasa_b0005.csv", real_section(cfg, "nasa"), work / "fade.csv", work / "fade_fit.csv"
     )
     return {"rc": rc, "arrhenius": table, "fade": states, "fade_fit": fits}
+
+
+def drive_cycle_demo(cfg: dict, out_dir=None) -> dict:
+    """The demo run of notebooks/real_drive_cycles.ipynb, its inputs when the workflow's are not
+    given: a reduced experiment 1 (25 °C, LA92 → US06, Nelder–Mead seed 1 at 10 × 30, the C/20
+    circuits) written to ``out_dir``. It drives this module's jobs, so it sits here, above the
+    experiments (which never import ``jobs``)."""
+    import copy
+    import tempfile
+
+    from .. import plan
+    from ..importers import panasonic
+    from ..real.experiments import drive_cycles as dc
+
+    out = Path(out_dir or tempfile.mkdtemp(prefix="real_drive_cycles_"))
+    cfg = copy.deepcopy(cfg)
+    pan = cfg["real"]["panasonic"]
+    exp = pan["experiment"]
+    exp.update(
+        train={"25degC": "la92"},
+        algorithms=["nelder_mead"],
+        seeds=[1],
+        budget={"pop_size": 10, "iterations": 30},
+        figure_cycle={"25degC": "us06"},
+    )
+    t25 = pan["temperatures"]["25degC"]
+    t25["drive_cycles"] = {c: t25["drive_cycles"][c] for c in ("la92", "us06")}
+    pan["temperatures"] = {"25degC": t25}
+    paths = {}
+    for name in ("25degC/la92", "25degC/us06", "25degC/ocv_c20"):
+        paths[name] = out / f"{plan.canonical_name(name)}.csv"
+        panasonic.import_named(cfg, name, paths[name])
+    ocv = out / "ocv_c20.csv"
+    panasonic_ocv(paths["25degC/ocv_c20"], ocv)
+    tests = {"us06": paths["25degC/us06"]}
+    fits = [out / "paper_rc.json", out / "c20.json"]
+    paper_fit_one(dc.fit_settings(cfg, "25degC"), cfg["base_seed"], "25degC", "paper_rc",
+                       "nelder_mead", paths["25degC/la92"], tests, fits[0])  # fmt: skip
+    c20_fit_one("25degC", paths["25degC/la92"], tests, ocv, fits[1])
+    res = {"rmse_csv": out / "drive_cycle_rmse.csv", "runs_csv": out / "drive_cycle_runs.csv",
+           "predictions": out / "figure_predictions.parquet", "train": exp["train"]}  # fmt: skip
+    drive_cycle_table(cfg, fits, {}, {"25degC/us06": paths["25degC/us06"]}, res["rmse_csv"],
+                           res["runs_csv"], res["predictions"])  # fmt: skip
+    return res

@@ -1,5 +1,5 @@
 """Experiment 1's table, from the workflow's outputs alone (or the small demo run of
-``jobs.drive_cycle_demo``); its figure is ``report.real_figures.drive_cycle_figure``.
+``jobs.real.drive_cycle_demo``); its figure is ``report.real_figures.drive_cycle_figure``.
 
 :func:`summary_table`: RMSE per unseen cycle, one row per model and temperature, with the median
 over the unseen cycles (the goal's figure of merit) and the median maximum error.
