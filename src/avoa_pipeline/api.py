@@ -73,57 +73,25 @@ class Model:
         """The model's voltage on a record, as ``simulate`` writes it: a frame of ``time_s``,
         ``voltage_v``, ``model_v``, ``error_mv``, ``temperature_c_model``,
         ``temperature_source`` (and the record's ``temperature_c``). The cell temperature is the
-        record's where it has one; predicted by the model's heat block from ``ambient_c`` (or,
-        where the model needs a temperature the record lacks, from the record's ambient,
-        ``heat.ambient_of``) otherwise."""
+        command's rule (``ambient.cell_temperature``): the record's where it has one; predicted
+        by the model's heat block from ``ambient_c`` where given (as ``--ambient-c
+        --predict-temperature``), else, where the model needs a temperature the record lacks,
+        from the record's sidecar's ambient."""
         import numpy as np
-        import pandas as pd
 
+        from .ambient import cell_temperature
         from .errors import UserError
+        from .model_inputs import prediction_frame
 
         if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
             raise UserError(f"soc0 must lie in [0, 1], got {soc0}")
         rec = self.record(record)
-        frame = rec.frame
-        temp_c, where = self._temperature(rec, soc0, ambient_c)
-        run = frame if temp_c is None else frame.assign(temperature_c=temp_c)
+        temp_c, where, _ = cell_temperature(
+            self.fitted, rec, model_name=self.source, data_name=rec.source, ambient_c=ambient_c,
+            predict=ambient_c is not None, soc0=soc0)  # fmt: skip
+        run = rec.frame if temp_c is None else rec.frame.assign(temperature_c=temp_c)
         v = self.fitted.predict(run, soc0=soc0, source=self.source)
-        out = pd.DataFrame({
-            "time_s": frame["time_s"], "voltage_v": frame["voltage_v"], "model_v": v,
-            "error_mv": 1e3 * (v - frame["voltage_v"].to_numpy()),
-            "temperature_c_model": np.nan if temp_c is None else temp_c,
-            "temperature_source": where,
-        })  # fmt: skip
-        if "temperature_c" in frame.columns:
-            out["temperature_c"] = frame["temperature_c"]
-        return out
-
-    def _temperature(self, rec, soc0, ambient_c):
-        """(°C per sample or None, what it is) for :meth:`simulate`."""
-        from .errors import UserError
-        from .model import elements, heat
-        from .model.ecm import T_DEFAULT_K
-
-        needs_t = sorted(e for e in self.fitted.config.effects
-                         if elements.get(e).needs_temperature)  # fmt: skip
-        has_t = "temperature_c" in rec.frame.columns
-        if ambient_c is None and has_t:
-            return rec.frame["temperature_c"].to_numpy(), "measured (the record's temperature_c)"
-        if ambient_c is None and not needs_t:  # the words simulate says
-            rtf = T_DEFAULT_K - heat.KELVIN
-            return None, (f"none (no temperature_c; the model has no temperature law: {rtf:g} °C "
-                          "in its 2RT/F)")  # fmt: skip
-        if self.fitted.heat is None:
-            why = "ambient_c" if ambient_c is not None else f"{rec.source} has no temperature_c"
-            raise UserError(f"{self.source}: field 'heat': missing ({why}; the model has "
-                            f"{', '.join(needs_t) or 'no temperature law'})")  # fmt: skip
-        if ambient_c is None:
-            ambient_c = heat.ambient_of(rec)[0]
-        else:
-            ambient_c = heat.check_ambient(ambient_c, "ambient_c")
-        pred = heat.predict(self.fitted, self.fitted.heat, rec.frame, ambient_c, soc0=soc0)
-        what = f"predicted from ambient {ambient_c:g} °C by {self.source}'s heat block"
-        return pred.temp_k - heat.KELVIN, what
+        return prediction_frame(rec.frame, v, temp_c, where)
 
     def estimate(self, record, soc0: float | None = None, bias_a: float = 0.0,
                  reference_soc0: float | None = None):  # fmt: skip

@@ -36,3 +36,21 @@ def read_model_and_record(model_path, data, *, soc0=None, cycler=None, current_s
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "
                         f"{', '.join(needs_t)})")  # fmt: skip
     return model, rec
+
+
+def prediction_frame(frame, model_v, temp_c, temperature_source):
+    """What ``simulate`` writes (and ``api.Model.simulate`` returns): time_s, voltage_v,
+    model_v, error_mv, the cell temperature the model ran on and where it came from (and the
+    record's measured temperature_c where it has one)."""
+    import numpy as np
+    import pandas as pd
+
+    out = pd.DataFrame({
+        "time_s": frame["time_s"], "voltage_v": frame["voltage_v"], "model_v": model_v,
+        "error_mv": 1e3 * (model_v - frame["voltage_v"].to_numpy()),
+        "temperature_c_model": np.nan if temp_c is None else temp_c,
+        "temperature_source": temperature_source,
+    })  # fmt: skip
+    if "temperature_c" in frame.columns:
+        out["temperature_c"] = frame["temperature_c"]
+    return out

@@ -129,16 +129,13 @@ def test_simulate_returns_what_the_command_writes(cell_files, tmp_path, data):
     assert list(got.columns) == list(want.columns)
     cols = ["time_s", "voltage_v", "model_v", "error_mv", "temperature_c_model"]
     np.testing.assert_allclose(got[cols].to_numpy(), want[cols].to_numpy(), rtol=1e-12)
-    if data == "with_t.csv":  # the CLI names its option in its words; the measured ones agree
-        assert (got["temperature_source"] == want["temperature_source"]).all()
-    else:
-        assert got["temperature_source"].iloc[0].startswith("predicted from ambient 10 °C")
+    assert (got["temperature_source"] == want["temperature_source"]).all()  # the one rule
 
 
 def test_simulate_needs_an_ambient_where_the_record_has_no_temperature(cell_files, tmp_path):
     model = load_model(cell_files / "model.json")
     frame = pd.read_csv(cell_files / "no_t.csv")  # a frame: no sidecar to name the ambient
-    with pytest.raises(DataError, match="no ambient"):
+    with pytest.raises(UserError, match="no ambient"):
         model.simulate(frame)
     got = model.simulate(frame, ambient_c=10.0)
     want = model.simulate(cell_files / "no_t.csv")  # its sidecar says 10 °C

@@ -73,11 +73,10 @@ def _warn(args, model, rec, pred) -> None:
           arguments=arguments, parents_after=(CURRENT_SIGN, CYCLER))  # fmt: skip
 def run_simulate(args) -> None:
     import numpy as np
-    import pandas as pd
 
     from ..ambient import cell_temperature
     from ..io import atomic_path, check_output
-    from ..model_inputs import read_model_and_record
+    from ..model_inputs import prediction_frame, read_model_and_record
 
     check_output(args.out, inputs=[args.model, args.data])
     model, rec = read_model_and_record(args.model, args.data, soc0=args.soc0, cycler=args.cycler,
@@ -88,18 +87,7 @@ def run_simulate(args) -> None:
         predict=args.predict_temperature, soc0=args.soc0)  # fmt: skip
     run = frame if temp_c is None else frame.assign(temperature_c=temp_c)
     v = model.predict(run, soc0=args.soc0, source=args.model)
-    out = pd.DataFrame(
-        {
-            "time_s": frame["time_s"],
-            "voltage_v": frame["voltage_v"],
-            "model_v": v,
-            "error_mv": 1e3 * (v - frame["voltage_v"].to_numpy()),
-            "temperature_c_model": np.nan if temp_c is None else temp_c,
-            "temperature_source": source,
-        }
-    )
-    if "temperature_c" in frame.columns:
-        out["temperature_c"] = frame["temperature_c"]
+    out = prediction_frame(frame, v, temp_c, source)
     with atomic_path(args.out) as tmp:
         out.to_csv(tmp, index=False)
     rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
