@@ -182,3 +182,33 @@ def test_a_table_entry_in_two_layers_is_refused():
     with pytest.raises(AssertionError, match="cli is in two layers"):
         read_layers(text)
     assert read_layers(text.replace(", `cli`", "")) == {"io": 0, "cli": 1}
+
+
+GENERATED = {"model/_simulator.py"}  # the compiled loops, one function each on purpose (loopgen)
+MAX_FUNCTION_LINES = 80  # issue 39: a function a reader can hold on one screen and a half
+
+
+def long_functions(package: Path) -> list[str]:
+    """``path:function lines`` for every function of the package over MAX_FUNCTION_LINES lines,
+    the generated compiled loops aside."""
+    out = []
+    for path in sorted(package.rglob("*.py")):
+        rel = path.relative_to(package).as_posix()
+        if rel in GENERATED:
+            continue
+        for n in ast.walk(ast.parse(path.read_text())):
+            if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef):
+                lines = n.end_lineno - n.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    out.append(f"{rel}:{n.name} {lines}")
+    return out
+
+
+def test_no_function_over_80_lines():
+    assert long_functions(PACKAGE) == []
+
+
+def test_a_long_function_is_found(tmp_path):
+    body = "".join(f"    x{j} = {j}\n" for j in range(MAX_FUNCTION_LINES))
+    (tmp_path / "m.py").write_text(f"def short():\n    pass\n\n\ndef long():\n{body}")
+    assert long_functions(tmp_path) == [f"m.py:long {MAX_FUNCTION_LINES + 1}"]
