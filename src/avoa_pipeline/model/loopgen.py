@@ -49,7 +49,8 @@ Markers inside the template and snippets: ``@slot NAME`` (a line: the slot's sni
 ``@each_branch LINE`` (LINE once per RC branch, ``{j}`` its number), ``@col(NAME)`` (a physical
 column), ``@factors(NAME)`` (`` * f`` per element factor of that product), ``@branch_sum`` (the
 RC voltages' sum, branch 1 first), ``@reads(NAME)`` (the flags of the elements that read a
-quantity, or-ed; ``False`` when none).
+quantity, or-ed; ``False`` when none); ``@update`` (a line of the templates: :data:`UPDATE`, the
+state update both share).
 """
 
 from __future__ import annotations
@@ -76,6 +77,20 @@ SLOTS = ("setup", "hold_setup", "held", "uneven", "sample", "row", "hold_row", "
 
 ARGS = ("P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, "
         "g_load, sel, out, tr")  # fmt: skip
+
+UPDATE = """\
+        gi = f1 * g * i
+        v1[c] = a1[c] * v1[c] + r1[c]@factors(r1) * (1.0 - a1[c]) * gi
+        @slot update
+        ie = i
+        @slot counted
+        @slot capacity
+        dq = ie * dtk / (q3600[c]@factors(capacity))
+        @slot update_charge
+        soc[c] = s - dq
+"""
+"""The state update after a sample, the same text in the simulator and in the filter's step
+(both templates take it at 8 spaces), so the two cannot drift apart."""
 
 BASE = """\
 m = P.shape[0]
@@ -203,15 +218,7 @@ while k < n:
                 tr[3, k] = f0
                 tr[4, k] = i
                 @slot trace
-        gi = f1 * g * i
-        v1[c] = a1[c] * v1[c] + r1[c]@factors(r1) * (1.0 - a1[c]) * gi
-        @slot update
-        ie = i
-        @slot counted
-        @slot capacity
-        dq = ie * dtk / (q3600[c]@factors(capacity))
-        @slot update_charge
-        soc[c] = s - dq
+@update
     k += 1
 """
 """The base's statement: the rational or table OCV, R0, RC branch 1, the capacity and the SOC,
@@ -276,15 +283,7 @@ for c in range(m):
         @slot overpotential
         out[c] = v
     if update:
-        gi = f1 * g * i
-        v1[c] = a1[c] * v1[c] + r1[c]@factors(r1) * (1.0 - a1[c]) * gi
-        @slot update
-        ie = i
-        @slot counted
-        @slot capacity
-        dq = ie * dtk / (q3600[c]@factors(capacity))
-        @slot update_charge
-        soc[c] = s - dq
+@update
 if update:
     @store_states
 """
@@ -380,7 +379,7 @@ def _version(name: str, kernels: list[Kernel], layout: dict[str, int], template:
         flags += [f"{f} = {expr}" for f, expr in k.flags.items()]
     lines = []
     blocks = {"@copies": copies, "@flags": flags, "@load_states": loads, "@store_states": stores}
-    for line in _expand(template, kernels, branches):
+    for line in _expand(template.replace("@update\n", UPDATE), kernels, branches):
         body = line.lstrip()
         pad = line[: len(line) - len(body)]
         lines += [pad + b for b in blocks[body]] if body in blocks else [line]
