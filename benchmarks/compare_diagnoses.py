@@ -67,7 +67,8 @@ def differences(a, b, path: str = "") -> list[str]:
             out += differences(a[k], b[k], f"{path}/{k}")
         return out[:20]
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [d for j, (x, y) in enumerate(zip(a, b)) for d in differences(x, y, f"{path}/{j}")][:20]
+        pairs = enumerate(zip(a, b, strict=True))
+        return [d for j, (x, y) in pairs for d in differences(x, y, f"{path}/{j}")][:20]
     return [] if a == b else [path or "/"]
 
 
@@ -86,8 +87,11 @@ def main(argv=None) -> int:
     p.add_argument("--panasonic", type=Path, required=True)
     p.add_argument("--out", type=Path, default=Path("/tmp/compare_diagnoses"))
     p.add_argument("--only", nargs="*", help="these reference diagnoses only")
-    p.add_argument("--keep-other", action="store_true",
-                   help="reuse the other checkout's outputs where --out holds them")
+    p.add_argument(
+        "--keep-other",
+        action="store_true",
+        help="reuse the other checkout's outputs where --out holds them",
+    )
     a = p.parse_args(argv)
     bad = 0
     for name, args in cases(a.gap_data, a.panasonic).items():
