@@ -387,7 +387,9 @@ def test_a_record_that_only_rests_gives_the_soc_of_its_ocv(tmp_path, capsys):
     rec = tmp_path / "rest.csv"
     rest.to_csv(rec, index=False)
     out = tmp_path / "soc.csv"
-    code, text, err = run_cli(["estimate", m, str(rec), "--out", str(out)], capsys)
+    # the model file is one from before issue 37: its rule asked for, so no word on it either
+    code, text, err = run_cli(["estimate", m, str(rec), "--out", str(out), "--noise",
+                               "training-residual"], capsys)  # fmt: skip
     assert code == 0, err
     assert "warning" not in err  # no word on a sign a rest cannot tell
     assert "the record only rests: the SOC of its OCV" in text
