@@ -133,7 +133,7 @@ so a start's transient falls in one batch, not in the record's whole history."""
 ADAPT_MIN_SAMPLES = 50
 """... and at least 50 innovations a batch: the relative sd of a mean of n independent χ²₁ is
 √(2/n), 20 % at 50 (a rest logged every 60 s waits for 50 samples rather than adapting on 5)."""
-ADAPT_BOUNDS = (0.25, 100.0)
+ADAPT_BOUNDS = (1.0, 100.0)
 """The scale λ of e's variance: its sd between half and ten times the expected error. Half:
 ``expected_error``'s bins carry up to 25 % relative error (``handover.MIN_BIN_SAMPLES``) and on
 the OCV's plateau a small innovation does not show the SOC is right. Ten times: a record the
@@ -505,8 +505,9 @@ class Adaptation:
     def _reset(self, t):
         self.start, self.n, self.nu2, self.rest, self.pee = t, 0, 0.0, 0.0, 0.0
 
-    def add(self, t: float, nu: float, s: float, pee: float) -> float | None:
-        """One innovation; at a batch's end, the factor λ moved by (else None)."""
+    def add(self, t: float, e: float, pee: float, var: float) -> float | None:
+        """One sample's updated e, its variance and the rule's σ(k)² there; at a batch's end,
+        the factor λ moved by (else None)."""
         if not self.on or t - self.t0 < CONVERGENCE_S:
             return None
         self.samples += 1
@@ -514,13 +515,11 @@ class Adaptation:
         if self.start is None:
             self.start = t
         self.n += 1
-        self.nu2 += nu * nu
-        self.rest += s - pee
-        self.pee += pee
+        self.nu2 += e * e + pee  # E[e²] given the record so far
+        self.pee += var
         if self.n < ADAPT_MIN_SAMPLES or t - self.start < ADAPT_WINDOW_S:
             return None
-        need = (self.nu2 - self.rest) / self.n  # the error variance the innovations call for
-        new = float(np.clip(self.lam * need / (self.pee / self.n), *ADAPT_BOUNDS))
+        new = float(np.clip(self.nu2 / self.pee, *ADAPT_BOUNDS))
         factor, self.lam = new / self.lam, new
         self.lam_max = max(self.lam_max, new)
         self.updates += 1
@@ -562,6 +561,39 @@ def _error_sd(noise: Noise, inp: Inputs):
     return (lambda k, soc: bins.sd(mode[k], cur[k], soc)), max(bins.tau_c_s, 1e-9)
 
 
+SOC_FLOOR_SPAN = 0.01
+"""The SOC step over which the filter reads the voltage's slope for the SOC's floor (one point of
+SOC either way: the OCV table's 0.1 % grid smoothed, the knees still seen)."""
+
+
+def _hold_soc_floor(ukf, nominal: Model, i_k, dinv, rtf, var_v: float) -> None:
+    """The SOC's variance kept at least var_v / (dV/dSOC)² (docs/soc-filter.md, addendum): the
+    model's error at an operating point returns whenever the cell does, so it is not averaged
+    away over many correlation times; never above the cold start's SOC0_SD²."""
+    x = np.repeat(ukf.x[None, :], 2, axis=0)
+    x[0, 0] += SOC_FLOOR_SPAN
+    x[1, 0] -= SOC_FLOOR_SPAN
+    v = nominal.measurement(x, i_k, dinv, rtf, with_error=False)
+    slope = abs(v[0] - v[1]) / (2.0 * SOC_FLOOR_SPAN)
+    floor = SOC0_SD**2 if slope * SOC0_SD <= np.sqrt(var_v) else var_v / slope**2
+    p00 = ukf.P[0, 0]
+    if 0.0 < p00 < floor:
+        g = np.sqrt(floor / p00)
+        ukf.P[0, :] *= g
+        ukf.P[:, 0] *= g
+
+
+def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
+    """The samples beside a step of the current read, each with its neighbours across the step:
+    a cycler's current channel can lag (or lead) its voltage by a sample at an edge, so such a
+    sample's voltage may belong to either current."""
+    out: dict[int, list[int]] = {}
+    for k in np.flatnonzero(np.diff(i_read) != 0.0):
+        out.setdefault(int(k), []).append(int(k) + 1)
+        out.setdefault(int(k) + 1, []).append(int(k))
+    return out
+
+
 def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float,
                source: str = "<record>", adapt: bool = True) -> Estimate:  # fmt: skip
     """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring);
@@ -589,7 +621,9 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
 
     ukf = ukf_cls(dim_x=n, dim_z=1, dt=1.0, hx=None, fx=fx, points=points)
     N = inp.t.size
-    sd_e = error_sd(0, soc0) if N else noise.residual_sd_v  # the variance e tracks now
+    sd_e = error_sd(0, soc0) if N else noise.residual_sd_v
+    var_e = sd_e**2  # the variance e's process holds now (before λ): a bin's rise lifts it to σ²
+    edges = _edge_neighbours(inp.i) if noise.bins is not None else {}
     ukf.x, ukf.P = initial_state(model, noise, soc0, i_range, i_scale, sd_e)
     ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)
     soc, sd, mv, inn, bias, bsd = (np.empty(N) for _ in range(6))
@@ -602,13 +636,21 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
             xb = np.repeat(ukf.x[None, :], pert.P.shape[0], axis=0)
             dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
             r += float(dv @ dv)
-        pee = ukf.P[ie, ie]
+        if k in edges:  # the current's step may fall a sample either way (docs/soc-filter.md)
+            x1 = ukf.x[None, :]
+            v_k = nominal.measurement(x1, i_k, dinv, rtf)[0]
+            r += max((nominal.measurement(x1, inp.i[j], dinv, rtf)[0] - v_k) ** 2
+                     for j in edges[k])  # fmt: skip
         ukf.update_all(inp.v[k], h_all, np.array([[r]]))
-        factor = adaptation.add(float(inp.t[k]), float(ukf.y[0]), float(ukf.S[0, 0]), pee)
+        factor = adaptation.add(float(inp.t[k]), float(ukf.x[ie]), float(ukf.P[ie, ie]),
+                                error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
         if factor is not None:  # e's variance and covariances rescaled with λ at once
             g = np.sqrt(factor)
             ukf.P[ie, :] *= g
             ukf.P[:, ie] *= g
+        if noise.bins is not None:
+            _hold_soc_floor(ukf, nominal, i_k, dinv, rtf,
+                            adaptation.lam * error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
         if not (np.all(np.isfinite(ukf.x)) and np.all(np.isfinite(ukf.P))):
             raise DataError(f"{source}: the filter's state is not finite after sample {k + 1} "
                             f"(t = {inp.t[k]:g} s): the model's voltage cannot follow this "
@@ -623,12 +665,15 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
                                                                              dinv, rtf)  # fmt: skip
             q += d.T @ d
         q[ib, ib] += bias_sd**2 * dt / BIAS_DRIFT_TIME_S
-        # e over the step: stationary at the next sample's σ; a larger σ there raised at once
-        # (φ² of the rise: var e' = φ² σ_now² + ... = σ_next²), a smaller one decays through φ
+        # e over the step: stationary at the next sample's σ; where the process holds less than
+        # σ_next² (a bin of larger error), lifted to it at once; a smaller one decays through φ
         sd_next = error_sd(min(k + 1, N - 1), float(ukf.x[0]))
-        rise = max(sd_next**2 - sd_e**2, 0.0) * np.exp(-2.0 * dt / tau_c_s)
-        q[ie, ie] += adaptation.lam * (sd_next**2 * (1.0 - np.exp(-2.0 * dt / tau_c_s)) + rise)
-        sd_e = sd_next
+        keep = np.exp(-2.0 * dt / tau_c_s)
+        drive = sd_next**2 * (1.0 - keep)
+        if noise.bins is not None:  # (issue 29's rule: σ constant, its arithmetic unchanged)
+            drive += max(sd_next**2 - (keep * var_e + drive), 0.0)
+            var_e = keep * var_e + drive
+        q[ie, ie] += adaptation.lam * drive
         ukf.Q = q
         try:
             ukf.predict(dt=dt, i_read=i_k, dinv=dinv, rtf=rtf)
