@@ -105,10 +105,9 @@ def child(samples: int, repeat: int) -> dict:
     params = inspect.signature(E.estimate_record).parameters
     variants = {"present": {}}
     if "noise" in params:
-        variants = {"training-residual, adapt off": {"noise": "training-residual", "adapt": False},
-                    "training-residual, adapt on": {"noise": "training-residual", "adapt": True},
-                    "expected-error, adapt off": {"noise": "expected-error", "adapt": False},
-                    "expected-error, adapt on": {"noise": "expected-error", "adapt": True}}  # fmt: skip
+        variants = {f"{rule}, adapt {'on' if on else 'off'}": {"noise": rule, "adapt": on}
+                    for rule in ("training-residual", "expected-error")
+                    for on in (False, True)}  # fmt: skip
     out = {}
     for name, kw in variants.items():
         best = np.inf

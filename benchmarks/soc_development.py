@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "unit"))
 
-import test_soc_filter as T  # noqa: E402
+import test_soc_filter as T
 
 RULES = {"expected-error, adapt": {}, "expected-error, no adapt": {"adapt": False},
          "training-residual, no adapt": {"noise": "training-residual", "adapt": False},
@@ -29,8 +29,10 @@ def main() -> None:
     model.expected_error = T.expected_error_of(model, held)
     frame, soc = T.measured(12, 9000)
     ee = model.expected_error
-    print(f"held-out error {ee['rms_mv']:.1f} mV RMS, 1/e lag {ee['correlation_time_s']:.0f} s; "
-          f"record {len(frame)} samples, {frame['time_s'].iloc[-1]:.0f} s")
+    print(
+        f"held-out error {ee['rms_mv']:.1f} mV RMS, 1/e lag {ee['correlation_time_s']:.0f} s; "
+        f"record {len(frame)} samples, {frame['time_s'].iloc[-1]:.0f} s"
+    )
     for name, kw in RULES.items():
         for start in T.STARTS:
             started = time.process_time()

@@ -103,8 +103,8 @@ class Model:
         ``reference_soc0``: the known start, for the errors; ``noise``: "expected-error" (the
         model's error on other profiles; a model without it runs the other rule, said in
         ``.warnings`` and ``.summary["noise"]["rule"]``) or "training-residual"; ``adapt``:
-        scale the error from the innovations (docs/soc-filter.md). A record that only rests is
-        read."""
+        widen the error from what the filter attributes to it (docs/soc-filter.md). A record
+        that only rests is read."""
         from . import estimate
         from .errors import UserError
 

@@ -31,8 +31,11 @@ Issue 40's rule (docs/soc-filter.md, written before its code) is the default
 (``noise="expected-error"``): e's sd is the model's error on other profiles by operating point,
 ``model.json``'s ``expected_error`` (:class:`ErrorBins`), its correlation time that block's
 ``correlation_time_s``, and the white noise the logger's alone (the held-out error already holds
-what the parameters' uncertainty does to the voltage); an innovation-based scale of e's variance
-(covariance matching, Mohamed & Schwarz 1999: :class:`Adaptation`) corrects it on the record
+what the parameters' uncertainty does to the voltage) plus, beside a step of the current, what
+the step moves the voltage by (a cycler's current channel may be a sample late:
+:func:`_edge_neighbours`); the SOC's sd is kept at least σ / (dV/dSOC) (:func:`_hold_soc_floor`:
+the model's error belongs to the operating point and is not averaged away); and a scale of e's
+variance from what the filter attributes to e (:class:`Adaptation`) widens it on the record
 itself. Where ``model.json`` has no ``expected_error``, or with ``noise="training-residual"``,
 issue 29's rule below runs (its sd constant, its correlation from the training residual):
 
@@ -488,13 +491,14 @@ def initial_state(model: Model, noise: Noise, soc0: float, i_range: float, i_sca
 
 
 class Adaptation:
-    """Covariance matching on the scale λ of e's variance (docs/soc-filter.md part 3; Mohamed &
-    Schwarz, J. Geodesy 73 (1999) 193-203: R̂ = Ĉν − H P⁻ Hᵀ from a window of innovations).
-    Over a batch of at least :data:`ADAPT_WINDOW_S` and :data:`ADAPT_MIN_SAMPLES` innovations
-    ν with predicted variances S, e's share of which is P⁻ee, the error variance the innovations
-    call for is mean ν² − mean (S − P⁻ee); λ moves by its ratio to mean P⁻ee, within
-    :data:`ADAPT_BOUNDS`. Batches start after :data:`CONVERGENCE_S` (the start's guess is in S
-    already; read as model error, it would slow a wrong start's correction)."""
+    """The scale λ of e's variance from what the filter attributes to e (docs/soc-filter.md, part
+    3 and its addendum): the variational-Bayes form of covariance matching (Särkkä & Nummenmaa,
+    IEEE TAC 54 (2009) 596-600: a variance is the expected squared error under the posterior).
+    Over a batch of at least :data:`ADAPT_WINDOW_S` and :data:`ADAPT_MIN_SAMPLES` samples,
+    λ = mean (ê² + Pee) / mean σ(k)², within :data:`ADAPT_BOUNDS` (it only widens). Batches
+    start after :data:`CONVERGENCE_S` (a wrong start's transient is not a model error).
+    Innovation matching (Mohamed & Schwarz 1999), the rule as first written, sat at its lower
+    bound on every development record: the SOC's floor puts σ² into the innovations' S."""
 
     def __init__(self, on: bool, t0: float):
         self.on, self.t0 = on, t0
@@ -529,7 +533,8 @@ class Adaptation:
     def summary(self) -> dict:
         out = {"adapt": self.on}
         if self.on:
-            out |= {"method": "covariance matching on e's variance (Mohamed & Schwarz 1999)",
+            out |= {"method": "variational-Bayes matching of e's variance (Särkkä & Nummenmaa "
+                              "2009)",
                     "window_s": ADAPT_WINDOW_S, "min_samples": ADAPT_MIN_SAMPLES,
                     "bounds": list(ADAPT_BOUNDS), "starts_after_s": CONVERGENCE_S,
                     "updates": self.updates, "final_scale": self.lam,
@@ -583,6 +588,44 @@ def _hold_soc_floor(ukf, nominal: Model, i_k, dinv, rtf, var_v: float) -> None:
         ukf.P[:, 0] *= g
 
 
+def _voltage_noise(nominal: Model, pert: Model | None, x, i_k, dinv, rtf, across) -> float:
+    """The white noise's variance at a sample: the logger's; the parameters' intervals moved
+    through the voltage (``pert``, issue 29's rule); beside a step of the current, the largest
+    square of what the model's voltage moves at the state with the current ``across`` it (the
+    step may fall a sample either way, docs/soc-filter.md's addendum)."""
+    r = LOGGER_NOISE_V**2
+    if pert is not None:
+        xb = np.repeat(x[None, :], pert.P.shape[0], axis=0)
+        dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
+        r += float(dv @ dv)
+    if across:
+        v_k = nominal.measurement(x[None, :], i_k, dinv, rtf)[0]
+        r += max((nominal.measurement(x[None, :], i, dinv, rtf)[0] - v_k) ** 2 for i in across)
+    return r
+
+
+@dataclass
+class _ErrorProcess:
+    """e's driving noise over a step: stationary at the next sample's σ; with ``lifts`` (σ by
+    operating point), where the process holds less than σ_next² (a bin of larger error) it is
+    lifted to it at once, a smaller one decays through φ. Without it (issue 29's rule, σ
+    constant) the arithmetic is issue 29's."""
+
+    sd: object  # (sample, SOC) → σ
+    tau_c_s: float
+    lifts: bool
+    var: float  # the variance the process holds now (before λ)
+
+    def drive(self, k: int, soc: float, dt: float) -> float:
+        sd_next = self.sd(k, soc)
+        keep = np.exp(-2.0 * dt / self.tau_c_s)
+        drive = sd_next**2 * (1.0 - keep)
+        if self.lifts:
+            drive += max(sd_next**2 - (keep * self.var + drive), 0.0)
+            self.var = keep * self.var + drive
+        return drive
+
+
 def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
     """The samples beside a step of the current read, each with its neighbours across the step:
     a cycler's current channel can lag (or lead) its voltage by a sample at an edge, so such a
@@ -597,8 +640,8 @@ def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
 def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float,
                source: str = "<record>", adapt: bool = True) -> Estimate:  # fmt: skip
     """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring);
-    refused (one line naming ``source``) where it breaks down. ``adapt``: the innovations scale
-    e's variance (:class:`Adaptation`)."""
+    refused (one line naming ``source``) where it breaks down. ``adapt``: what the filter
+    attributes to e widens e's variance (:class:`Adaptation`)."""
     points_cls, ukf_cls = _filterpy()
     model = model.extended()
     L, n = model.layout, model.layout.n
@@ -606,11 +649,11 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
     points = points_cls(n, alpha=SIGMA_SPREAD / np.sqrt(n), beta=2.0, kappa=0.0)
     error_sd, tau_c_s = _error_sd(noise, inp)
     adaptation = Adaptation(adapt, float(inp.t[0]) if inp.t.size else 0.0)
-    # the parameters' intervals in the voltage only where the error is the training residual:
-    # a held-out error holds what they do to the voltage already (docs/soc-filter.md part 1)
-    in_voltage = noise.bins is None
     bias_sd = BIAS_SD_OF_RANGE * max(i_range, 1e-9)
     pert = model.rows(noise.perturbed) if noise.perturbed.size else None
+    # the parameters' intervals in the voltage only where the error is the training residual:
+    # a held-out error holds what they do to the voltage already (docs/soc-filter.md part 1)
+    pert_v = pert if noise.bins is None else None
     nominal = model.rows(model.P[:1])
     ie, ib = L["verr"], L["bias"]
 
@@ -622,7 +665,7 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
     ukf = ukf_cls(dim_x=n, dim_z=1, dt=1.0, hx=None, fx=fx, points=points)
     N = inp.t.size
     sd_e = error_sd(0, soc0) if N else noise.residual_sd_v
-    var_e = sd_e**2  # the variance e's process holds now (before λ): a bin's rise lifts it to σ²
+    process = _ErrorProcess(error_sd, tau_c_s, noise.bins is not None, sd_e**2)
     edges = _edge_neighbours(inp.i) if noise.bins is not None else {}
     ukf.x, ukf.P = initial_state(model, noise, soc0, i_range, i_scale, sd_e)
     ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)
@@ -631,16 +674,8 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
     for k in range(N):
         i_k, dinv, rtf, dt = inp.i[k], inp.dinv[k], inp.rtf[k], inp.dt[k]
         h_all = nominal.measurement(ukf.sigmas_f, i_k, dinv, rtf)
-        r = LOGGER_NOISE_V**2
-        if pert is not None and in_voltage:  # the parameters' intervals moved through the voltage
-            xb = np.repeat(ukf.x[None, :], pert.P.shape[0], axis=0)
-            dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
-            r += float(dv @ dv)
-        if k in edges:  # the current's step may fall a sample either way (docs/soc-filter.md)
-            x1 = ukf.x[None, :]
-            v_k = nominal.measurement(x1, i_k, dinv, rtf)[0]
-            r += max((nominal.measurement(x1, inp.i[j], dinv, rtf)[0] - v_k) ** 2
-                     for j in edges[k])  # fmt: skip
+        r = _voltage_noise(nominal, pert_v, ukf.x, i_k, dinv, rtf,
+                           [inp.i[j] for j in edges.get(k, ())])  # fmt: skip
         ukf.update_all(inp.v[k], h_all, np.array([[r]]))
         factor = adaptation.add(float(inp.t[k]), float(ukf.x[ie]), float(ukf.P[ie, ie]),
                                 error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
@@ -665,15 +700,7 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
                                                                              dinv, rtf)  # fmt: skip
             q += d.T @ d
         q[ib, ib] += bias_sd**2 * dt / BIAS_DRIFT_TIME_S
-        # e over the step: stationary at the next sample's σ; where the process holds less than
-        # σ_next² (a bin of larger error), lifted to it at once; a smaller one decays through φ
-        sd_next = error_sd(min(k + 1, N - 1), float(ukf.x[0]))
-        keep = np.exp(-2.0 * dt / tau_c_s)
-        drive = sd_next**2 * (1.0 - keep)
-        if noise.bins is not None:  # (issue 29's rule: σ constant, its arithmetic unchanged)
-            drive += max(sd_next**2 - (keep * var_e + drive), 0.0)
-            var_e = keep * var_e + drive
-        q[ie, ie] += adaptation.lam * drive
+        q[ie, ie] += adaptation.lam * process.drive(min(k + 1, N - 1), float(ukf.x[0]), dt)
         ukf.Q = q
         try:
             ukf.predict(dt=dt, i_read=i_k, dinv=dinv, rtf=rtf)

@@ -15,13 +15,13 @@ each edge, a fast cycle before the slow one.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-from test_estimate import BASE, fitted, files, run_cli
+from test_estimate import BASE, files, fitted, run_cli
 
 from avoa_pipeline import estimate as E
 from avoa_pipeline import handover, records
@@ -58,7 +58,8 @@ def profile(seed: int, slow_s: int) -> pd.DataFrame:
                            np.zeros(600)])  # fmt: skip
     parts = []
     while sum(p.size for p in parts) < slow_s:
-        level = rng.choice([0.0, -0.5 * c, 0.2 * c, 0.5 * c, 1.0 * c], p=[0.2, 0.15, 0.3, 0.2, 0.15])
+        levels = [0.0, -0.5 * c, 0.2 * c, 0.5 * c, 1.0 * c]
+        level = rng.choice(levels, p=[0.2, 0.15, 0.3, 0.2, 0.15])
         parts.append(np.full(int(rng.integers(10, 61)), level))
     cur = np.concatenate([fast, *parts])
     t = np.arange(cur.size, dtype=float)
@@ -130,7 +131,8 @@ def test_the_development_records_are_logged_as_cyclers_log(development):
     _, frame, _ = development
     t, i = frame["time_s"].to_numpy(), frame["current_a"].to_numpy()
     dt = np.diff(t)
-    assert dt.max() == REST_LOG_S and dt.min() == 1.0  # rests every 60 s, load every second
+    assert dt.max() == REST_LOG_S  # rests every 60 s
+    assert dt.min() == 1.0  # load every second
     # the fast cycle's first 1C sample is logged a sample after the first 1C second
     c = BASE["capacity_ah"]
     assert t[np.flatnonzero(i == c)[0]] == 121.0
@@ -148,7 +150,8 @@ def test_a_bin_expected_error_does_not_report_takes_its_largest_rms():
     assert bins.sd(1, 0, 0.1) == bins.sd(2, 1, 0.9) == bins.sd(0, 0, 0.9) == pytest.approx(30e-3)
     assert bins.filled == (3 - 1) + (12 - 1)  # the rest's bins and the load's, less one each
     mode, cur = bins.points(np.array([0.0, 2.0, 0.5, -2.0, -0.5]))
-    assert mode.tolist() == [0, 1, 1, 2, 2] and cur.tolist() == [0, 1, 0, 1, 0]
+    assert mode.tolist() == [0, 1, 1, 2, 2]
+    assert cur.tolist() == [0, 1, 0, 1, 0]
 
 
 @pytest.mark.parametrize(("ratio", "lam"), [(1.0, 1.0), (3.0, 9.0), (30.0, 100.0), (0.1, 1.0)])

@@ -55,8 +55,8 @@ def arguments(e) -> None:
         "--no-adapt",
         dest="adapt",
         action="store_false",
-        help="do not scale the voltage error's variance from the innovations (covariance "
-        "matching, docs/soc-filter.md)",
+        help="do not scale the voltage error's variance from what the filter attributes to it "
+        "(docs/soc-filter.md)",
     )
 
 
