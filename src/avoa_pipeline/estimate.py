@@ -748,6 +748,7 @@ def score(t, soc, soc_sd, ref, window_s: float = CONVERGENCE_S) -> dict:
         "max_error": float(np.max(np.abs(err))),
         "time_within_2pct_s": t_within,
         "coverage_2sd": float(np.mean(np.abs(e) <= 2.0 * (soc_sd[late] if late.any() else soc_sd))),
+        "error_at_end": float(err[-1]),  # issue 40 part 4: where a BMS leaves the cell
     }
 
 
