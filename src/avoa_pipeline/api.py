@@ -94,12 +94,17 @@ class Model:
         return prediction_frame(rec.frame, v, temp_c, where)
 
     def estimate(self, record, soc0: float | None = None, bias_a: float = 0.0,
-                 reference_soc0: float | None = None):  # fmt: skip
+                 reference_soc0: float | None = None, noise: str = "expected-error",
+                 adapt: bool = True):  # fmt: skip
         """The SOC filter on a record (``estimate.estimate_record``): its ``Result``, with
         ``.frame`` (time_s, soc, soc_sd, model_v, innovation_v, ...) and ``.summary`` (what
         ``estimate`` writes beside its CSV). ``soc0``: the start's guess (default: the library's
         rule on the record's opening); ``bias_a``: added to the current the filter reads;
-        ``reference_soc0``: the known start, for the errors. A record that only rests is read."""
+        ``reference_soc0``: the known start, for the errors; ``noise``: "expected-error" (the
+        model's error on other profiles; a model without it runs the other rule, said in
+        ``.warnings`` and ``.summary["noise"]["rule"]``) or "training-residual"; ``adapt``:
+        widen the error from what the filter attributes to it (docs/soc-filter.md). A record
+        that only rests is read."""
         from . import estimate
         from .errors import UserError
 
@@ -109,7 +114,8 @@ class Model:
             raise UserError(f"bias_a {bias_a:g} A: beyond the currents of {rec.source} (|I| at "
                             f"most {limit:.4g} A)")  # fmt: skip
         return estimate.estimate_record(self.fitted, rec.frame, soc0, bias_a, reference_soc0,
-                                        source=self.source)  # fmt: skip
+                                        source=self.source, noise=noise,
+                                        adapt=adapt)  # fmt: skip
 
     def export(self, to: str = "pybamm", *, record=None, soc0: float | None = None,
                drop_unsupported: bool = False, soc=None, temperature_c=None,

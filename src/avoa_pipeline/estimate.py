@@ -26,7 +26,18 @@ EKF would need the Jacobian of every element written out and kept in step with e
 the sigma points need only the equations. filterpy is a dependency for this module alone
 (environment.txt, pyproject.toml).
 
-The noise, from the model file alone (never tuned per record; each constant below says why):
+The noise, from the model file alone (never tuned per record; each constant below says why).
+Issue 40's rule (docs/soc-filter.md, written before its code) is the default
+(``noise="expected-error"``): e's sd is the model's error on other profiles by operating point,
+``model.json``'s ``expected_error`` (:class:`ErrorBins`), its correlation time that block's
+``correlation_time_s``, and the white noise the logger's alone (the held-out error already holds
+what the parameters' uncertainty does to the voltage) plus, beside a step of the current, what
+the step moves the voltage by (a cycler's current channel may be a sample late:
+:func:`_edge_neighbours`); the SOC's sd is kept at least σ / (dV/dSOC) (:func:`_hold_soc_floor`:
+the model's error belongs to the operating point and is not averaged away); and a scale of e's
+variance from what the filter attributes to e (:class:`Adaptation`) widens it on the record
+itself. Where ``model.json`` has no ``expected_error``, or with ``noise="training-residual"``,
+issue 29's rule below runs (its sd constant, its correlation from the training residual):
 
 - **The voltage error e** (a state, not white noise): the model's training residual, whose sd is
   ``intervals.residual_sd_mv`` and whose integrated autocorrelation time is the training
@@ -65,12 +76,13 @@ counts with the record's own current.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
-from .errors import DataError
+from .errors import DataError, UserError
+from .handover import SOC_EDGES
 from .model import ecm, elements
 from .model.ecm import IDX, N_KNOTS
 from .model.elements.element import FARADAY, GAS_R
@@ -111,6 +123,24 @@ RANGE_SD = 2.0
 its own sd is one the cell cannot have (:func:`outside_range`): ±2 sd is the band whose coverage
 the filter is scored on (``coverage_2sd``); a SOC just past an end within it is the filter's
 uncertainty, not a contradiction."""
+
+NOISE_RULES = ("expected-error", "training-residual")
+"""``--noise``: the voltage error from ``expected_error`` (issue 40, the default) or from the
+training residual (issue 29); docs/soc-filter.md."""
+NO_EXPECTED_ERROR = "training-residual (model.json has no expected_error)"
+"""``noise.rule`` when ``expected-error`` was asked of a model.json written before issue 37."""
+
+ADAPT_WINDOW_S = 300.0
+"""The adaptation's batch of innovations (docs/soc-filter.md part 3): the issue's 5-min window,
+so a start's transient falls in one batch, not in the record's whole history."""
+ADAPT_MIN_SAMPLES = 50
+"""... and at least 50 innovations a batch: the relative sd of a mean of n independent χ²₁ is
+√(2/n), 20 % at 50 (a rest logged every 60 s waits for 50 samples rather than adapting on 5)."""
+ADAPT_BOUNDS = (1.0, 100.0)
+"""The scale λ of e's variance: its sd between half and ten times the expected error. Half:
+``expected_error``'s bins carry up to 25 % relative error (``handover.MIN_BIN_SAMPLES``) and on
+the OCV's plateau a small innovation does not show the SOC is right. Ten times: a record the
+model does not describe (``outside_range``'s business), said by the share of time there."""
 
 CONVERGENCE_S = 300.0
 """The issue's convergence window: errors are scored after the first 5 min."""
@@ -261,6 +291,55 @@ def filter_model(fitted, source: str = "model.json") -> Model:
                  fitted.config.table)  # fmt: skip
 
 
+_MODES = {"rest": 0, "discharge": 1, "charge": 2}
+_CURRENTS = {"low": 0, "high": 1}
+
+
+@dataclass(frozen=True)
+class ErrorBins:
+    """``model.json``'s ``expected_error`` as the filter reads it (docs/soc-filter.md part 1):
+    the voltage error's sd by operating point, a bin it does not report given its largest RMS."""
+
+    sd_v: np.ndarray  # (mode rest/discharge/charge, current low/high, SOC below/mid/above)
+    median_a: float | None  # load_current_median_a: low below it, high at or above
+    tau_c_s: float  # correlation_time_s: an exponential autocorrelation's 1/e lag
+    lower_bound: bool  # correlation_time_lower_bound
+    filled: int  # bins not reported (fewer than MIN_BIN_SAMPLES held-out samples)
+
+    @classmethod
+    def of(cls, ee: dict) -> ErrorBins:
+        lo, hi = SOC_EDGES
+        socs = {f"below {lo:g}": 0, f"{lo:g}-{hi:g}": 1, f"above {hi:g}": 2}  # handover's names
+        given = ee["by_operating_point"]
+        # a point the held-out data barely visited: no evidence the model is better there than
+        # at its worst measured one
+        worst = 1e-3 * max([float(ee["rms_mv"])] + [float(b["rms_mv"]) for b in given])
+        sd = np.full((3, 2, 3), np.nan)
+        for b in given:
+            cur = [0, 1] if b["current"] == "-" else [_CURRENTS[b["current"]]]  # a rest has one
+            sd[_MODES[b["mode"]], cur, socs[b["soc"]]] = 1e-3 * float(b["rms_mv"])
+        filled = int(np.isnan(sd[0, 0]).sum() + np.isnan(sd[1:]).sum())
+        med = ee.get("load_current_median_a")
+        return cls(np.where(np.isnan(sd), worst, sd), None if med is None else float(med),
+                   float(ee["correlation_time_s"]), bool(ee["correlation_time_lower_bound"]),
+                   filled)  # fmt: skip
+
+    def points(self, i_read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per sample, the mode (0 rest, 1 discharge, 2 charge: ``records.direction``, the one
+        rest line, on the record's current scale) and the current (0 low, 1 high)."""
+        from . import records
+
+        d = records.direction(i_read, max(records.current_scale(np.abs(i_read)), 1e-6))
+        mode = np.where(d > 0, 1, np.where(d < 0, 2, 0))
+        if self.median_a is None:  # no load in the held-out data: every load bin is filled
+            return mode, np.zeros(mode.size, dtype=int)
+        return mode, (np.abs(i_read) >= self.median_a).astype(int)
+
+    def sd(self, mode: int, current: int, soc: float) -> float:
+        band = 0 if soc < SOC_EDGES[0] else (2 if soc > SOC_EDGES[1] else 1)  # handover's
+        return float(self.sd_v[mode, current, band])
+
+
 @dataclass(frozen=True)
 class Noise:
     """The filter's noise, from the model file (module docstring)."""
@@ -269,17 +348,42 @@ class Noise:
     tau_int_samples: float  # its integrated autocorrelation time, in training samples
     perturbed: np.ndarray  # (p, NP): one row per parameter with an interval, moved by its sd
     parameters: tuple[str, ...]
+    rule: str = "training-residual"  # which rule sets e (NOISE_RULES, or NO_EXPECTED_ERROR)
+    bins: ErrorBins | None = None  # with the rule "expected-error"
 
     def summary(self) -> dict:
-        return {"residual_sd_mv": 1e3 * self.residual_sd_v,
-                "residual_correlation_samples": self.tau_int_samples,
-                "logger_noise_mv": 1e3 * LOGGER_NOISE_V, "soc0_sd": SOC0_SD,
-                "bias_sd_of_range": BIAS_SD_OF_RANGE, "bias_drift_time_s": BIAS_DRIFT_TIME_S,
-                "parameters_propagated": list(self.parameters)}  # fmt: skip
+        out = {"rule": self.rule, "residual_sd_mv": 1e3 * self.residual_sd_v,
+               "residual_correlation_samples": self.tau_int_samples,
+               "logger_noise_mv": 1e3 * LOGGER_NOISE_V, "soc0_sd": SOC0_SD,
+               "bias_sd_of_range": BIAS_SD_OF_RANGE, "bias_drift_time_s": BIAS_DRIFT_TIME_S,
+               "parameters_propagated": list(self.parameters)}  # fmt: skip
+        if self.bins is not None:
+            out |= {"parameters_in_voltage": False,
+                    "expected_error_correlation_time_s": self.bins.tau_c_s,
+                    "expected_error_correlation_lower_bound": self.bins.lower_bound,
+                    "expected_error_bins_filled": self.bins.filled}  # fmt: skip
+        return out
+
+    def warning(self, source: str) -> str | None:
+        """The one line for a model that lacks what the rule asked (docs/soc-filter.md)."""
+        if self.rule != NO_EXPECTED_ERROR:
+            return None
+        return (f"{source}: no expected_error (diagnose writes it since issue 37): the filter's "
+                "voltage error is the training residual (issue 29's rule)")  # fmt: skip
 
 
-def noise_of(fitted, source: str = "model.json") -> Noise:
-    """The noise rule's inputs from a model's ``intervals`` (refused without them)."""
+def noise_of(fitted, source: str = "model.json", rule: str = "training-residual") -> Noise:
+    """The noise rule's inputs from a model's ``intervals`` (refused without them) and, with
+    ``rule="expected-error"``, its ``expected_error`` (issue 29's rule where it has none)."""
+    base = _residual_noise(fitted, source)
+    if rule == "training-residual":
+        return base
+    if fitted.expected_error is None:
+        return replace(base, rule=NO_EXPECTED_ERROR)
+    return replace(base, rule="expected-error", bins=ErrorBins.of(fitted.expected_error))
+
+
+def _residual_noise(fitted, source: str) -> Noise:
     iv = fitted.intervals
     if not iv or "residual_sd_mv" not in iv or "effective_samples" not in iv:
         raise DataError(f"{source}: intervals: missing; estimate sets its noise from the "
@@ -368,9 +472,10 @@ def open_loop(model: Model, inp: Inputs, soc0: float) -> np.ndarray:
     return v
 
 
-def initial_state(model: Model, noise: Noise, soc0: float, i_range: float, i_scale: float):
+def initial_state(model: Model, noise: Noise, soc0: float, i_range: float, i_scale: float,
+                  verr_sd: float | None = None):  # fmt: skip
     """The start's mean and covariance (module docstring: the guess; uniform ranges; e
-    stationary; b at 0)."""
+    stationary, at ``verr_sd``, default the training residual's; b at 0)."""
     L = model.layout
     p = dict(zip(ecm.PHYS, model.P[0], strict=True))
     x0 = np.zeros(L.n)
@@ -381,8 +486,61 @@ def initial_state(model: Model, noise: Noise, soc0: float, i_range: float, i_sca
     for name in L.names[1:-2]:  # uniform over ±reach
         sd[L[name]] = reach[name](p, i_scale) / np.sqrt(3.0)
     sd[L["bias"]] = BIAS_SD_OF_RANGE * i_range
-    sd[L["verr"]] = noise.residual_sd_v
+    sd[L["verr"]] = noise.residual_sd_v if verr_sd is None else verr_sd
     return x0, np.diag(np.maximum(sd, 1e-9) ** 2)
+
+
+class Adaptation:
+    """The scale λ of e's variance from what the filter attributes to e (docs/soc-filter.md, part
+    3 and its addendum): the variational-Bayes form of covariance matching (Särkkä & Nummenmaa,
+    IEEE TAC 54 (2009) 596-600: a variance is the expected squared error under the posterior).
+    Over a batch of at least :data:`ADAPT_WINDOW_S` and :data:`ADAPT_MIN_SAMPLES` samples,
+    λ = mean (ê² + Pee) / mean σ(k)², within :data:`ADAPT_BOUNDS` (it only widens). Batches
+    start after :data:`CONVERGENCE_S` (a wrong start's transient is not a model error).
+    Innovation matching (Mohamed & Schwarz 1999), the rule as first written, sat at its lower
+    bound on every development record: the SOC's floor puts σ² into the innovations' S."""
+
+    def __init__(self, on: bool, t0: float):
+        self.on, self.t0 = on, t0
+        self.lam, self.lam_max, self.updates = 1.0, 1.0, 0
+        self.samples, self.at_upper = 0, 0
+        self._reset(None)
+
+    def _reset(self, t):
+        self.start, self.n, self.nu2, self.rest, self.pee = t, 0, 0.0, 0.0, 0.0
+
+    def add(self, t: float, e: float, pee: float, var: float) -> float | None:
+        """One sample's updated e, its variance and the rule's σ(k)² there; at a batch's end,
+        the factor λ moved by (else None)."""
+        if not self.on or t - self.t0 < CONVERGENCE_S:
+            return None
+        self.samples += 1
+        self.at_upper += self.lam >= ADAPT_BOUNDS[1]
+        if self.start is None:
+            self.start = t
+        self.n += 1
+        self.nu2 += e * e + pee  # E[e²] given the record so far
+        self.pee += var
+        if self.n < ADAPT_MIN_SAMPLES or t - self.start < ADAPT_WINDOW_S:
+            return None
+        new = float(np.clip(self.nu2 / self.pee, *ADAPT_BOUNDS))
+        factor, self.lam = new / self.lam, new
+        self.lam_max = max(self.lam_max, new)
+        self.updates += 1
+        self._reset(None)
+        return factor
+
+    def summary(self) -> dict:
+        out = {"adapt": self.on}
+        if self.on:
+            out |= {"method": "variational-Bayes matching of e's variance (Särkkä & Nummenmaa "
+                              "2009)",
+                    "window_s": ADAPT_WINDOW_S, "min_samples": ADAPT_MIN_SAMPLES,
+                    "bounds": list(ADAPT_BOUNDS), "starts_after_s": CONVERGENCE_S,
+                    "updates": self.updates, "final_scale": self.lam,
+                    "largest_scale": self.lam_max,
+                    "share_at_upper_bound": self.at_upper / max(self.samples, 1)}  # fmt: skip
+        return out
 
 
 @dataclass(frozen=True)
@@ -394,20 +552,108 @@ class Estimate:
     bias_a: np.ndarray
     bias_sd: np.ndarray
     wall_s: float
+    adaptation: dict | None = None  # Adaptation.summary()
+
+
+def _error_sd(noise: Noise, inp: Inputs):
+    """e's sd at sample k given the SOC (the rule's σ(k)) and e's correlation time (s)."""
+    bins = noise.bins
+    if bins is None:  # issue 29: the training residual, its correlation from the training samples
+        sd = noise.residual_sd_v
+        return (lambda _k, _soc: sd), 0.5 * noise.tau_int_samples * float(np.median(inp.dt))
+    mode, cur = bins.points(inp.i)
+    # a held-out error already below 1/e at lag 1 is white at the training step: φ = 0 then
+    return (lambda k, soc: bins.sd(mode[k], cur[k], soc)), max(bins.tau_c_s, 1e-9)
+
+
+SOC_FLOOR_SPAN = 0.01
+"""The SOC step over which the filter reads the voltage's slope for the SOC's floor (one point of
+SOC either way: the OCV table's 0.1 % grid smoothed, the knees still seen)."""
+
+
+def _hold_soc_floor(ukf, nominal: Model, i_k, dinv, rtf, var_v: float) -> None:
+    """The SOC's variance kept at least var_v / (dV/dSOC)² (docs/soc-filter.md, addendum): the
+    model's error at an operating point returns whenever the cell does, so it is not averaged
+    away over many correlation times; never above the cold start's SOC0_SD²."""
+    x = np.repeat(ukf.x[None, :], 2, axis=0)
+    x[0, 0] += SOC_FLOOR_SPAN
+    x[1, 0] -= SOC_FLOOR_SPAN
+    v = nominal.measurement(x, i_k, dinv, rtf, with_error=False)
+    slope = abs(v[0] - v[1]) / (2.0 * SOC_FLOOR_SPAN)
+    floor = SOC0_SD**2 if slope * SOC0_SD <= np.sqrt(var_v) else var_v / slope**2
+    p00 = ukf.P[0, 0]
+    if 0.0 < p00 < floor:
+        g = np.sqrt(floor / p00)
+        ukf.P[0, :] *= g
+        ukf.P[:, 0] *= g
+
+
+def _voltage_noise(nominal: Model, pert: Model | None, x, i_k, dinv, rtf, across) -> float:
+    """The white noise's variance at a sample: the logger's; the parameters' intervals moved
+    through the voltage (``pert``, issue 29's rule); beside a step of the current, the largest
+    square of what the model's voltage moves at the state with the current ``across`` it (the
+    step may fall a sample either way, docs/soc-filter.md's addendum)."""
+    r = LOGGER_NOISE_V**2
+    if pert is not None:
+        xb = np.repeat(x[None, :], pert.P.shape[0], axis=0)
+        dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
+        r += float(dv @ dv)
+    if across:
+        v_k = nominal.measurement(x[None, :], i_k, dinv, rtf)[0]
+        r += max((nominal.measurement(x[None, :], i, dinv, rtf)[0] - v_k) ** 2 for i in across)
+    return r
+
+
+@dataclass
+class _ErrorProcess:
+    """e's driving noise over a step: stationary at the next sample's σ; with ``lifts`` (σ by
+    operating point), where the process holds less than σ_next² (a bin of larger error) it is
+    lifted to it at once, a smaller one decays through φ. Without it (issue 29's rule, σ
+    constant) the arithmetic is issue 29's."""
+
+    sd: object  # (sample, SOC) → σ
+    tau_c_s: float
+    lifts: bool
+    var: float  # the variance the process holds now (before λ)
+
+    def drive(self, k: int, soc: float, dt: float) -> float:
+        sd_next = self.sd(k, soc)
+        keep = np.exp(-2.0 * dt / self.tau_c_s)
+        drive = sd_next**2 * (1.0 - keep)
+        if self.lifts:
+            drive += max(sd_next**2 - (keep * self.var + drive), 0.0)
+            self.var = keep * self.var + drive
+        return drive
+
+
+def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
+    """The samples beside a step of the current read, each with its neighbours across the step:
+    a cycler's current channel can lag (or lead) its voltage by a sample at an edge, so such a
+    sample's voltage may belong to either current."""
+    out: dict[int, list[int]] = {}
+    for k in np.flatnonzero(np.diff(i_read) != 0.0):
+        out.setdefault(int(k), []).append(int(k) + 1)
+        out.setdefault(int(k) + 1, []).append(int(k))
+    return out
 
 
 def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float,
-               source: str = "<record>") -> Estimate:  # fmt: skip
+               source: str = "<record>", adapt: bool = True) -> Estimate:  # fmt: skip
     """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring);
-    refused (one line naming ``source``) where it breaks down."""
+    refused (one line naming ``source``) where it breaks down. ``adapt``: what the filter
+    attributes to e widens e's variance (:class:`Adaptation`)."""
     points_cls, ukf_cls = _filterpy()
     model = model.extended()
     L, n = model.layout, model.layout.n
     i_range = float(np.max(np.abs(inp.i))) if inp.i.size else 0.0
     points = points_cls(n, alpha=SIGMA_SPREAD / np.sqrt(n), beta=2.0, kappa=0.0)
-    tau_c_s = 0.5 * noise.tau_int_samples * float(np.median(inp.dt))
+    error_sd, tau_c_s = _error_sd(noise, inp)
+    adaptation = Adaptation(adapt, float(inp.t[0]) if inp.t.size else 0.0)
     bias_sd = BIAS_SD_OF_RANGE * max(i_range, 1e-9)
     pert = model.rows(noise.perturbed) if noise.perturbed.size else None
+    # the parameters' intervals in the voltage only where the error is the training residual:
+    # a held-out error holds what they do to the voltage already (docs/soc-filter.md part 1)
+    pert_v = pert if noise.bins is None else None
     nominal = model.rows(model.P[:1])
     ie, ib = L["verr"], L["bias"]
 
@@ -417,20 +663,29 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
         return out
 
     ukf = ukf_cls(dim_x=n, dim_z=1, dt=1.0, hx=None, fx=fx, points=points)
-    ukf.x, ukf.P = initial_state(model, noise, soc0, i_range, i_scale)
-    ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)
     N = inp.t.size
+    sd_e = error_sd(0, soc0) if N else noise.residual_sd_v
+    process = _ErrorProcess(error_sd, tau_c_s, noise.bins is not None, sd_e**2)
+    edges = _edge_neighbours(inp.i) if noise.bins is not None else {}
+    ukf.x, ukf.P = initial_state(model, noise, soc0, i_range, i_scale, sd_e)
+    ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)
     soc, sd, mv, inn, bias, bsd = (np.empty(N) for _ in range(6))
     started = time.perf_counter()
     for k in range(N):
         i_k, dinv, rtf, dt = inp.i[k], inp.dinv[k], inp.rtf[k], inp.dt[k]
         h_all = nominal.measurement(ukf.sigmas_f, i_k, dinv, rtf)
-        r = LOGGER_NOISE_V**2
-        if pert is not None:  # the parameters' intervals moved through the voltage
-            xb = np.repeat(ukf.x[None, :], pert.P.shape[0], axis=0)
-            dv = pert.measurement(xb, i_k, dinv, rtf) - nominal.measurement(xb[:1], i_k, dinv, rtf)
-            r += float(dv @ dv)
+        r = _voltage_noise(nominal, pert_v, ukf.x, i_k, dinv, rtf,
+                           [inp.i[j] for j in edges.get(k, ())])  # fmt: skip
         ukf.update_all(inp.v[k], h_all, np.array([[r]]))
+        factor = adaptation.add(float(inp.t[k]), float(ukf.x[ie]), float(ukf.P[ie, ie]),
+                                error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
+        if factor is not None:  # e's variance and covariances rescaled with λ at once
+            g = np.sqrt(factor)
+            ukf.P[ie, :] *= g
+            ukf.P[:, ie] *= g
+        if noise.bins is not None:
+            _hold_soc_floor(ukf, nominal, i_k, dinv, rtf,
+                            adaptation.lam * error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
         if not (np.all(np.isfinite(ukf.x)) and np.all(np.isfinite(ukf.P))):
             raise DataError(f"{source}: the filter's state is not finite after sample {k + 1} "
                             f"(t = {inp.t[k]:g} s): the model's voltage cannot follow this "
@@ -445,7 +700,7 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
                                                                              dinv, rtf)  # fmt: skip
             q += d.T @ d
         q[ib, ib] += bias_sd**2 * dt / BIAS_DRIFT_TIME_S
-        q[ie, ie] += noise.residual_sd_v**2 * (1.0 - np.exp(-2.0 * dt / tau_c_s))
+        q[ie, ie] += adaptation.lam * process.drive(min(k + 1, N - 1), float(ukf.x[0]), dt)
         ukf.Q = q
         try:
             ukf.predict(dt=dt, i_read=i_k, dinv=dinv, rtf=rtf)
@@ -454,7 +709,8 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
                             f"at sample {k + 1} (t = {inp.t[k]:g} s): the model's voltage "
                             "cannot follow this record") from None  # fmt: skip
         ukf.P = 0.5 * (ukf.P + ukf.P.T)  # rounding must not cost the Cholesky factor its symmetry
-    return Estimate(soc, sd, mv, inn, bias, bsd, time.perf_counter() - started)
+    return Estimate(soc, sd, mv, inn, bias, bsd, time.perf_counter() - started,
+                    adaptation.summary())  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------------
@@ -492,6 +748,7 @@ def score(t, soc, soc_sd, ref, window_s: float = CONVERGENCE_S) -> dict:
         "max_error": float(np.max(np.abs(err))),
         "time_within_2pct_s": t_within,
         "coverage_2sd": float(np.mean(np.abs(e) <= 2.0 * (soc_sd[late] if late.any() else soc_sd))),
+        "error_at_end": float(err[-1]),  # issue 40 part 4: where a BMS leaves the cell
     }
 
 
@@ -499,27 +756,35 @@ def score(t, soc, soc_sd, ref, window_s: float = CONVERGENCE_S) -> dict:
 class Result:
     frame: pd.DataFrame  # one row per sample: time_s, soc, soc_sd, model_v, innovation_v[, ...]
     summary: dict
+    warnings: tuple[str, ...] = ()  # one line each (the command prints them)
 
 
 def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
                     bias_a: float = 0.0, reference_soc0: float | None = None,
-                    source: str = "model.json") -> Result:  # fmt: skip
+                    source: str = "model.json", noise: str = "expected-error",
+                    adapt: bool = True) -> Result:  # fmt: skip
     """The filter on one record of the cell (``soc0``: the start's guess, default the library's
     rule on the record's opening; ``bias_a``: added to the current the filter reads;
-    ``reference_soc0``: the known start, for the coulomb-counted reference and the errors)."""
+    ``reference_soc0``: the known start, for the coulomb-counted reference and the errors;
+    ``noise``: which rule sets the voltage error, :data:`NOISE_RULES`; ``adapt``: the
+    innovation-based scale of it, docs/soc-filter.md). A model without ``expected_error`` runs
+    the training-residual rule and says so (``Result.warnings``, ``noise.rule``)."""
+    if noise not in NOISE_RULES:
+        raise UserError(f"noise must be one of {', '.join(NOISE_RULES)}, got {noise!r}")
     model = filter_model(fitted, source)
-    noise = noise_of(fitted, source)
+    rule = noise_of(fitted, source, noise)
     rec = fitted.record(rec_frame)
     guess = fitted.initial_soc(rec) if soc0 is None else float(soc0)
     i_scale = fitted.current_scale_a or float(np.max(np.abs(rec.i)))
-    est = run_filter(model, noise, Inputs.of(rec, bias_a), guess, i_scale, rec.source)
+    est = run_filter(model, rule, Inputs.of(rec, bias_a), guess, i_scale, rec.source,
+                     bool(adapt))  # fmt: skip
     frame = pd.DataFrame({"time_s": rec.t, "soc": est.soc, "soc_sd": est.soc_sd,
                           "model_v": est.model_v, "innovation_v": est.innovation_v})  # fmt: skip
     duration = float(rec.t[-1] - rec.t[0]) if rec.n > 1 else 0.0
     summary = {
         "samples": int(rec.n), "duration_s": duration, "soc0_guess": guess,
         "current_bias_a": float(bias_a), "capacity_ah": float(model.P[0, ecm.Q]),
-        "states": list(model.layout.names), "noise": noise.summary(),
+        "states": list(model.layout.names), "noise": rule.summary() | est.adaptation,
         "wall_s": est.wall_s, "times_real_time": duration / max(est.wall_s, 1e-9),
         "final_soc": float(est.soc[-1]), "final_soc_sd": float(est.soc_sd[-1]),
         "final_bias_a": float(est.bias_a[-1]), "final_bias_sd_a": float(est.bias_sd[-1]),
@@ -538,7 +803,8 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
         summary["filter"] = score(rec.t, est.soc, est.soc_sd, ref)
         summary["coulomb_counting"] = score(rec.t, counted, np.zeros(rec.n), ref)
         summary["coulomb_counting"].pop("coverage_2sd")
-    return Result(frame, summary)
+    said = rule.warning(source)
+    return Result(frame, summary, () if said is None else (said,))
 
 
 def soc_range(fitted) -> tuple[float, float]:
@@ -582,6 +848,4 @@ def bias_limit_a(fitted, current_a: np.ndarray) -> float:
 
 
 def replace_current(rec: ecm.Record, i: np.ndarray) -> ecm.Record:
-    from dataclasses import replace
-
     return replace(rec, i=np.ascontiguousarray(i, dtype=float))

@@ -43,6 +43,21 @@ def arguments(e) -> None:
         help="the known start: adds soc_reference (coulomb counting from S with the record's "
         "current) and soc_error, and scores the filter against it",
     )
+    e.add_argument(
+        "--noise",
+        choices=("expected-error", "training-residual"),  # estimate.NOISE_RULES
+        default="expected-error",
+        help="the model's voltage error: model.json's expected_error on other profiles, by "
+        "operating point (default; a model without it runs training-residual and says so), or "
+        "its training residual (issue 29's rule); docs/soc-filter.md",
+    )
+    e.add_argument(
+        "--no-adapt",
+        dest="adapt",
+        action="store_false",
+        help="do not scale the voltage error's variance from what the filter attributes to it "
+        "(docs/soc-filter.md)",
+    )
 
 
 def _check_options(args) -> None:
@@ -58,10 +73,12 @@ def _check_options(args) -> None:
         raise UserError(f"--current-bias-a must be finite, got {args.current_bias_a}")
 
 
-def _warn(args, model, rec, summary) -> None:
+def _warn(args, model, rec, result) -> None:
     from .. import diagnosis, inputs
 
+    summary = result.summary
     inputs.warn(rec.warnings)
+    inputs.warn(list(result.warnings))
     inputs.warn(diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals))
     out_of = summary["outside_range"]
     if out_of is not None:
@@ -98,13 +115,14 @@ def run_estimate(args) -> None:
                         f"{args.data} (|I| at most {limit:.4g} A); a sensor's offset is a "
                         "fraction of the range it reads")  # fmt: skip
     result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
-                                      source=args.model)  # fmt: skip
+                                      source=args.model, noise=args.noise,
+                                      adapt=args.adapt)  # fmt: skip
     summary = {"model": str(args.model), "record": str(args.data), **result.summary}
     with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
         result.frame.to_csv(csv_tmp, index=False)
         js_tmp.write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
         estimate_figures.render(result.frame, summary, png_tmp, title=str(args.data))
-    _warn(args, model, rec, summary)
+    _warn(args, model, rec, result)
     line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
             + (" (the record only rests: the SOC of its OCV)" if summary["rest_only"] else "")
             + f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip

@@ -41,8 +41,10 @@ def render(frame: pd.DataFrame, summary: dict, path, title: str = "") -> None:
         bottom.set_ylabel("SOC error")
         s = summary["filter"]
         top.set_title(f"{title} RMSE after 5 min {100 * s['rmse_after_window']:.2f} %, max "
-                      f"{100 * s['max_error_after_window']:.2f} %, ±2σ coverage "
-                      f"{100 * s['coverage_2sd']:.0f} %", fontsize=9)  # fmt: skip
+                      f"{100 * s['max_error_after_window']:.2f} %, at the end "
+                      f"{100 * s['error_at_end']:+.2f} %, ±2σ coverage "
+                      f"{100 * s['coverage_2sd']:.0f} %; noise: {summary['noise']['rule']}",
+                      fontsize=9)  # fmt: skip
     else:
         bottom.plot(th, 1e3 * f["innovation_v"].to_numpy(), color="C2", lw=0.6)
         bottom.set_ylabel("innovation (mV)")

@@ -60,6 +60,7 @@ def cycle_rows(model: FittedModel, frame: pd.DataFrame, temperature: str, cycle:
             "model": model.config.name, "starts_at_rest": ecm.starts_at_rest(rec),
             "soc0_true": soc0, "soc0_guess": guess, "current_bias_a": bias,
             **f, **{f"cc_{k}": v for k, v in cc.items()},
+            "noise_rule": s["noise"]["rule"], "adapt": s["noise"]["adapt"],
             "innovation_rms_mv": s["innovation_rms_mv"], "duration_s": s["duration_s"],
             "wall_s": s["wall_s"], "times_real_time": s["times_real_time"],
         })  # fmt: skip

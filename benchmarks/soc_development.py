@@ -1,0 +1,54 @@
+"""The SOC filter's noise rules on issue 40's development records (docs/soc-filter.md): RMSE
+after 5 min, the error at the end and the ±2σ coverage, from the true start and from starts 20 %
+too high and too low, for each rule and with and without the adaptation; and with the model's
+``expected_error`` understated three- and tenfold. The records, the cell and the scores are
+``tests/unit/test_soc_filter.py``'s (development records only: no unseen record is run here).
+
+Run: PYTHONPATH=src .venv/bin/python benchmarks/soc_development.py
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "unit"))
+
+import test_soc_filter as T
+
+RULES = {"expected-error, adapt": {}, "expected-error, no adapt": {"adapt": False},
+         "training-residual, no adapt": {"noise": "training-residual", "adapt": False},
+         "training-residual, adapt": {"noise": "training-residual"}}  # fmt: skip
+
+
+def main() -> None:
+    model = T.fitted("table", T.FILTER, residual_mv=T.LOGGER_MV)
+    held, _ = T.measured(11, 7200)
+    model.expected_error = T.expected_error_of(model, held)
+    frame, soc = T.measured(12, 9000)
+    ee = model.expected_error
+    print(
+        f"held-out error {ee['rms_mv']:.1f} mV RMS, 1/e lag {ee['correlation_time_s']:.0f} s; "
+        f"record {len(frame)} samples, {frame['time_s'].iloc[-1]:.0f} s"
+    )
+    for name, kw in RULES.items():
+        for start in T.STARTS:
+            started = time.process_time()
+            r = T.scores(model, frame, soc, start, **kw)
+            lam = r["summary"]["noise"].get("largest_scale")
+            print(f"{name:28s} start {start:+.1f}: RMSE {100 * r['rmse']:.2f} %, end "
+                  f"{100 * r['end']:+.2f} %, coverage {100 * r['coverage']:.1f} %"
+                  + ("" if lam is None else f", largest λ {lam:.3g}")
+                  + f" ({time.process_time() - started:.1f} s CPU)")  # fmt: skip
+    for by in (3.0, 10.0):
+        low = replace(model, expected_error=T.understated(ee, by))
+        for name, kw in list(RULES.items())[:2]:
+            r = T.scores(low, frame, soc, 0.2, **kw)
+            print(f"understated {by:g}×, {name:24s} start +0.2: RMSE {100 * r['rmse']:.2f} %, "
+                  f"coverage {100 * r['coverage']:.1f} %")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
