@@ -95,7 +95,8 @@ class Model:
 
     def estimate(self, record, soc0: float | None = None, bias_a: float = 0.0,
                  reference_soc0: float | None = None, noise: str = "expected-error",
-                 adapt: bool = True):  # fmt: skip
+                 adapt: bool = True, bms_events: bool = False,
+                 reference_full: bool = False):  # fmt: skip
         """The SOC filter on a record (``estimate.estimate_record``): its ``Result``, with
         ``.frame`` (time_s, soc, soc_sd, model_v, innovation_v, ...) and ``.summary`` (what
         ``estimate`` writes beside its CSV). ``soc0``: the start's guess (default: the library's
@@ -103,8 +104,10 @@ class Model:
         ``reference_soc0``: the known start, for the errors; ``noise``: "expected-error" (the
         model's error on other profiles; a model without it runs the other rule, said in
         ``.warnings`` and ``.summary["noise"]["rule"]``) or "training-residual"; ``adapt``:
-        widen the error from what the filter attributes to it (docs/soc-filter.md). A record
-        that only rests is read."""
+        widen the error from what the filter attributes to it (docs/soc-filter.md);
+        ``bms_events``: the ends of CC-CV charges and the lower cut-off as pseudo-measurements
+        (``.summary["bms_events"]``); ``reference_full``: the reference counted from SOC = 1 at
+        every CC-CV end (docs/soc-filter.md part 5). A record that only rests is read."""
         from . import estimate
         from .errors import UserError
 
@@ -114,8 +117,9 @@ class Model:
             raise UserError(f"bias_a {bias_a:g} A: beyond the currents of {rec.source} (|I| at "
                             f"most {limit:.4g} A)")  # fmt: skip
         return estimate.estimate_record(self.fitted, rec.frame, soc0, bias_a, reference_soc0,
-                                        source=self.source, noise=noise,
-                                        adapt=adapt)  # fmt: skip
+                                        source=self.source, noise=noise, adapt=adapt,
+                                        bms_events=bms_events,
+                                        reference_full=reference_full)  # fmt: skip
 
     def export(self, to: str = "pybamm", *, record=None, soc0: float | None = None,
                drop_unsupported: bool = False, soc=None, temperature_c=None,

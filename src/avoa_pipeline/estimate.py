@@ -147,6 +147,22 @@ CONVERGENCE_S = 300.0
 WITHIN = 0.02
 """The issue's "within 2 %" of SOC."""
 
+TOP_TOL_V = 0.005
+"""``--bms-events`` (docs/soc-filter.md part 5): a voltage within 5 mV of the charge's top (or of
+the lower cut-off) is at it: a cycler holds its CV set point to 1-2.5 mV and logs about 1 mV; an
+ohmic step moves 10-30 mV."""
+CV_MIN_S = 60.0
+"""A CV phase lasts at least 60 s: two samples of a CV phase logged every 60 s."""
+CV_TAPER = 0.5
+"""... and its current falls to at most half its start (a CC charge stopped at the top keeps its
+current; a current a sample late moves a taper by one sample, not by half)."""
+FULL_SD_MIN = 0.005
+"""The least sd of a pseudo-measurement of the SOC (0.5 %): a CC-CV end's gap or a cut-off's
+bound is never taken as known better than this."""
+CUTOFF_MIN_LOAD_S = 60.0
+"""The lower cut-off bounds the SOC only after 60 s of discharge: a preceding charge's
+overpotential (which raises the voltage) must be gone; a shorter spike is reported, not used."""
+
 _Z95 = 1.959963984540054  # a two-sided 95 % interval is ±1.96 sd
 
 
@@ -553,6 +569,7 @@ class Estimate:
     bias_sd: np.ndarray
     wall_s: float
     adaptation: dict | None = None  # Adaptation.summary()
+    applied: dict | None = None  # sample → whether its pseudo-measurement ran (bms_events)
 
 
 def _error_sd(noise: Noise, inp: Inputs):
@@ -637,11 +654,129 @@ def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
     return out
 
 
+# ----------------------------------------------------------------------------------------------
+# what a BMS knows (``--bms-events``, docs/soc-filter.md part 5)
+
+
+def _stretches(d: np.ndarray, sign: int) -> list[tuple[int, int]]:
+    """(first, last) sample of each run of samples of direction ``sign``."""
+    on = np.r_[0, (d == sign).astype(int), 0]
+    edges = np.flatnonzero(np.diff(on))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def cc_cv_ends(t, i, v, capacity_ah: float) -> list[dict]:
+    """Every end of a CC-CV charge in a record (docs/soc-filter.md part 5): a charging stretch
+    whose trailing samples lie within TOP_TOL_V of the record's charge top (its set point) for at
+    least CV_MIN_S while the current falls to CV_TAPER of its start (its last sample may lie
+    below: the current a sample late). Each with its sample, the cut-off current read from the
+    taper's tail, the taper's time constant and the pseudo-measurement's sd."""
+    from . import records
+
+    d = records.direction(i) if np.any(i) else np.zeros(i.size)  # the one rest line
+    if not np.any(d < 0):
+        return []
+    charging = v[d < 0]
+    # the set point as logged: the median of the charging samples near the highest (the highest
+    # alone sits a few logger-noise sd above it)
+    top = float(np.median(charging[charging >= charging.max() - TOP_TOL_V]))
+    out = []
+    for a, b in _stretches(d, -1):
+        at = np.flatnonzero(v[a : b + 1] >= top - TOP_TOL_V) + a
+        if at.size < 2 or at[-1] < b - 1:
+            continue
+        first = at[-1]  # the CV phase: the trailing run of samples at the top
+        while first - 1 >= a and v[first - 1] >= top - TOP_TOL_V:
+            first -= 1
+        end = int(at[-1])
+        i0, i1 = abs(float(i[first])), abs(float(i[end]))
+        span = float(t[end] - t[first])
+        if span < CV_MIN_S or not 0.0 < i1 <= CV_TAPER * i0:
+            continue
+        tau = span / np.log(i0 / i1)
+        gap = i1 * tau / (3600.0 * capacity_ah)
+        out.append({"sample": end, "time_s": float(t[end]), "top_v": top,
+                    "cutoff_current_a": i1, "cv_start_s": float(t[first]), "taper_s": tau,
+                    "gap": gap, "sd": max(gap, FULL_SD_MIN)})  # fmt: skip
+    return out
+
+
+def lower_cutoffs(t, i, v) -> list[dict]:
+    """Where a discharge stops at (within TOP_TOL_V of, or below) the lowest voltage of the
+    record's discharges of at least CUTOFF_MIN_LOAD_S: the lower cut-off. ``used`` only after
+    CUTOFF_MIN_LOAD_S of discharge (a shorter spike is reported, not used: docs/soc-filter.md
+    part 5)."""
+    from . import records
+
+    d = records.direction(i) if np.any(i) else np.zeros(i.size)  # the one rest line
+    # under load where the current read or the next one discharges (a channel a sample late
+    # logs a spike's first sample at rest)
+    d = np.where((d > 0) | (np.r_[d[1:], 0.0] > 0), 1.0, d)
+    loads = _stretches(d, 1)
+    sustained = [v[a : b + 1] for a, b in loads if t[b] - t[a] >= CUTOFF_MIN_LOAD_S]
+    if not sustained:
+        return []
+    bottom = float(np.min(np.concatenate(sustained)))  # a spike's dip is not the cut-off
+    out = []
+    for a, b in loads:
+        at = np.flatnonzero(v[a : b + 1] <= bottom + TOP_TOL_V) + a
+        if at.size == 0 or at[-1] < b - 1:  # the cut-off ends the step (one sample's lag)
+            continue
+        k = int(at[-1])
+        load_s = float(t[k] - t[a])
+        out.append({"sample": k, "time_s": float(t[k]), "cutoff_v": float(v[k]),
+                    "load_s": load_s, "used": load_s >= CUTOFF_MIN_LOAD_S})  # fmt: skip
+    return out
+
+
+def rest_soc(model: Model, volts: float, dinv: float, rtf: float) -> tuple[float, float]:
+    """The SOC at which the model's voltage at rest (its states at 0) is ``volts``, and the
+    sd that TOP_TOL_V gives it through the slope there (at least FULL_SD_MIN)."""
+    lo, hi = (0.0, 1.0) if model.table is None else (model.table.grid()[0], model.table.grid()[-1])
+    grid = np.linspace(lo, hi, 1001)
+    X = np.zeros((grid.size, model.layout.n))
+    X[:, 0] = grid
+    rest = model.rows(model.P[:1]).measurement(X, 0.0, dinv, rtf, with_error=False)
+    rest = np.maximum.accumulate(rest)  # a monotone reading of the OCV for the inverse
+    s = float(np.interp(volts, rest, grid))
+    slope = float(np.interp(s, grid, np.gradient(rest, grid)))
+    return s, max(TOP_TOL_V / max(slope, 1e-9), FULL_SD_MIN)
+
+
+def bms_pseudo(model: Model, inp: Inputs, capacity_ah: float) -> tuple[dict, dict]:
+    """The pseudo-measurements by sample ((z, variance, one-sided)) and what SOC.json says of
+    every event detected (docs/soc-filter.md part 5)."""
+    full = cc_cv_ends(inp.t, inp.i, inp.v, capacity_ah)
+    cuts = lower_cutoffs(inp.t, inp.i, inp.v)
+    pseudo = {e["sample"]: (1.0, e["sd"] ** 2, False) for e in full}
+    for c in cuts:
+        k = c["sample"]
+        c["soc_bound"], c["sd"] = rest_soc(model, c["cutoff_v"], inp.dinv[k], inp.rtf[k])
+        if c["used"]:
+            pseudo[k] = (c["soc_bound"], c["sd"] ** 2, True)
+    return pseudo, {"cc_cv_end": full, "lower_cutoff": cuts}
+
+
+def _pseudo_update(ukf, z: float, var: float, one_sided: bool) -> bool:
+    """A scalar Kalman update of the SOC (H its row) by z with ``var``; one-sided (a lower
+    bound), only where the estimate lies below z (Simon 2010's active set). Whether it ran."""
+    if one_sided and ukf.x[0] >= z:
+        return False
+    s = ukf.P[0, 0] + var
+    gain = ukf.P[:, 0] / s
+    ukf.x = ukf.x + gain * (z - ukf.x[0])
+    ukf.P = ukf.P - np.outer(gain, ukf.P[0, :])
+    ukf.P = 0.5 * (ukf.P + ukf.P.T)
+    return True
+
+
 def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: float,
-               source: str = "<record>", adapt: bool = True) -> Estimate:  # fmt: skip
+               source: str = "<record>", adapt: bool = True,
+               pseudo: dict | None = None) -> Estimate:  # fmt: skip
     """The unscented Kalman filter over ``inp`` from the guess ``soc0`` (module docstring);
     refused (one line naming ``source``) where it breaks down. ``adapt``: what the filter
-    attributes to e widens e's variance (:class:`Adaptation`)."""
+    attributes to e widens e's variance (:class:`Adaptation`); ``pseudo``: the SOC's
+    pseudo-measurements by sample (:func:`bms_pseudo`)."""
     points_cls, ukf_cls = _filterpy()
     model = model.extended()
     L, n = model.layout, model.layout.n
@@ -670,6 +805,7 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
     ukf.x, ukf.P = initial_state(model, noise, soc0, i_range, i_scale, sd_e)
     ukf.sigmas_f = points.sigma_points(ukf.x, ukf.P)
     soc, sd, mv, inn, bias, bsd = (np.empty(N) for _ in range(6))
+    applied: dict[int, bool] = {}
     started = time.perf_counter()
     for k in range(N):
         i_k, dinv, rtf, dt = inp.i[k], inp.dinv[k], inp.rtf[k], inp.dt[k]
@@ -686,6 +822,8 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
         if noise.bins is not None:
             _hold_soc_floor(ukf, nominal, i_k, dinv, rtf,
                             adaptation.lam * error_sd(k, float(ukf.x[0])) ** 2)  # fmt: skip
+        if pseudo and k in pseudo:
+            applied[k] = _pseudo_update(ukf, *pseudo[k])
         if not (np.all(np.isfinite(ukf.x)) and np.all(np.isfinite(ukf.P))):
             raise DataError(f"{source}: the filter's state is not finite after sample {k + 1} "
                             f"(t = {inp.t[k]:g} s): the model's voltage cannot follow this "
@@ -710,7 +848,7 @@ def run_filter(model: Model, noise: Noise, inp: Inputs, soc0: float, i_scale: fl
                             "cannot follow this record") from None  # fmt: skip
         ukf.P = 0.5 * (ukf.P + ukf.P.T)  # rounding must not cost the Cholesky factor its symmetry
     return Estimate(soc, sd, mv, inn, bias, bsd, time.perf_counter() - started,
-                    adaptation.summary())  # fmt: skip
+                    adaptation.summary(), applied)  # fmt: skip
 
 
 # ----------------------------------------------------------------------------------------------
@@ -727,6 +865,33 @@ def reference_soc(rec: ecm.Record, model: Model, soc0: float) -> np.ndarray:
     qf = 1.0 if kq is None else 1.0 + kq * _temperature_offset(rec.dinv_t, rec.two_rt_f)
     dq = (ie / (3600.0 * P[ecm.Q] * qf))[:-1] * rec.dt[:-1]
     return soc0 - np.concatenate([[0.0], np.cumsum(dq)])
+
+
+def full_reference(rec: ecm.Record, model: Model) -> tuple[np.ndarray, list[dict]]:
+    """The reference counted from SOC = 1 at every end of a CC-CV charge (:func:`cc_cv_ends`):
+    coulomb counting as :func:`reference_soc` (the record's own current, the model's capacity)
+    from each end to the next, and back from the first to the record's start. A record without
+    one is refused."""
+    ends = cc_cv_ends(rec.t, rec.i, rec.v, float(model.P[0, ecm.Q]))
+    if not ends:
+        raise UserError(f"{rec.source}: no end of a CC-CV charge (the top voltage held while "
+                        "the current tapers), so no reference from full charge")  # fmt: skip
+    counted = reference_soc(rec, model, 0.0)  # the SOC moved since the start
+    ref = np.empty(rec.n)
+    marks = [e["sample"] for e in ends]
+    for j, k in enumerate(marks):
+        a = 0 if j == 0 else k
+        b = marks[j + 1] if j + 1 < len(marks) else rec.n
+        ref[a:b] = 1.0 + counted[a:b] - counted[k]
+    return ref, ends
+
+
+def _events_summary(events: dict, applied: dict) -> dict:
+    """SOC.json's ``bms_events``: each event detected, when, and whether it moved the SOC."""
+    out = {"rule": "docs/soc-filter.md part 5", "top_tol_v": TOP_TOL_V}
+    for name, found in events.items():
+        out[name] = [{**e, "applied": bool(applied.get(e["sample"], False))} for e in found]
+    return out
 
 
 def score(t, soc, soc_sd, ref, window_s: float = CONVERGENCE_S) -> dict:
@@ -762,22 +927,28 @@ class Result:
 def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
                     bias_a: float = 0.0, reference_soc0: float | None = None,
                     source: str = "model.json", noise: str = "expected-error",
-                    adapt: bool = True) -> Result:  # fmt: skip
+                    adapt: bool = True, bms_events: bool = False,
+                    reference_full: bool = False) -> Result:  # fmt: skip
     """The filter on one record of the cell (``soc0``: the start's guess, default the library's
     rule on the record's opening; ``bias_a``: added to the current the filter reads;
     ``reference_soc0``: the known start, for the coulomb-counted reference and the errors;
     ``noise``: which rule sets the voltage error, :data:`NOISE_RULES`; ``adapt``: the
-    innovation-based scale of it, docs/soc-filter.md). A model without ``expected_error`` runs
-    the training-residual rule and says so (``Result.warnings``, ``noise.rule``)."""
+    innovation-based scale of it, docs/soc-filter.md; ``bms_events``: the ends of CC-CV charges
+    and the lower cut-off as pseudo-measurements, part 5; ``reference_full``: the reference
+    counted from SOC = 1 at every CC-CV end). A model without ``expected_error`` runs the
+    training-residual rule and says so (``Result.warnings``, ``noise.rule``)."""
     if noise not in NOISE_RULES:
         raise UserError(f"noise must be one of {', '.join(NOISE_RULES)}, got {noise!r}")
+    if reference_full and reference_soc0 is not None:
+        raise UserError("reference_soc0 and reference_full are two references: give one")
     model = filter_model(fitted, source)
     rule = noise_of(fitted, source, noise)
     rec = fitted.record(rec_frame)
     guess = fitted.initial_soc(rec) if soc0 is None else float(soc0)
     i_scale = fitted.current_scale_a or float(np.max(np.abs(rec.i)))
-    est = run_filter(model, rule, Inputs.of(rec, bias_a), guess, i_scale, rec.source,
-                     bool(adapt))  # fmt: skip
+    inp = Inputs.of(rec, bias_a)
+    pseudo, events = bms_pseudo(model, inp, float(model.P[0, ecm.Q])) if bms_events else ({}, None)
+    est = run_filter(model, rule, inp, guess, i_scale, rec.source, bool(adapt), pseudo)
     frame = pd.DataFrame({"time_s": rec.t, "soc": est.soc, "soc_sd": est.soc_sd,
                           "model_v": est.model_v, "innovation_v": est.innovation_v})  # fmt: skip
     duration = float(rec.t[-1] - rec.t[0]) if rec.n > 1 else 0.0
@@ -793,13 +964,23 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
         "soc_range": list(soc_range(fitted)),
         "outside_range": outside_range(fitted, frame),
     }  # fmt: skip
-    if reference_soc0 is not None:
+    if events is not None:
+        summary["bms_events"] = _events_summary(events, est.applied or {})
+    if reference_full:
+        ref, ends = full_reference(rec, model)
+        summary["reference"] = {"kind": "full", "cc_cv_end_s": [e["time_s"] for e in ends],
+                                "counted_with": "the record's current, the model's capacity"}
+    elif reference_soc0 is not None:
         ref = reference_soc(rec, model, float(reference_soc0))
+        summary["reference"] = {"kind": "soc0", "soc0": float(reference_soc0),
+                                "counted_with": "the record's current, the model's capacity"}
+    if reference_full or reference_soc0 is not None:
         frame["soc_reference"] = ref
         frame["soc_error"] = est.soc - ref
         # plain coulomb counting from the same guess with the same (biased) current
         counted = reference_soc(replace_current(rec, rec.i + bias_a), model, guess)
-        summary["reference_soc0"] = float(reference_soc0)
+        if reference_soc0 is not None:
+            summary["reference_soc0"] = float(reference_soc0)
         summary["filter"] = score(rec.t, est.soc, est.soc_sd, ref)
         summary["coulomb_counting"] = score(rec.t, counted, np.zeros(rec.n), ref)
         summary["coulomb_counting"].pop("coverage_2sd")

@@ -44,6 +44,20 @@ def arguments(e) -> None:
         "current) and soc_error, and scores the filter against it",
     )
     e.add_argument(
+        "--reference-full",
+        action="store_true",
+        help="adds soc_reference counted from SOC = 1 at every end of a CC-CV charge in the "
+        "record (coulomb counting between, the model's capacity) and soc_error, and scores the "
+        "filter against it (docs/soc-filter.md part 5)",
+    )
+    e.add_argument(
+        "--bms-events",
+        action="store_true",
+        help="use the ends of CC-CV charges (SOC = 1) and the lower cut-off under load (a "
+        "lower bound) as pseudo-measurements; SOC.json's bms_events says which fired and when "
+        "(docs/soc-filter.md part 5)",
+    )
+    e.add_argument(
         "--noise",
         choices=("expected-error", "training-residual"),  # estimate.NOISE_RULES
         default="expected-error",
@@ -69,6 +83,8 @@ def _check_options(args) -> None:
     ref = args.reference_soc0
     if ref is not None and not (np.isfinite(ref) and 0.0 <= ref <= 1.0):
         raise UserError(f"--reference-soc0 must lie in [0, 1], got {ref}")
+    if ref is not None and args.reference_full:
+        raise UserError("--reference-soc0 and --reference-full are two references: give one")
     if not np.isfinite(args.current_bias_a):
         raise UserError(f"--current-bias-a must be finite, got {args.current_bias_a}")
 
@@ -116,7 +132,8 @@ def run_estimate(args) -> None:
                         "fraction of the range it reads")  # fmt: skip
     result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
                                       source=args.model, noise=args.noise,
-                                      adapt=args.adapt)  # fmt: skip
+                                      adapt=args.adapt, bms_events=args.bms_events,
+                                      reference_full=args.reference_full)  # fmt: skip
     summary = {"model": str(args.model), "record": str(args.data), **result.summary}
     with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
         result.frame.to_csv(csv_tmp, index=False)
@@ -126,7 +143,7 @@ def run_estimate(args) -> None:
     line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
             + (" (the record only rests: the SOC of its OCV)" if summary["rest_only"] else "")
             + f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip
-    if ref is not None:
+    if "filter" in summary:
         f = summary["filter"]
         line += (f"; after 5 min RMSE {100 * f['rmse_after_window']:.2f} %, max "
                  f"{100 * f['max_error_after_window']:.2f} %, ±2σ coverage "

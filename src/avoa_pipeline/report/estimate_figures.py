@@ -31,8 +31,10 @@ def render(frame: pd.DataFrame, summary: dict, path, title: str = "") -> None:
     top.fill_between(th, soc - 2 * sd, soc + 2 * sd, color="C0", alpha=0.25, lw=0, label="±2σ")
     top.plot(th, soc, color="C0", lw=1.0, label="filter")
     if "soc_reference" in f:
-        top.plot(th, f["soc_reference"], color="k", lw=0.8, ls="--", label="coulomb counting "
-                 "from the known start")  # fmt: skip
+        full = summary.get("reference", {}).get("kind") == "full"
+        how = "from SOC = 1 at each CC-CV end" if full else "from the known start"
+        top.plot(th, f["soc_reference"], color="k", lw=0.8, ls="--",
+                 label=f"coulomb counting {how}")  # fmt: skip
         err = f["soc_error"].to_numpy()
         bottom.fill_between(th, -2 * sd, 2 * sd, color="C0", alpha=0.25, lw=0)
         bottom.plot(th, err, color="C3", lw=0.8)
@@ -49,6 +51,11 @@ def render(frame: pd.DataFrame, summary: dict, path, title: str = "") -> None:
         bottom.plot(th, 1e3 * f["innovation_v"].to_numpy(), color="C2", lw=0.6)
         bottom.set_ylabel("innovation (mV)")
         top.set_title(title, fontsize=9)
+    t0 = frame["time_s"].iloc[0]
+    for name, style in (("cc_cv_end", "C2"), ("lower_cutoff", "C1")):  # --bms-events
+        for e in summary.get("bms_events", {}).get(name, []):
+            top.axvline((e["time_s"] - t0) / 3600.0, color=style, lw=0.6,
+                        ls="-" if e["applied"] else ":")  # fmt: skip
     top.set_ylabel("SOC")
     top.legend(fontsize=8, loc="best")
     bottom.set_xlabel("time (h)")
