@@ -3,8 +3,12 @@ after 5 min, the error at the end and the ±2σ coverage, from the true start an
 too high and too low, for each rule and with and without the adaptation; and with the model's
 ``expected_error`` understated three- and tenfold. The records, the cell and the scores are
 ``tests/unit/test_soc_filter.py``'s (development records only: no unseen record is run here).
+With ``--bms-events``: the same starts with and without the pseudo-measurements of
+docs/soc-filter.md part 5, on ``tests/unit/test_bms_events.py``'s emulated cycler record (a
+CC-CV charge, a discharge to the cut-off, a spike, a CC-only charge), scored against the truth
+and against the reference counted from SOC = 1 at the CC-CV end (``--reference-full``).
 
-Run: PYTHONPATH=src .venv/bin/python benchmarks/soc_development.py
+Run: PYTHONPATH=src .venv/bin/python benchmarks/soc_development.py [--bms-events]
 """
 
 from __future__ import annotations
@@ -50,5 +54,35 @@ def main() -> None:
                   f"coverage {100 * r['coverage']:.1f} %")  # fmt: skip
 
 
+def bms_events() -> None:
+    import test_bms_events as B
+
+    from avoa_pipeline import estimate as E
+
+    model = T.fitted("table", T.FILTER, residual_mv=T.LOGGER_MV)
+    held, _ = T.measured(11, 7200)
+    model.expected_error = T.expected_error_of(model, held)
+    frame, soc = B.development_record()
+    t = frame["time_s"].to_numpy()
+    print(f"record {len(frame)} samples, {t[-1]:.0f} s")
+    for start in T.STARTS:
+        for events in (False, True):
+            started = time.process_time()
+            r = E.estimate_record(model, frame, 0.5 + start, bms_events=events,
+                                  reference_full=True)  # fmt: skip
+            s = E.score(t, r.frame["soc"].to_numpy(), r.frame["soc_sd"].to_numpy(), soc)
+            f = r.summary["filter"]
+            fired = [(e["time_s"], e["applied"]) for found in
+                     r.summary.get("bms_events", {}).values() if isinstance(found, list)
+                     for e in found]  # fmt: skip
+            print(f"start {start:+.1f} events {'on ' if events else 'off'}: truth RMSE "
+                  f"{100 * s['rmse_after_window']:.2f} %, max "
+                  f"{100 * s['max_error_after_window']:.2f} %, end {100 * s['error_at_end']:+.2f} "
+                  f"%, coverage {100 * s['coverage_2sd']:.1f} %; against the full reference RMSE "
+                  f"{100 * f['rmse_after_window']:.2f} %, "
+                  f"coverage {100 * f['coverage_2sd']:.1f} %; events (t, applied) {fired} "
+                  f"({time.process_time() - started:.1f} s CPU)")  # fmt: skip
+
+
 if __name__ == "__main__":
-    main()
+    bms_events() if "--bms-events" in sys.argv[1:] else main()

@@ -867,6 +867,9 @@ def reference_soc(rec: ecm.Record, model: Model, soc0: float) -> np.ndarray:
     return soc0 - np.concatenate([[0.0], np.cumsum(dq)])
 
 
+COUNTED_WITH = "the record's current, the model's capacity"  # what a reference counts with
+
+
 def full_reference(rec: ecm.Record, model: Model) -> tuple[np.ndarray, list[dict]]:
     """The reference counted from SOC = 1 at every end of a CC-CV charge (:func:`cc_cv_ends`):
     coulomb counting as :func:`reference_soc` (the record's own current, the model's capacity)
@@ -969,11 +972,9 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
     if reference_full:
         ref, ends = full_reference(rec, model)
         summary["reference"] = {"kind": "full", "cc_cv_end_s": [e["time_s"] for e in ends],
-                                "counted_with": "the record's current, the model's capacity"}
+                                "counted_with": COUNTED_WITH}  # fmt: skip
     elif reference_soc0 is not None:
-        ref = reference_soc(rec, model, float(reference_soc0))
-        summary["reference"] = {"kind": "soc0", "soc0": float(reference_soc0),
-                                "counted_with": "the record's current, the model's capacity"}
+        ref = reference_soc(rec, model, float(reference_soc0))  # SOC.json as before part 5
     if reference_full or reference_soc0 is not None:
         frame["soc_reference"] = ref
         frame["soc_error"] = est.soc - ref

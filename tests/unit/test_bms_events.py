@@ -12,10 +12,12 @@ every 60 s, loads every second, 1 mV of noise.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
-from test_estimate import BASE, fitted
+from test_estimate import BASE, files, fitted, run_cli
 from test_soc_filter import CELL, FILTER, LOGGER_MV, expected_error_of, measured
 
 from avoa_pipeline import estimate as E
@@ -75,7 +77,9 @@ def drive(seed: int, seconds: int) -> list:
     rng = np.random.default_rng(seed)
     out, total = [], 0
     while total < seconds:
-        level = rng.choice([0.0, -0.5 * C, 0.2 * C, 0.5 * C, 1.0 * C], p=[0.2, 0.15, 0.3, 0.2, 0.15])
+        level = rng.choice(
+            [0.0, -0.5 * C, 0.2 * C, 0.5 * C, 1.0 * C], p=[0.2, 0.15, 0.3, 0.2, 0.15]
+        )
         n = int(rng.integers(10, 61))
         out.append(("cc", float(level), V_CUT, n))
         total += n
@@ -129,7 +133,8 @@ def test_the_cc_cv_end_fires_at_the_end_of_the_cv_phase_and_nowhere_else(record)
     assert len(ends) == 1  # the CC-only charge to the same top later in the record is not one
     (end,) = ends
     k = end["sample"]
-    assert v[k] >= V_TOP - E.TOP_TOL_V and i[k] < 0  # at the top, charging
+    assert v[k] >= V_TOP - E.TOP_TOL_V  # at the top ...
+    assert i[k] < 0  # ... charging
     assert i[k + 1] == 0 or i[k + 2] == 0  # the charge stops there (the current a sample late)
     # the cut-off current read from the tail, within one 60-s log step of the taper's C/20
     assert I_CUT <= end["cutoff_current_a"] <= 1.5 * I_CUT
@@ -138,9 +143,8 @@ def test_the_cc_cv_end_fires_at_the_end_of_the_cv_phase_and_nowhere_else(record)
 
 
 def test_a_cc_charge_that_stops_at_the_top_is_not_a_cc_cv_end():
-    frame, _ = logged(*emulate(fitted("table", CELL), [("rest", 0, None, 120),
-                                                         ("cc", -C, V_TOP, 7200),
-                                                         ("rest", 0, None, 600)], 0.3), 5)  # fmt: skip
+    steps = [("rest", 0, None, 120), ("cc", -C, V_TOP, 7200), ("rest", 0, None, 600)]
+    frame, _ = logged(*emulate(fitted("table", CELL), steps, 0.3), 5)
     t, i, v = columns(frame)
     assert v.max() >= V_TOP  # it reached the top ...
     assert E.cc_cv_ends(t, i, v, C) == []  # ... with no taper
@@ -155,7 +159,8 @@ def test_the_lower_cutoff_bounds_after_a_sustained_discharge_and_a_spike_does_no
     cuts = E.lower_cutoffs(t, i, v)
     assert [c["used"] for c in cuts] == [True, False]
     sustained, spike = cuts
-    assert sustained["load_s"] > 1000 and spike["load_s"] < E.CUTOFF_MIN_LOAD_S
+    assert sustained["load_s"] > 1000
+    assert spike["load_s"] < E.CUTOFF_MIN_LOAD_S
     assert abs(sustained["cutoff_v"] - V_CUT) < E.TOP_TOL_V
     assert spike["cutoff_v"] < V_CUT  # the spike dips below the cut-off within its first sample
     m = E.filter_model(fitted("table", FILTER))
@@ -221,11 +226,41 @@ def test_the_events_fire_in_the_filter_and_the_full_charge_moves_the_soc(record,
     assert abs(scores[1]["rmse_after_window"] - scores[0]["rmse_after_window"]) < 0.005
 
 
-if __name__ == "__main__":
-    frame, soc = development_record()
-    print(len(frame), frame["time_s"].iloc[-1])
-    ev_full = E.cc_cv_ends(frame.time_s.to_numpy(), frame.current_a.to_numpy(), frame.voltage_v.to_numpy(), C)
-    ev_cut = E.lower_cutoffs(frame.time_s.to_numpy(), frame.current_a.to_numpy(), frame.voltage_v.to_numpy())
-    print(ev_full); print(ev_cut)
-    for e in ev_full: print("truth at full", soc[e["sample"]])
-    print(frame.voltage_v.min(), frame.voltage_v.max())
+# ----------------------------------------------------------------------------------------------
+# the command
+
+
+def test_the_command_writes_the_events_and_the_full_reference(tmp_path, capsys):
+    steps = [("rest", 0, None, 300), ("cc", C, V_CUT, 1800), ("rest", 0, None, 600), *cc_cv(),
+             ("cc", C, V_CUT, 900), ("rest", 0, None, 600)]  # fmt: skip
+    frame, _ = logged(*emulate(fitted("table", CELL), steps, 0.8), 7)
+    m, _ = files(tmp_path)
+    rec = tmp_path / "rec.csv"
+    frame.to_csv(rec, index=False)
+    out = tmp_path / "soc.csv"
+    code, text, err = run_cli(["estimate", m, str(rec), "--out", str(out), "--bms-events",
+                               "--reference-full"], capsys)  # fmt: skip
+    assert code == 0, err
+    summary = json.loads(out.with_suffix(".json").read_text())
+    (end,) = summary["bms_events"]["cc_cv_end"]
+    assert end["applied"]
+    assert summary["reference"]["kind"] == "full"
+    assert summary["reference"]["cc_cv_end_s"] == [end["time_s"]]
+    assert set(summary["filter"]) >= {"rmse_after_window", "max_error_after_window",
+                                      "error_at_end", "coverage_2sd"}  # fmt: skip
+    written = pd.read_csv(out)
+    assert written["soc_reference"].iloc[end["sample"]] == 1.0
+    assert "±2σ coverage" in text
+    code, _, err = run_cli(["estimate", m, str(rec), "--out", str(tmp_path / "b.csv"),
+                            "--reference-full", "--reference-soc0", "0.5"], capsys)  # fmt: skip
+    assert code != 0
+    assert "--reference-soc0 and --reference-full are two references: give one" in err
+
+
+def test_a_record_without_a_cc_cv_end_is_refused_a_full_reference(tmp_path, capsys):
+    m, rec = files(tmp_path)
+    code, _, err = run_cli(["estimate", m, rec, "--out", str(tmp_path / "s.csv"),
+                            "--reference-full"], capsys)  # fmt: skip
+    assert code != 0
+    assert "no end of a CC-CV charge" in err
+    assert not (tmp_path / "s.json").exists()
