@@ -65,10 +65,14 @@ def bms_events() -> None:
     frame, soc = B.development_record()
     t = frame["time_s"].to_numpy()
     print(f"record {len(frame)} samples, {t[-1]:.0f} s")
-    for start in T.STARTS:
+    low = replace(model, expected_error=T.understated(model.expected_error, 10.0))
+    runs = [(model, start) for start in T.STARTS] + [(low, 0.2)]  # the last: understated 10×
+    for m, start in runs:
+        if m is low:
+            print("expected_error understated tenfold:")
         for events in (False, True):
             started = time.process_time()
-            r = E.estimate_record(model, frame, 0.5 + start, bms_events=events,
+            r = E.estimate_record(m, frame, 0.5 + start, bms_events=events,
                                   reference_full=True)  # fmt: skip
             s = E.score(t, r.frame["soc"].to_numpy(), r.frame["soc_sd"].to_numpy(), soc)
             f = r.summary["filter"]
