@@ -23,7 +23,8 @@ factors of ``thermal``, the 2RT/F of Butler–Volmer). :func:`predict` solves it
 passes of the unchanged simulator (``FittedModel.simulate``): pass 1 at T = T_amb, then the
 heat of the last pass's voltage gives the next temperature, until a pass moves no sample by more
 than :data:`FIXED_POINT_TOL_K` (at most :data:`MAX_PASSES`). The simulator itself is not
-touched: its loop is one compiled function on purpose (``model/_simulator.py``, generated from the elements' statements by ``model/loopgen.py``).
+touched: its loop is one compiled function on purpose (``model/_simulator.py``, generated from
+the elements' statements by ``model/loopgen.py``).
 
 Identification (:func:`fit_heat`), sequential: the electrical model is fitted first with the
 measured temperature (the diagnosis, as it stands); then C_th and hA (and dU/dT where identified)
