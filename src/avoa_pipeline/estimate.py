@@ -658,11 +658,19 @@ def _edge_neighbours(i_read: np.ndarray) -> dict[int, list[int]]:
 # what a BMS knows (``--bms-events``, docs/soc-filter.md part 5)
 
 
+def _directions(i: np.ndarray) -> np.ndarray:
+    """Each sample's direction by the one rest line (``records.direction``); all rest for a
+    record without current (the rest line has no scale there)."""
+    from . import records
+
+    return records.direction(i) if np.any(i) else np.zeros(i.size)
+
+
 def _stretches(d: np.ndarray, sign: int) -> list[tuple[int, int]]:
-    """(first, last) sample of each run of samples of direction ``sign``."""
-    on = np.r_[0, (d == sign).astype(int), 0]
-    edges = np.flatnonzero(np.diff(on))
-    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    """(first, last) sample of each run of samples of direction ``sign`` (``records.runs_of``)."""
+    from . import records
+
+    return [(a, b - 1) for a, b in records.runs_of(d == sign)]
 
 
 def cc_cv_ends(t, i, v, capacity_ah: float) -> list[dict]:
@@ -671,9 +679,7 @@ def cc_cv_ends(t, i, v, capacity_ah: float) -> list[dict]:
     least CV_MIN_S while the current falls to CV_TAPER of its start (its last sample may lie
     below: the current a sample late). Each with its sample, the cut-off current read from the
     taper's tail, the taper's time constant and the pseudo-measurement's sd."""
-    from . import records
-
-    d = records.direction(i) if np.any(i) else np.zeros(i.size)  # the one rest line
+    d = _directions(i)
     if not np.any(d < 0):
         return []
     charging = v[d < 0]
@@ -706,9 +712,7 @@ def lower_cutoffs(t, i, v) -> list[dict]:
     record's discharges of at least CUTOFF_MIN_LOAD_S: the lower cut-off. ``used`` only after
     CUTOFF_MIN_LOAD_S of discharge (a shorter spike is reported, not used: docs/soc-filter.md
     part 5)."""
-    from . import records
-
-    d = records.direction(i) if np.any(i) else np.zeros(i.size)  # the one rest line
+    d = _directions(i)
     # under load where the current read or the next one discharges (a channel a sample late
     # logs a spike's first sample at rest)
     d = np.where((d > 0) | (np.r_[d[1:], 0.0] > 0), 1.0, d)
