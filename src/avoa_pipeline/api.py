@@ -53,7 +53,7 @@ class Model:
         import pandas as pd
 
         from . import records
-        from .model.ecm import IDX
+        from .model_inputs import check_units
 
         if isinstance(record, str | Path):
             rec = read_record(record, rest_ok=rest_ok)
@@ -65,8 +65,7 @@ class Model:
         else:
             raise TypeError(f"a record is a path, a records.Checked or a DataFrame, not "
                             f"{type(record)!r}")  # fmt: skip
-        capacity = float(10.0 ** self.fitted.x[IDX["lq"]])
-        records.check_scale(rec.frame, rec.source, capacity, rest_ok=rest_ok)
+        check_units(self.fitted, rec, rest_ok)
         return rec
 
     def simulate(self, record, soc0: float | None = None, ambient_c: float | None = None):

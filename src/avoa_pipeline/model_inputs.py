@@ -24,18 +24,24 @@ def read_model_and_record(model_path, data, *, soc0=None, cycler=None, current_s
         return model, None
     rec = inputs.read_record(data, cycler=cycler, current_sign=current_sign,
                              rest_ok=rest_ok)  # fmt: skip
-    from . import records
     from .ambient import needs_temperature
-    from .model.ecm import IDX
 
-    # the model's capacity tells the units the record alone cannot (minutes, mA)
-    records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]),
-                        rest_ok=rest_ok)  # fmt: skip
+    check_units(model, rec, rest_ok)
     needs_t = needs_temperature(model)
     if needs_t and "temperature_c" not in rec.frame.columns and not predicts:
         raise UserError(f"{data}: missing column 'temperature_c' (the model has "
                         f"{', '.join(needs_t)})")  # fmt: skip
     return model, rec
+
+
+def check_units(model, rec, rest_ok: bool = False) -> None:
+    """A checked record's units against a fitted model's capacity (``records.check_scale``): the
+    capacity tells the units the record alone cannot (minutes, mA)."""
+    from . import records
+    from .model.ecm import IDX
+
+    records.check_scale(rec.frame, rec.source, float(10.0 ** model.x[IDX["lq"]]),
+                        rest_ok=rest_ok)  # fmt: skip
 
 
 def prediction_frame(frame, model_v, temp_c, temperature_source):
