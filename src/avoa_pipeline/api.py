@@ -118,7 +118,8 @@ class Model:
         return estimate.estimate_record(self.fitted, rec.frame, soc0, bias_a, reference_soc0,
                                         source=self.source, noise=noise, adapt=adapt,
                                         bms_events=bms_events,
-                                        reference_full=reference_full)  # fmt: skip
+                                        reference_full=reference_full,
+                                        ambient=estimate.checked_ambient(rec))  # fmt: skip
 
     def export(self, to: str = "pybamm", *, record=None, soc0: float | None = None,
                drop_unsupported: bool = False, soc=None, temperature_c=None,

@@ -83,7 +83,7 @@ import pandas as pd
 
 from .errors import DataError, UserError
 from .handover import SOC_EDGES
-from .model import ecm, elements
+from .model import ecm, elements, heat
 from .model.ecm import IDX, N_KNOTS
 from .model.elements.element import FARADAY, GAS_R
 
@@ -314,31 +314,28 @@ _CURRENTS = {"low": 0, "high": 1}
 @dataclass(frozen=True)
 class ErrorBins:
     """``model.json``'s ``expected_error`` as the filter reads it (docs/soc-filter.md part 1):
-    the voltage error's sd by operating point, a bin it does not report given its largest RMS."""
+    the voltage error's sd by operating point, a bin it does not report given its largest RMS;
+    for a model over temperature, at the record's ambient (part 6)."""
 
     sd_v: np.ndarray  # (mode rest/discharge/charge, current low/high, SOC below/mid/above)
     median_a: float | None  # load_current_median_a: low below it, high at or above
     tau_c_s: float  # correlation_time_s: an exponential autocorrelation's 1/e lag
     lower_bound: bool  # correlation_time_lower_bound
     filled: int  # bins not reported (fewer than MIN_BIN_SAMPLES held-out samples)
+    temperature: dict | None = None  # where the record's ambient lies among the groups (part 6)
 
     @classmethod
-    def of(cls, ee: dict) -> ErrorBins:
-        lo, hi = SOC_EDGES
-        socs = {f"below {lo:g}": 0, f"{lo:g}-{hi:g}": 1, f"above {hi:g}": 2}  # handover's names
-        given = ee["by_operating_point"]
-        # a point the held-out data barely visited: no evidence the model is better there than
-        # at its worst measured one
-        worst = 1e-3 * max([float(ee["rms_mv"])] + [float(b["rms_mv"]) for b in given])
-        sd = np.full((3, 2, 3), np.nan)
-        for b in given:
-            cur = [0, 1] if b["current"] == "-" else [_CURRENTS[b["current"]]]  # a rest has one
-            sd[_MODES[b["mode"]], cur, socs[b["soc"]]] = 1e-3 * float(b["rms_mv"])
-        filled = int(np.isnan(sd[0, 0]).sum() + np.isnan(sd[1:]).sum())
+    def of(cls, ee: dict, ambient: tuple[float, str] | None = None) -> ErrorBins:
+        """``ambient``: the record's (°C, where it came from); read where ``ee`` is split by
+        test temperature (``by_temperature``)."""
+        sd, filled = _bin_table(ee)
+        at = None
+        groups = ee.get("by_temperature")
+        if groups and ambient is not None:
+            sd, filled, at = _at_ambient(groups, *ambient)
         med = ee.get("load_current_median_a")
-        return cls(np.where(np.isnan(sd), worst, sd), None if med is None else float(med),
-                   float(ee["correlation_time_s"]), bool(ee["correlation_time_lower_bound"]),
-                   filled)  # fmt: skip
+        return cls(sd, None if med is None else float(med), float(ee["correlation_time_s"]),
+                   bool(ee["correlation_time_lower_bound"]), filled, at)  # fmt: skip
 
     def points(self, i_read: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per sample, the mode (0 rest, 1 discharge, 2 charge: ``records.direction``, the one
@@ -354,6 +351,42 @@ class ErrorBins:
     def sd(self, mode: int, current: int, soc: float) -> float:
         band = 0 if soc < SOC_EDGES[0] else (2 if soc > SOC_EDGES[1] else 1)  # handover's
         return float(self.sd_v[mode, current, band])
+
+
+def _bin_table(ee: dict) -> tuple[np.ndarray, int]:
+    """The (3, 2, 3) table of sds of an ``expected_error`` (or one temperature's group of it);
+    a bin it does not report takes its largest RMS (part 1), and how many did."""
+    lo, hi = SOC_EDGES
+    socs = {f"below {lo:g}": 0, f"{lo:g}-{hi:g}": 1, f"above {hi:g}": 2}  # handover's names
+    given = ee["by_operating_point"]
+    # a point the held-out data barely visited: no evidence the model is better there than at
+    # its worst measured one
+    worst = 1e-3 * max([float(ee["rms_mv"])] + [float(b["rms_mv"]) for b in given])
+    sd = np.full((3, 2, 3), np.nan)
+    for b in given:
+        cur = [0, 1] if b["current"] == "-" else [_CURRENTS[b["current"]]]  # a rest has one
+        sd[_MODES[b["mode"]], cur, socs[b["soc"]]] = 1e-3 * float(b["rms_mv"])
+    filled = int(np.isnan(sd[0, 0]).sum() + np.isnan(sd[1:]).sum())
+    return np.where(np.isnan(sd), worst, sd), filled
+
+
+def _at_ambient(groups: list[dict], ambient_c: float, where: str) -> tuple[np.ndarray, int, dict]:
+    """Part 6: the bins at an ambient, interpolated linearly in 1/T between the two groups
+    around it, the nearest group's outside their span."""
+    groups = sorted(groups, key=lambda g: g["ambient_c"])
+    temps = np.array([float(g["ambient_c"]) for g in groups])
+    tables = [_bin_table(g) for g in groups]
+    info = {"ambient_c": float(ambient_c), "from": where, "groups_c": temps.tolist()}
+    if ambient_c <= temps[0] or ambient_c >= temps[-1]:
+        k = 0 if ambient_c <= temps[0] else temps.size - 1
+        outside = not np.isclose(ambient_c, temps[k])
+        return tables[k][0], tables[k][1], info | {"between_c": [temps[k]], "outside": outside}
+    k = int(np.searchsorted(temps, ambient_c))  # temps[k-1] < ambient < temps[k]
+    x, x0, x1 = (1.0 / (c + 273.15) for c in (ambient_c, temps[k - 1], temps[k]))
+    w = (x - x0) / (x1 - x0)
+    sd = (1.0 - w) * tables[k - 1][0] + w * tables[k][0]
+    filled = max(tables[k - 1][1], tables[k][1])
+    return sd, filled, info | {"between_c": [temps[k - 1], temps[k]], "outside": False}
 
 
 @dataclass(frozen=True)
@@ -378,6 +411,8 @@ class Noise:
                     "expected_error_correlation_time_s": self.bins.tau_c_s,
                     "expected_error_correlation_lower_bound": self.bins.lower_bound,
                     "expected_error_bins_filled": self.bins.filled}  # fmt: skip
+            if self.bins.temperature is not None:
+                out["temperature"] = self.bins.temperature
         return out
 
     def warning(self, source: str) -> str | None:
@@ -388,15 +423,50 @@ class Noise:
                 "voltage error is the training residual (issue 29's rule)")  # fmt: skip
 
 
-def noise_of(fitted, source: str = "model.json", rule: str = "training-residual") -> Noise:
+def noise_of(fitted, source: str = "model.json", rule: str = "training-residual",
+             ambient: tuple[float, str] | None = None) -> Noise:  # fmt: skip
     """The noise rule's inputs from a model's ``intervals`` (refused without them) and, with
-    ``rule="expected-error"``, its ``expected_error`` (issue 29's rule where it has none)."""
+    ``rule="expected-error"``, its ``expected_error`` (issue 29's rule where it has none), at the
+    record's ``ambient`` (°C, where it came from) for a model over temperature."""
     base = _residual_noise(fitted, source)
     if rule == "training-residual":
         return base
     if fitted.expected_error is None:
         return replace(base, rule=NO_EXPECTED_ERROR)
-    return replace(base, rule="expected-error", bins=ErrorBins.of(fitted.expected_error))
+    return replace(base, rule="expected-error", bins=ErrorBins.of(fitted.expected_error, ambient))
+
+
+def checked_ambient(checked) -> tuple[float, str] | None:
+    """A checked record's ambient as the diagnosis groups its training records by it
+    (``heat.ambient_of``: its sidecar's, else its first temperature sample), None without."""
+    try:
+        return heat.ambient_of(checked)
+    except DataError:
+        return None
+
+
+def record_ambient(fitted, frame: pd.DataFrame,
+                   ambient: tuple[float, str] | None = None) -> tuple[float, str]:  # fmt: skip
+    """The record's ambient for part 6 of docs/soc-filter.md: the one given
+    (:func:`checked_ambient`), else the frame's first temperature sample, else the model's
+    reference temperature."""
+    if ambient is not None:
+        return float(ambient[0]), str(ambient[1])
+    if "temperature_c" in frame.columns and len(frame):
+        return float(frame["temperature_c"].iloc[0]), "first temperature sample"
+    return float(fitted.tref_k) - 273.15, "the model's reference temperature"
+
+
+def colder_than_trained(bins: ErrorBins | None, source: str) -> str | None:
+    """The one line for a record colder than the model's coldest test temperature by more than
+    a chamber's tolerance (part 6): the error there is at least the coldest group's."""
+    at = None if bins is None else bins.temperature
+    if at is None or at["ambient_c"] >= at["groups_c"][0] - heat.AMBIENT_GROUP_K:
+        return None
+    return (f"{source}: the record's ambient {at['ambient_c']:g} °C lies below the coldest "
+            f"temperature of the model's held-out error ({at['groups_c'][0]:g} °C): its "
+            "voltage error there is taken as that temperature's, which the cold likely "
+            "exceeds")  # fmt: skip
 
 
 def _residual_noise(fitted, source: str) -> Noise:
@@ -935,21 +1005,25 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
                     bias_a: float = 0.0, reference_soc0: float | None = None,
                     source: str = "model.json", noise: str = "expected-error",
                     adapt: bool = True, bms_events: bool = False,
-                    reference_full: bool = False) -> Result:  # fmt: skip
+                    reference_full: bool = False,
+                    ambient: tuple[float, str] | None = None) -> Result:  # fmt: skip
     """The filter on one record of the cell (``soc0``: the start's guess, default the library's
     rule on the record's opening; ``bias_a``: added to the current the filter reads;
     ``reference_soc0``: the known start, for the coulomb-counted reference and the errors;
     ``noise``: which rule sets the voltage error, :data:`NOISE_RULES`; ``adapt``: the
     innovation-based scale of it, docs/soc-filter.md; ``bms_events``: the ends of CC-CV charges
     and the lower cut-off as pseudo-measurements, part 5; ``reference_full``: the reference
-    counted from SOC = 1 at every CC-CV end). A model without ``expected_error`` runs the
-    training-residual rule and says so (``Result.warnings``, ``noise.rule``)."""
+    counted from SOC = 1 at every CC-CV end; ``ambient``: the record's ambient (°C, where it
+    came from: :func:`checked_ambient`), for a model over temperature, part 6, default
+    :func:`record_ambient`'s). A model without
+    ``expected_error`` runs the training-residual rule and says so (``Result.warnings``,
+    ``noise.rule``)."""
     if noise not in NOISE_RULES:
         raise UserError(f"noise must be one of {', '.join(NOISE_RULES)}, got {noise!r}")
     if reference_full and reference_soc0 is not None:
         raise UserError("reference_soc0 and reference_full are two references: give one")
     model = filter_model(fitted, source)
-    rule = noise_of(fitted, source, noise)
+    rule = noise_of(fitted, source, noise, record_ambient(fitted, rec_frame, ambient))
     rec = fitted.record(rec_frame)
     guess = fitted.initial_soc(rec) if soc0 is None else float(soc0)
     i_scale = fitted.current_scale_a or float(np.max(np.abs(rec.i)))
@@ -989,8 +1063,8 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
         summary["filter"] = score(rec.t, est.soc, est.soc_sd, ref)
         summary["coulomb_counting"] = score(rec.t, counted, np.zeros(rec.n), ref)
         summary["coulomb_counting"].pop("coverage_2sd")
-    said = rule.warning(source)
-    return Result(frame, summary, () if said is None else (said,))
+    said = (rule.warning(source), colder_than_trained(rule.bins, source))
+    return Result(frame, summary, tuple(w for w in said if w is not None))
 
 
 def soc_range(fitted) -> tuple[float, float]:

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import records, selection
-from .model import ecm, fitting, intervals
+from .model import ecm, fitting, heat, intervals
 from .selection import Candidate, Context
 
 RULE = (
@@ -392,26 +392,29 @@ def summary_line(handed: dict) -> str:
 # the error to expect on other profiles (part 3)
 
 
-def expected_error(ctx: Context, ho: HandOver) -> dict:
+def expected_error(ctx: Context, ho: HandOver, ambients_c: list[float] | None = None) -> dict:
     """``model.json``'s ``expected_error``: the handed-over model's held-out error (the score's
     predictions) as the error to expect on a profile unlike its training records: its RMS (records
     alike, as the score), by operating point (each bin's RMS over its held-out samples, with at
-    least MIN_BIN_SAMPLES of them) and the error's correlation time."""
+    least MIN_BIN_SAMPLES of them) and the error's correlation time. With the training records'
+    ambients (``heat.ambient_of``) spanning two test temperatures or more, the same by each
+    (``by_temperature``, docs/soc-filter.md part 6)."""
     chosen = ho.chosen
     cand = chosen.cand
     soc = [ecm.simulate_rows(rec, cand.X[r], cand.st.knots, ctx.table, traces=True)[1][0]
            for r, rec in enumerate(ctx.recs)]  # fmt: skip
-    err, mode, amps, sc = [], [], [], []
+    err, mode, amps, sc, which = [], [], [], [], []
     for r, idx, e in chosen.held:
         rec = ctx.recs[r]
         err.append(e)
         mode.append(records.direction(rec.i, rec.imax())[idx])
         amps.append(np.abs(rec.i[idx]))
         sc.append(soc[r][idx])
-    err, mode, amps, sc = (np.concatenate(a) for a in (err, mode, amps, sc))
+        which.append(np.full(e.size, r))
+    err, mode, amps, sc, which = (np.concatenate(a) for a in (err, mode, amps, sc, which))
     load = mode != 0
     median = float(np.median(amps[load])) if load.any() else None
-    return {
+    out = {
         "rms_mv": _mv(chosen.score),
         "held_out": ho.kind,
         "samples": int(err.size),
@@ -420,6 +423,16 @@ def expected_error(ctx: Context, ho: HandOver) -> dict:
         "min_bin_samples": MIN_BIN_SAMPLES,
         **correlation_time(ctx, chosen.held),
     }
+    groups = [] if ambients_c is None else heat.ambient_groups(ambients_c)
+    if len(groups) > 1:
+        out["by_temperature"] = [
+            {"ambient_c": float(np.mean([ambients_c[r] for r in g])),
+             "records": [ctx.recs[r].source for r in g], "samples": int(k.sum()),
+             "rms_mv": 1e3 * float(np.sqrt(np.mean(err[k] ** 2))),
+             "by_operating_point": _bins(err[k], mode[k], amps[k], sc[k], median)}
+            for g in groups if (k := np.isin(which, g)).any()
+        ]  # fmt: skip
+    return out
 
 
 def _bins(err, mode, amps, soc, median) -> list[dict]:

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 from test_ecm import ACTIVE, TRUTH
 
-from avoa_pipeline import cli
+from avoa_pipeline import cli, records
 from avoa_pipeline import estimate as E
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm, elements, intervals
@@ -434,14 +434,21 @@ def test_the_experiment_runs_the_protocols_four_runs_per_cycle():
     assert settings["start_plus_20"][0] == pytest.approx(soc0 + 0.2)  # not clipped
     assert settings["start_minus_20"][0] == pytest.approx(soc0 - 0.2)
     assert settings["bias_plus_1pct"][1] == pytest.approx(0.01 * frame["current_a"].abs().max())
-    rows = pd.DataFrame(se.cycle_rows(model, frame, "25degC", "synthetic"))
-    assert list(rows["run"]) == list(se.RUNS)
+    checked = records.check(frame, "synthetic")
+    rows = pd.DataFrame(se.cycle_rows(model, checked, "25degC", "synthetic"))
+    # every rule of docs/soc-filter.md part 7, each with the four runs
+    assert list(rows["rule"]) == [r for r in se.RULES for _ in se.RUNS]
+    assert list(rows["run"]) == list(se.RUNS) * len(se.RULES)
     assert (rows["soc0_true"] == soc0).all()
     # the model file is one from before issue 37: the table says which rule ran
-    assert (rows["noise_rule"] == E.NO_EXPECTED_ERROR).all()
-    assert rows.loc[rows["run"] == "start_plus_20", "cc_rmse_after_window"].item() == pytest.approx(
-        0.2
-    )
+    by_rule = rows.set_index("rule")["noise_rule"]
+    assert (by_rule.loc["training-residual"] == "training-residual").all()
+    assert (by_rule.drop("training-residual") == E.NO_EXPECTED_ERROR).all()
+    assert rows["bms_events_applied"].notna().tolist() == [
+        r == "expected-error+bms-events" for r in rows["rule"]
+    ]
+    plus = rows[(rows["run"] == "start_plus_20") & (rows["rule"] == "expected-error")]
+    assert plus["cc_rmse_after_window"].item() == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("effects", [("second_rc",), ("capacity_temperature",)])

@@ -257,3 +257,115 @@ def test_soc_json_says_which_noise_rule_ran(tmp_path, capsys, development):
         out.unlink()
         out.with_suffix(".json").unlink()
         out.with_suffix(".png").unlink()
+
+
+# ----------------------------------------------------------------------------------------------
+# part 6: a model over temperature
+
+
+def test_ambient_groups_take_a_chambers_tolerance():
+    from avoa_pipeline.model import heat
+
+    # 25 and 26.5 are one chamber (within 2 K of the group's coldest), 27.5 is not
+    ambients = [25.0, 10.0, 26.5, 0.0, 9.0, -10.0, 27.5]
+    assert heat.ambient_groups(ambients) == [[5], [3], [1, 4], [0, 2], [6]]
+    assert heat.ambient_groups([25.0]) == [[0]]
+
+
+def test_the_handed_over_error_is_split_by_test_temperature_only_over_several():
+    """``handover.expected_error`` on three held-out records, two at 25 °C and one at 0 °C:
+    ``by_temperature`` holds each chamber's own error; with one chamber, or no ambients, the
+    block is as before."""
+    from types import SimpleNamespace as NS
+
+    model = fitted("table", FILTER)
+    frames = [measured(seed, 1800)[0] for seed in (21, 22, 23)]
+    recs = [model.record(f) for f in frames]
+    rng = np.random.default_rng(5)
+    held = [(r, np.arange(rec.n), rng.normal(0.0, sd, rec.n))
+            for r, (rec, sd) in enumerate(zip(recs, (0.01, 0.01, 0.05), strict=True))]  # fmt: skip
+    cand = NS(X=np.repeat(model.x[None, :], 3, axis=0), st=NS(knots=model.knots))
+    chosen = NS(
+        cand=cand, held=held, score=float(np.mean(np.concatenate([e for *_, e in held]) ** 2))
+    )
+    ctx, ho = (
+        NS(recs=recs, table=model.config.table),
+        NS(chosen=chosen, kind="leave one record out"),
+    )
+    plain = handover.expected_error(ctx, ho)
+    assert "by_temperature" not in plain
+    assert handover.expected_error(ctx, ho, [25.0, 24.0, 25.5]) == plain  # one chamber
+    split = handover.expected_error(ctx, ho, [25.0, 24.0, 0.0])
+    assert {k: v for k, v in split.items() if k != "by_temperature"} == plain
+    cold, warm = split["by_temperature"]
+    assert (cold["ambient_c"], warm["ambient_c"]) == (0.0, 24.5)
+    assert cold["samples"] == recs[2].n
+    assert warm["samples"] == recs[0].n + recs[1].n
+    assert cold["rms_mv"] == pytest.approx(1e3 * np.sqrt(np.mean(held[2][2] ** 2)))
+    assert cold["rms_mv"] > 4 * warm["rms_mv"]
+
+
+def two_chambers(ee: dict, cold_by: float) -> dict:
+    """``ee`` split as a model over 0 and 40 °C would be: the cold chamber's error ``cold_by``
+    times the warm one's."""
+    groups = [{"ambient_c": t, "records": [f"{t:g} °C"], "samples": ee["samples"],
+               **{k: v for k, v in understated(ee, by).items()
+                  if k in ("rms_mv", "by_operating_point")}}
+              for t, by in ((0.0, 1.0 / cold_by), (40.0, 1.0))]  # fmt: skip
+    return {**ee, "by_temperature": groups}
+
+
+def test_the_error_at_an_ambient_is_interpolated_in_inverse_temperature(development):
+    model, _, _ = development
+    ee = two_chambers(model.expected_error, 4.0)
+    cold = E.ErrorBins.of(ee, (0.0, "given"))
+    warm = E.ErrorBins.of(ee, (40.0, "given"))
+    assert np.allclose(cold.sd_v, 4.0 * warm.sd_v)
+    mid = E.ErrorBins.of(ee, (20.0, "given"))
+    w = (1 / 293.15 - 1 / 273.15) / (1 / 313.15 - 1 / 273.15)
+    assert np.allclose(mid.sd_v, (1 - w) * cold.sd_v + w * warm.sd_v)
+    assert mid.temperature["between_c"] == [0.0, 40.0]
+    assert not mid.temperature["outside"]
+    # outside the span: the nearest chamber's, said; a line only where colder than a chamber's
+    # tolerance below the coldest
+    for ambient, same, line in ((-20.0, cold, True), (-1.5, cold, False), (55.0, warm, False)):
+        bins = E.ErrorBins.of(ee, (ambient, "given"))
+        assert np.allclose(bins.sd_v, same.sd_v)
+        assert bins.temperature["outside"]
+        assert (E.colder_than_trained(bins, "m.json") is not None) is line
+    # without its ambient, or a file of one chamber: the pooled bins, as before
+    assert E.ErrorBins.of(ee).temperature is None
+    assert np.allclose(E.ErrorBins.of(model.expected_error, (0.0, "given")).sd_v,
+                       E.ErrorBins.of(model.expected_error).sd_v)  # fmt: skip
+
+
+def test_model_json_carries_the_error_by_temperature(tmp_path, development):
+    model, _, _ = development
+    joint = replace(model, expected_error=two_chambers(model.expected_error, 4.0))
+    joint.save(tmp_path / "model.json")
+    assert FittedModel.load(tmp_path / "model.json").expected_error == joint.expected_error
+    d = json.loads((tmp_path / "model.json").read_text())
+    d["expected_error"]["by_temperature"][0]["ambient_c"] = 500.0  # no ambient of a cell
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(UserError, match="ambient_c"):
+        FittedModel.load(tmp_path / "bad.json")
+
+
+def test_a_model_over_temperature_runs_the_record_at_its_ambient(development):
+    """The filter takes the bins at the record's ambient (its first temperature sample where no
+    ambient is given): wider at the cold chamber, SOC.json says where it lay."""
+    model, frame, _soc = development
+    joint = replace(model, expected_error=two_chambers(model.expected_error, 4.0))
+    part = frame.iloc[:3000]
+    sd = {}
+    for ambient in (0.0, 40.0):
+        res = E.estimate_record(joint, part.assign(temperature_c=ambient), SOC0, 0.0, SOC0)
+        at = res.summary["noise"]["temperature"]
+        assert (at["ambient_c"], at["from"]) == (ambient, "first temperature sample")
+        sd[ambient] = float(res.frame["soc_sd"].median())
+    assert sd[0.0] > 1.5 * sd[40.0]
+    cold = E.estimate_record(joint, part, SOC0, 0.0, SOC0, ambient=(-20.0, "sidecar"))
+    assert any("below the coldest" in w for w in cold.warnings)
+    plain = E.estimate_record(model, part, SOC0, 0.0, SOC0, ambient=(-20.0, "sidecar"))
+    assert "temperature" not in plain.summary["noise"]
+    assert not plain.warnings

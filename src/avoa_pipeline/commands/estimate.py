@@ -133,7 +133,8 @@ def run_estimate(args) -> None:
     result = estimate.estimate_record(model, rec.frame, args.soc0, args.current_bias_a, ref,
                                       source=args.model, noise=args.noise,
                                       adapt=args.adapt, bms_events=args.bms_events,
-                                      reference_full=args.reference_full)  # fmt: skip
+                                      reference_full=args.reference_full,
+                                      ambient=estimate.checked_ambient(rec))  # fmt: skip
     summary = {"model": str(args.model), "record": str(args.data), **result.summary}
     with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
         result.frame.to_csv(csv_tmp, index=False)

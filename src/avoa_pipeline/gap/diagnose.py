@@ -48,7 +48,7 @@ from threadpoolctl import threadpool_limits
 
 from .. import __version__, handover, records, selection
 from ..errors import DataError, UserError
-from ..model import ecm, elements, fitting, intervals, ocv
+from ..model import ecm, elements, fitting, heat, intervals, ocv
 from ..model.ecm import Record
 from ..model.elements.element import View
 from ..model.fitted import (
@@ -408,7 +408,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     # its candidates
     ho = handover.hand_over(ctx, lad, current_accuracy_a)
     handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
-    model = _handed_over_model(ctx, ho, selected["name"])
+    model = _handed_over_model(ctx, ho, selected["name"], _ambients(train))
     notes += [w for w in ho.warnings if w not in notes]
 
     report = {
@@ -493,10 +493,11 @@ def _where(ctx: selection.Context, base: selection.Candidate):
     return rec, resid, soc, noise_v, regions, windows
 
 
-def _handed_over_model(ctx, ho, verdict_model: str) -> FittedModel:
+def _handed_over_model(ctx, ho, verdict_model: str, ambients_c=None) -> FittedModel:
     """The model.json: the handed-over model, with its intervals (diagnosis.json carries the
     same), the error to expect on other profiles, and the verdict's model named beside the
-    rule."""
+    rule; ``ambients_c``: the training records' ambients, for the expected error by test
+    temperature."""
     table = ctx.table
     model = selection.fitted_model(ctx, ho.chosen.cand, provenance={
         "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}",
@@ -506,8 +507,17 @@ def _handed_over_model(ctx, ho, verdict_model: str) -> FittedModel:
         "package_version": __version__,
     })  # fmt: skip
     model.intervals = ho.chosen.iv.report()
-    model.expected_error = _jsonable(handover.expected_error(ctx, ho))
+    model.expected_error = _jsonable(handover.expected_error(ctx, ho, ambients_c))
     return model
+
+
+def _ambients(train: list[Checked]) -> list[float] | None:
+    """Every training record's ambient (``heat.ambient_of``), or None where one has none: the
+    expected error is then not split by test temperature."""
+    try:
+        return [heat.ambient_of(c)[0] for c in train]
+    except DataError:
+        return None
 
 
 def _heldout_mv(ctx: selection.Context, cand: selection.Candidate, m=None) -> float:

@@ -270,6 +270,25 @@ def _moves(frame: pd.DataFrame) -> bool:
     return "temperature_c" in frame.columns and float(np.ptp(frame["temperature_c"])) >= MIN_RANGE_C
 
 
+AMBIENT_GROUP_K = 2.0
+"""Records whose ambients lie within this of a group's coldest were run at one test temperature:
+the tolerance a test standard allows a chamber's set point (IEC 62660-1, SAE J2464: ±2 K);
+docs/soc-filter.md part 6."""
+
+
+def ambient_groups(ambients_c) -> list[list[int]]:
+    """The records' indices grouped by test temperature (:data:`AMBIENT_GROUP_K`), coldest
+    first, each group's indices in the order of ``ambients_c``."""
+    order = sorted(range(len(ambients_c)), key=lambda r: (ambients_c[r], r))
+    groups: list[list[int]] = []
+    for r in order:
+        if groups and ambients_c[r] - ambients_c[groups[-1][0]] <= AMBIENT_GROUP_K:
+            groups[-1].append(r)
+        else:
+            groups.append([r])
+    return [sorted(g) for g in groups]
+
+
 def check_ambient(value, where: str) -> float:
     """An ambient (°C): a finite number within AMBIENT_RANGE_C, else a one-line DataError."""
     lo, hi = AMBIENT_RANGE_C

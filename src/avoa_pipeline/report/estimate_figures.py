@@ -64,10 +64,19 @@ def render(frame: pd.DataFrame, summary: dict, path, title: str = "") -> None:
 
 def soc_estimation_figure(table: pd.DataFrame, stem, goals: dict | None = None) -> None:
     """The experiment's table as a figure: the filter's RMSE after the window per cycle (x) and
-    run (bars), with plain coulomb counting from the same start as hollow marks."""
-    fig = Figure(figsize=(10, 4.5), dpi=110, layout="constrained")
+    run (bars), with plain coulomb counting from the same start as hollow marks; one panel per
+    filter rule where the table has a ``rule`` column."""
+    rules = list(dict.fromkeys(table["rule"])) if "rule" in table.columns else [None]
+    fig = Figure(figsize=(10, 1.0 + 3.5 * len(rules)), dpi=110, layout="constrained")
     FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    axes = np.atleast_1d(fig.subplots(len(rules), 1, sharex=True, squeeze=False)[:, 0])
+    for ax, rule in zip(axes, rules, strict=True):
+        rows = table if rule is None else table[table["rule"] == rule]
+        _rmse_panel(ax, rows, goals, "" if rule is None else f"rule: {rule}; ")
+    save(fig, stem)
+
+
+def _rmse_panel(ax, table: pd.DataFrame, goals: dict | None, title: str) -> None:
     cycles = list(dict.fromkeys(zip(table["temperature"], table["cycle"], strict=True)))
     runs = list(dict.fromkeys(table["run"]))
     width = 0.8 / max(len(runs), 1)
@@ -85,8 +94,7 @@ def soc_estimation_figure(table: pd.DataFrame, stem, goals: dict | None = None) 
     ax.set_xticks(np.arange(len(cycles)), [f"{t}\n{c}" for t, c in cycles], fontsize=8)
     ax.set_ylabel("SOC RMSE after 5 min (%)")
     ax.set_yscale("log")
-    ax.set_title("SOC estimation on the unseen Panasonic cycles (o: coulomb counting from the "
-                 "same start with the same current; 0 from the true start)",
+    ax.set_title(f"{title}SOC estimation on the unseen Panasonic cycles (o: coulomb counting "
+                 "from the same start with the same current; 0 from the true start)",
                  fontsize=9)  # fmt: skip
     ax.legend(fontsize=7, ncols=2)
-    save(fig, stem)

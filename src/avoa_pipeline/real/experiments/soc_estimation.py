@@ -16,6 +16,8 @@ without Snakemake (DIR/<temperature>/model.json, the cycles of :data:`UNSEEN`;
 
 from __future__ import annotations
 
+from itertools import product
+
 import numpy as np
 import pandas as pd
 
@@ -28,6 +30,13 @@ START_OFFSET = 0.20
 BIAS_OF_PEAK = 0.01
 """The issue's current bias: 1 % of the record's peak |I|, added to the current read."""
 RUNS = ("true_start", "start_plus_20", "start_minus_20", "bias_plus_1pct")
+
+RULES = {"expected-error": {},
+         "training-residual": {"noise": "training-residual", "adapt": False},
+         "expected-error+bms-events": {"bms_events": True}}  # fmt: skip
+"""The filter's rules each run is made with (docs/soc-filter.md part 7): issue 40's rule (the
+expected error, adapted; the default), issue 29's (the training residual, no adaptation), and
+issue 40's with the BMS events as pseudo-measurements."""
 
 UNSEEN = {"25degC": ("cycle_1", "us06", "hwfet"), "10degC": ("us06",),
           "0degC": ("us06", "hwfet"), "-10degC": ("us06",)}  # fmt: skip
@@ -47,24 +56,39 @@ def run_settings(model: FittedModel, frame: pd.DataFrame) -> dict[str, tuple[flo
             "bias_plus_1pct": (soc0, bias, soc0)}  # fmt: skip
 
 
-def cycle_rows(model: FittedModel, frame: pd.DataFrame, temperature: str, cycle: str,
-               source: str = "model.json") -> list[dict]:  # fmt: skip
-    """The four runs on one cycle, one flat row each."""
+def cycle_rows(model: FittedModel, checked: records.Checked, temperature: str, cycle: str,
+               source: str = "model.json", rules: dict | None = None) -> list[dict]:  # fmt: skip
+    """The four runs on one cycle under each rule (``rules``, default :data:`RULES`), one flat
+    row each; the record's ambient as the command reads it (``estimate.checked_ambient``)."""
     rows = []
+    frame = checked.frame
     rec = model.record(frame)
-    for run, (guess, bias, soc0) in run_settings(model, frame).items():
-        res = estimate.estimate_record(model, frame, guess, bias, soc0, source=source)
+    ambient = estimate.checked_ambient(checked)
+    settings = run_settings(model, frame).items()
+    for (rule, kw), (run, (guess, bias, soc0)) in product((rules or RULES).items(), settings):
+        res = estimate.estimate_record(model, frame, guess, bias, soc0, source=source,
+                                       ambient=ambient, **kw)  # fmt: skip
         s, f, cc = res.summary, res.summary["filter"], res.summary["coulomb_counting"]
         rows.append({
-            "temperature": temperature, "cycle": cycle, "run": run,
+            "temperature": temperature, "cycle": cycle, "rule": rule, "run": run,
             "model": model.config.name, "starts_at_rest": ecm.starts_at_rest(rec),
             "soc0_true": soc0, "soc0_guess": guess, "current_bias_a": bias,
             **f, **{f"cc_{k}": v for k, v in cc.items()},
             "noise_rule": s["noise"]["rule"], "adapt": s["noise"]["adapt"],
+            "largest_scale": s["noise"].get("largest_scale"),
+            "bms_events_applied": _applied(s.get("bms_events")),
             "innovation_rms_mv": s["innovation_rms_mv"], "duration_s": s["duration_s"],
             "wall_s": s["wall_s"], "times_real_time": s["times_real_time"],
         })  # fmt: skip
     return rows
+
+
+def _applied(events: dict | None) -> int | None:
+    """How many BMS events moved the SOC (None: the rule ran without them)."""
+    if events is None:
+        return None
+    return sum(e["applied"] for found in events.values() if isinstance(found, list)
+               for e in found)  # fmt: skip
 
 
 def soc_estimation_table(models: dict[str, str], tests: dict[str, dict[str, str]]) -> pd.DataFrame:
@@ -74,5 +98,5 @@ def soc_estimation_table(models: dict[str, str], tests: dict[str, dict[str, str]
     for temp, cycles in tests.items():
         model = FittedModel.load(models[temp])
         for cycle, path in cycles.items():
-            rows += cycle_rows(model, records.read(path).frame, temp, cycle, str(models[temp]))
+            rows += cycle_rows(model, records.read(path), temp, cycle, str(models[temp]))
     return pd.DataFrame(rows)
