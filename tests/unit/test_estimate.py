@@ -462,3 +462,15 @@ def test_the_reference_counts_the_charge_as_the_model_does(effects):
     _, tr = model.simulate(frame, soc0=SOC0, traces=True)
     ref = E.reference_soc(model.record(frame), E.filter_model(model), SOC0)
     assert np.allclose(ref, tr[0], atol=1e-9)
+
+
+def test_the_experiments_command_takes_another_cells_records():
+    import argparse
+
+    from avoa_pipeline.jobs import estimate as job
+
+    p = argparse.ArgumentParser()
+    got = job._named_records(p, ["30degC/hppc=a.csv", "30degC/udds=b.csv", "20degC/hppc=c.csv"])
+    assert got == {"30degC": {"hppc": "a.csv", "udds": "b.csv"}, "20degC": {"hppc": "c.csv"}}
+    with pytest.raises(SystemExit):
+        job._named_records(p, ["hppc=a.csv"])

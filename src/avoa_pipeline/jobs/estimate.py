@@ -3,7 +3,8 @@ unseen Panasonic cycles (issue 29; docs/real-data.md "SOC estimation (issue 29)"
 
 ``python -m avoa_pipeline.jobs.estimate --models DIR --canonical DIR --out CSV`` runs the same
 job without Snakemake (DIR/<temperature>/model.json, the cycles of ``soc_estimation.UNSEEN``;
-``--one-model M`` instead runs one model at every temperature, issue 28's joint model). It lives
+``--one-model M`` instead runs one model at every temperature, issue 28's joint model;
+``--records 30degC/hppc=CSV ...`` runs other records, another cell's). It lives
 here, not in the experiment, because it draws: experiments never import ``report``."""
 
 from __future__ import annotations
@@ -39,17 +40,35 @@ def main(argv=None) -> None:
     which = p.add_mutually_exclusive_group(required=True)
     which.add_argument("--models", help="DIR/<temperature>/model.json")
     which.add_argument("--one-model", help="one model.json for every temperature (issue 28's)")
-    p.add_argument("--canonical", required=True, help="the canonical records' folder")
+    records = p.add_mutually_exclusive_group(required=True)
+    records.add_argument("--canonical", help="the canonical Panasonic records' folder")
+    records.add_argument("--records", nargs="+", metavar="TEMPERATURE/CYCLE=CSV",
+                         help="another cell's records (with --one-model or --models)")  # fmt: skip
     p.add_argument("--temperatures", nargs="+", default=list(se.UNSEEN))
     p.add_argument("--out", required=True, help="CSV; the figure goes beside it (.png, .pdf)")
     args = p.parse_args(argv)
-    if args.one_model:
-        models = dict.fromkeys(args.temperatures, args.one_model)
+    if args.records:
+        tests = _named_records(p, args.records)
     else:
-        models = {t: str(Path(args.models) / t / "model.json") for t in args.temperatures}
-    tests = {t: {c: str(Path(args.canonical) / f"panasonic_{t}_{c}.csv") for c in se.UNSEEN[t]}
-             for t in args.temperatures}  # fmt: skip
+        tests = {t: {c: str(Path(args.canonical) / f"panasonic_{t}_{c}.csv")
+                     for c in se.UNSEEN[t]} for t in args.temperatures}  # fmt: skip
+    if args.one_model:
+        models = dict.fromkeys(tests, args.one_model)
+    else:
+        models = {t: str(Path(args.models) / t / "model.json") for t in tests}
     soc_estimation(models, tests, args.out, str(Path(args.out).with_suffix("")))
+
+
+def _named_records(parser, given: list[str]) -> dict[str, dict[str, str]]:
+    """``TEMPERATURE/CYCLE=CSV`` pairs as the experiment's temperature → cycle → record."""
+    tests: dict[str, dict[str, str]] = {}
+    for item in given:
+        name, sep, path = item.partition("=")
+        temp, slash, cycle = name.partition("/")
+        if not (sep and slash and temp and cycle and path):
+            parser.error(f"--records: {item!r} is not TEMPERATURE/CYCLE=CSV")
+        tests.setdefault(temp, {})[cycle] = path
+    return tests
 
 
 if __name__ == "__main__":
