@@ -449,6 +449,12 @@ def test_the_experiment_runs_the_protocols_four_runs_per_cycle():
     ]
     plus = rows[(rows["run"] == "start_plus_20") & (rows["rule"] == "expected-error")]
     assert plus["cc_rmse_after_window"].item() == pytest.approx(0.2)
+    summary = se.rule_summary(rows)
+    assert list(summary["rule"]) == list(se.RULES)
+    lo, hi = se.COVERAGE_GOAL
+    for rule, g in rows.groupby("rule"):
+        held = int(g["coverage_2sd"].between(lo, hi).sum())
+        assert summary.set_index("rule").loc[rule, "runs_in_goal"] == f"{held}/{len(se.RUNS)}"
 
 
 @pytest.mark.parametrize("effects", [("second_rc",), ("capacity_temperature",)])

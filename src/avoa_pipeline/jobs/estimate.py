@@ -26,8 +26,11 @@ def soc_estimation(models: dict, tests: dict, out_csv, figure_stem, log=None) ->
     estimate_figures.soc_estimation_figure(table, figure_stem, se.GOALS)
     worst = table.groupby("temperature")["rmse_after_window"].max()
     by_temp = ", ".join(f"{t} {100 * v:.2f} %" for t, v in worst.items())
-    write_log(log, f"wrote {out_csv}, {figure_stem}.png: {len(table)} runs; largest RMSE after "
-                   f"5 min: {by_temp}")  # fmt: skip
+    text = (f"wrote {out_csv}, {figure_stem}.png: {len(table)} runs; largest RMSE after 5 min: "
+            f"{by_temp}\n{se.rule_summary(table).to_string(index=False)}")  # fmt: skip
+    write_log(log, text)
+    if not log:  # run from the command line: the summary on stdout
+        print(text)
 
 
 def main(argv=None) -> None:

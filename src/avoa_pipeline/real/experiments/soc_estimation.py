@@ -43,6 +43,9 @@ UNSEEN = {"25degC": ("cycle_1", "us06", "hwfet"), "10degC": ("us06",),
 """The unseen cycles of the rule of issue 28 (docs/real-data.md), the default of ``main``; the
 workflow passes those of its config (``real_dc.unseen_cycles``)."""
 
+COVERAGE_GOAL = (0.90, 0.99)
+"""Issue 40's ±2σ coverage goal on every record."""
+
 GOALS = {0.01: "goal 25 °C: 1 %", 0.02: "goal 0 °C: 2 %"}
 """The issue's RMSE goals after the window, drawn on the figure."""
 
@@ -99,4 +102,21 @@ def soc_estimation_table(models: dict[str, str], tests: dict[str, dict[str, str]
         model = FittedModel.load(models[temp])
         for cycle, path in cycles.items():
             rows += cycle_rows(model, records.read(path), temp, cycle, str(models[temp]))
+    return pd.DataFrame(rows)
+
+
+def rule_summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per temperature, cycle and rule, over the four runs: the RMSE after the window and the
+    ±2σ coverage (in %, lowest-highest) and how many runs hold the coverage goal
+    (:data:`COVERAGE_GOAL`), the speed's lowest; the rules in the table's order."""
+    lo, hi = COVERAGE_GOAL
+    rows = []
+    keys = ["temperature", "cycle", "rule"] if "rule" in table.columns else ["temperature", "cycle"]
+    for key, g in table.groupby(keys, sort=False):
+        rmse, cov = 100 * g["rmse_after_window"], 100 * g["coverage_2sd"]
+        rows.append({**dict(zip(keys, key, strict=True)),
+                     "rmse_pct": f"{rmse.min():.2f}-{rmse.max():.2f}",
+                     "coverage_pct": f"{cov.min():.1f}-{cov.max():.1f}",
+                     "runs_in_goal": f"{int(g['coverage_2sd'].between(lo, hi).sum())}/{len(g)}",
+                     "times_real_time_min": float(g["times_real_time"].min())})  # fmt: skip
     return pd.DataFrame(rows)
