@@ -8,7 +8,9 @@ docs/soc-filter.md part 5, on ``tests/unit/test_bms_events.py``'s emulated cycle
 CC-CV charge, a discharge to the cut-off, a spike, a CC-only charge), scored against the truth
 and against the reference counted from SOC = 1 at the CC-CV end (``--reference-full``).
 
-Run: PYTHONPATH=src .venv/bin/python benchmarks/soc_development.py [--bms-events]
+With ``--edges``: the held-out error with and without the samples beside a current step.
+
+Run: PYTHONPATH=src .venv/bin/python benchmarks/soc_development.py [--bms-events | --edges]
 """
 
 from __future__ import annotations
@@ -88,5 +90,31 @@ def bms_events() -> None:
                   f"({time.process_time() - started:.1f} s CPU)")  # fmt: skip
 
 
+def edges() -> None:
+    """The held-out error with and without the samples beside a step of the current read (a
+    lagging channel's one-sample spikes, which the filter adds as white noise of its own): does
+    ``expected_error`` count them a second time?"""
+    import numpy as np
+
+    model = T.fitted("table", T.FILTER, residual_mv=T.LOGGER_MV)
+    held, _ = T.measured(11, 7200)
+    v = model.simulate(held, soc0=T.SOC0)
+    err = held["voltage_v"].to_numpy() - v
+    i = held["current_a"].to_numpy()
+    step = np.abs(np.diff(i)) > 0.0
+    edge = np.r_[False, step] | np.r_[step, False]  # either side of a step
+    rms = {
+        k: 1e3 * float(np.sqrt(np.mean(e**2)))
+        for k, e in (("all", err), ("away from steps", err[~edge]), ("at steps", err[edge]))
+    }
+    print(f"held-out record: {i.size} samples, {int(edge.sum())} beside a step of the current "
+          "read; error RMS " + ", ".join(f"{k} {v:.1f} mV" for k, v in rms.items()))  # fmt: skip
+
+
 if __name__ == "__main__":
-    bms_events() if "--bms-events" in sys.argv[1:] else main()
+    if "--bms-events" in sys.argv[1:]:
+        bms_events()
+    elif "--edges" in sys.argv[1:]:
+        edges()
+    else:
+        main()
