@@ -7,7 +7,9 @@ clock truncated to the second and drifting 8 s a day against ``Time``, the ``Ah`
 running on across both files), and a wall clock that jumps mid-test. They need no data root.
 """
 
+import copy
 import hashlib
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -244,3 +246,46 @@ def test_a_piece_between_jumps_is_placed_only_if_its_clocks_agree_on_rate(stamp_
             f"clock jumps cannot be placed (its stamps run {clock.pieces[1].rate:.4g} times as "
             "fast as 'Time')"
         )
+
+
+# --- the real -20 degC HPPC test (read in place from the configured data root) ---------------
+
+# its files and sha256 (docs/real-data.md, "-20 degC"), used where config/config.yaml does not
+# list -20 degC yet
+M20_DIR = "panasonic_18650pf/-20degC/5 pulse disch/"
+M20 = {
+    M20_DIR + "06-15-17_11.31 n20degC_5Pulse_HPPC_Pan18650PF.mat":
+        "35cdba040b21d033ad30c6c5e4923c2417323a0e5af2b65aa147d7bd24b4d4b2",
+    M20_DIR + "06-15-17_12.33 3789_dis5_10p.mat":
+        "166bbf6a5db20a2c1fac9ef40dd0e608c6f0b20d445023150879663057b11094",
+}  # fmt: skip
+
+
+def test_the_real_minus_20_hppc_imports_its_step_file_split_at_its_jumps(cfg, tmp_path):
+    real = copy.deepcopy(cfg["real"])
+    root = Path(real["root"])
+    real["root"] = str(root if root.is_absolute() else (Path(__file__).parents[2] / root).resolve())
+    if not Path(real["root"], M20_DIR).is_dir():
+        pytest.skip(f"Panasonic -20 degC data not found under {real['root']}")
+    real["sources"] = {**M20, **real["sources"]}
+    pulse_key, steps_key = M20
+    out = tmp_path / "hppc.csv"
+    side = panasonic.import_record(real, [pulse_key, steps_key], "hppc", -20.0, out)
+    checked = records.read(out, capacity_ah=side["nominal_capacity_ah"])
+    assert checked.sign.verdict == "discharge-positive"
+    assert checked.warnings == ()
+    jumps = side["clock_jumps"][steps_key]
+    assert pulse_key not in side["clock_jumps"]  # the pulse file's clock never jumped
+    # the first jump: 26.7 h ahead, ten hours after the pulse file's last row (6/16 3:41 AM)
+    assert jumps[0]["from"] == "6/17/2017 7:30:39 PM"
+    assert jumps[0]["jump_s"] == pytest.approx(26.7 * 3600, abs=60)
+    # every row from it on is the next test's, left out with the rows before it that follow
+    # the recharge; none is refused, placed or not
+    rows_after = sum(j["rows"] for j in jumps)
+    assert side["later_test_rows_dropped"] > rows_after
+    # and the record is an HPPC test: 0.87 A SOC steps between pulse sets, down to 2.5 V
+    cur = checked.frame["current_a"].to_numpy()
+    assert np.sum(np.abs(cur - 0.87) < 0.03) > 5000  # seconds of 0.87 A SOC steps
+    assert np.max(cur) > 5.5  # 2C pulses (4C ones are cut by 2.5 V within a second at -20)
+    assert abs(side["discharged_ah"] - side["discharged_ah_tester_counter"]) < 0.01 * 2.5
+    assert checked.frame["voltage_v"].iloc[-1] < 2.6
