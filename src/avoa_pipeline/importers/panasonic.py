@@ -13,7 +13,9 @@ What the source needs before it is a canonical record:
   ``*_dis5_10p`` file the 0.87 A discharges between pulse sets, each file with its own ``Time``.
   Both are placed on the wall clock of their ``TimeStamp`` column (1-s resolution; ``Time``
   drifts against it by ~8 s a day, so each file's clock is a least-squares line
-  ``TimeStamp ≈ a + b·Time``), cut into blocks at their logging gaps, and the blocks are
+  ``TimeStamp ≈ a + b·Time``; where the wall clock jumps, the file is split and each piece
+  placed by its own line, ``Time`` ordering and spacing the rows within it), cut into blocks at
+  their logging gaps, and the blocks are
   interleaved in time order; where a block starts before the previous one has ended (clock
   resolution), the earlier block's overlap is dropped. The tester's ``Ah`` counter runs on
   across both files, so the merged counter must be monotonic: that is checked, and it catches a
@@ -114,12 +116,117 @@ def read_mat(path: str | Path) -> pd.DataFrame:
     return out
 
 
-def wall_clock(df: pd.DataFrame, path) -> np.ndarray:
-    """Seconds since 2017-01-01 of every row, from TimeStamp (1 s resolution) and Time.
+CLOCK_TOLERANCE_S = 3.0
+"""How far a file's clock line may miss a ``TimeStamp`` before the clock counts as having jumped.
+The stamp's truncation to the second leaves ±0.5 s about the true clock, and the drift's
+departure from a line adds at most 1.2 s more on the files that import (worst residual 1.71 s,
+the 25 °C SOC-step file over 1.9 days); an hour's jump is far above it (docs/real-data.md)."""
 
-    ``TimeStamp`` is truncated to the second, so ``TimeStamp + 0.5`` is an unbiased reading;
-    a least-squares line through it against ``Time`` gives sub-second times that follow the wall
-    clock's drift. Rows logged at midnight carry only a date.
+MIN_PIECE_ROWS = 3
+"""A line through two stamps always fits them, so a piece needs three to show that its clocks
+agree."""
+
+MAX_CLOCK_DRIFT = 1e-3
+"""How far a wall clock's rate may differ from ``Time``'s: a PC's quartz clock drifts by ~1e-4
+(measured ≤ 8.8e-5, 7.6 s a day), and this is ten times that. Stamps running faster or slower
+show the clocks disagreeing on how fast time passes, which no placement can mend."""
+
+
+@dataclass(frozen=True)
+class Piece:
+    """Rows ``[start, stop)`` of a file between clock jumps; its line ``a + b·(Time − t_start)``."""
+
+    start: int
+    stop: int
+    offset_s: float
+    rate: float
+    why_unplaced: str | None = None
+
+    @property
+    def placed(self) -> bool:
+        return self.why_unplaced is None
+
+
+@dataclass(frozen=True)
+class Clock:
+    """Where every row of one file lies on the wall clock (s since 2017-01-01), piece by piece.
+
+    Rows of a piece that cannot be placed carry their raw stamps (``TimeStamp`` + 0.5 s): good
+    enough to tell whether they lie after the test, which :func:`merge` leaves out; the others
+    it refuses with :meth:`refusal`.
+    """
+
+    path: str
+    time: np.ndarray
+    wall: np.ndarray
+    stamps: tuple[str, ...]
+    pieces: tuple[Piece, ...]
+
+    def refusal(self, piece: Piece) -> str:
+        return (
+            f"{self.path}: field 'meas.TimeStamp': the piece from {self.stamps[piece.start]} "
+            f"between clock jumps cannot be placed ({piece.why_unplaced})"
+        )
+
+    def jumps(self) -> list[dict]:
+        """Each piece after the first: where it starts, its rows, and how far the wall clock
+        jumped there (its first row against the previous piece's line carried on)."""
+        out = []
+        for prev, piece in itertools.pairwise(self.pieces):
+            carried = prev.offset_s + prev.rate * (self.time[piece.start] - self.time[prev.start])
+            out.append(
+                {
+                    "from": self.stamps[piece.start],
+                    "rows": piece.stop - piece.start,
+                    "jump_s": round(float(self.wall[piece.start] - carried), 1),
+                    "placed": piece.placed,
+                }
+            )
+        return out
+
+
+def _line(t: np.ndarray, sec: np.ndarray) -> tuple[float, float]:
+    # through more than two rows a least-squares line; the rule that stood before jumps were split
+    b, a = np.polyfit(t - t[0], sec, 1) if len(t) > 2 and t[-1] > t[0] else (1.0, sec[0])
+    return float(a), float(b)
+
+
+def _split_at_jumps(t: np.ndarray, sec: np.ndarray) -> list[tuple[int, int]]:
+    """Rows ``[start, stop)`` of each piece: while a stretch's line misses a stamp by more than
+    CLOCK_TOLERANCE_S, split it where ``TimeStamp − Time`` changes most between two rows."""
+    todo, pieces = [(0, t.size)], []
+    while todo:
+        a, b = todo.pop()
+        off, rate = _line(t[a:b], sec[a:b])
+        worst = np.max(np.abs(off + rate * (t[a:b] - t[a]) - sec[a:b]))
+        if worst <= CLOCK_TOLERANCE_S:
+            pieces.append((a, b))
+            continue
+        k = a + 1 + int(np.argmax(np.abs(np.diff(sec[a:b] - t[a:b]))))
+        todo += [(a, k), (k, b)]
+    return sorted(pieces)
+
+
+def _unplaced(t: np.ndarray, rate: float) -> str | None:
+    """Why a piece's line cannot place it, or None."""
+    if t.size < MIN_PIECE_ROWS:
+        return f"{t.size} row{'s' if t.size > 1 else ''}; a line needs {MIN_PIECE_ROWS}"
+    # a line within the tolerance of the stamps at both ends tilts by at most 4·tol over the span
+    allowed = MAX_CLOCK_DRIFT + 4.0 * CLOCK_TOLERANCE_S / (t[-1] - t[0])
+    if abs(rate - 1.0) > allowed:
+        return f"its stamps run {rate:.4g} times as fast as 'Time'"
+    return None
+
+
+def wall_clock(df: pd.DataFrame, path) -> Clock:
+    """Every row on the wall clock, from TimeStamp (1 s resolution) and Time (docs/real-data.md,
+    "Which clock the import trusts").
+
+    ``TimeStamp`` is truncated to the second, so ``TimeStamp + 0.5`` is an unbiased reading; a
+    least-squares line through it against ``Time`` gives sub-second times that follow the wall
+    clock's drift. Where the wall clock jumps, the file is split and each piece placed by its
+    own line: within a piece ``Time`` orders and spaces the rows. Rows logged at midnight carry
+    only a date.
     """
     stamps = pd.Series(df["TimeStamp"]).astype(str).str.strip()
     stamps = stamps.where(stamps.str.contains(":"), stamps + " 12:00:00 AM")
@@ -129,14 +236,14 @@ def wall_clock(df: pd.DataFrame, path) -> np.ndarray:
         raise DataError(f"{path}: field 'meas.TimeStamp': unreadable ({exc})") from None
     sec = (wall - pd.Timestamp("2017-01-01")).dt.total_seconds().to_numpy() + 0.5
     t = df["Time"].to_numpy()
-    b, a = np.polyfit(t - t[0], sec, 1) if len(t) > 2 and t[-1] > t[0] else (1.0, sec[0])
-    fitted = a + b * (t - t[0])
-    worst = float(np.max(np.abs(fitted - sec)))
-    if worst > 3.0:  # the files here stay within ~1.2 s of a line
-        raise DataError(
-            f"{path}: field 'meas.TimeStamp': disagrees with 'Time' by {worst:.1f} s (clock jump?)"
-        )
-    return fitted
+    placed, pieces = sec.copy(), []
+    for a, b in _split_at_jumps(t, sec):
+        off, rate = _line(t[a:b], sec[a:b])
+        why = _unplaced(t[a:b], rate)
+        if why is None:
+            placed[a:b] = off + rate * (t[a:b] - t[a])
+        pieces.append(Piece(a, b, off, rate, why))
+    return Clock(str(path), t, placed, tuple(stamps), tuple(pieces))
 
 
 # --- sign -----------------------------------------------------------------------------------
@@ -159,21 +266,28 @@ def _blocks(t: np.ndarray, gap: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
-def merge(frames: list[tuple[pd.DataFrame, np.ndarray]], block_gap_s: float, source: str):
-    """Interleave files on the wall clock; ``frames`` = [(frame, wall seconds)]. Adds ``wall``.
+def merge(frames: list[tuple[pd.DataFrame, Clock]], block_gap_s: float, source: str):
+    """Interleave files on the wall clock; ``frames`` = [(frame, its :func:`wall_clock`)].
+    Adds ``wall``.
 
     The first frame is the test itself (the pulse file); blocks of the others that start more
     than ``block_gap_s`` after its end belong to later tests (the SOC-step files run on into
-    the EIS test after a recharge) and are left out.
+    the EIS test after a recharge) and are left out. Blocks are cut at logging gaps and at clock
+    jumps; a block of a piece that cannot be placed is refused unless it is left out so.
     """
-    end = frames[0][1][-1] + block_gap_s
+    end = float(np.max(frames[0][1].wall)) + block_gap_s
     pieces, later = [], 0
-    for df, wall in frames:
-        for a, b in _blocks(wall, block_gap_s):
-            if wall[a] > end:
-                later += b - a
-                continue
-            pieces.append(df.iloc[a:b].assign(wall=wall[a:b]))
+    for df, clock in frames:
+        wall = clock.wall
+        for piece in clock.pieces:
+            for a, b in _blocks(wall[piece.start : piece.stop], block_gap_s):
+                a, b = a + piece.start, b + piece.start
+                if wall[a] > end:
+                    later += b - a
+                    continue
+                if not piece.placed:
+                    raise DataError(clock.refusal(piece))
+                pieces.append(df.iloc[a:b].assign(wall=wall[a:b]))
     pieces.sort(key=lambda p: p["wall"].iloc[0])
     kept = [pieces[0]]
     overlap_dropped = 0
@@ -344,13 +458,19 @@ def import_record(
         df = frames[0][0]
         time_col, merge_info = "Time", {}
     else:
-        df = merge([(d, wall_clock(d, p)) for d, p in frames], settings.block_gap_s, keys[0])
+        clocks = [wall_clock(d, p) for d, p in frames]
+        df = merge([(d, c) for (d, _), c in zip(frames, clocks, strict=True)],
+                   settings.block_gap_s, keys[0])  # fmt: skip
         time_col = "wall"
         merge_info = {
             "merged_blocks": df.attrs["n_blocks"],
             "overlap_rows_dropped": df.attrs["overlap_rows_dropped"],
             "later_test_rows_dropped": df.attrs["later_rows_dropped"],
         }
+        # only where a clock jumped, so the sidecars of files that never jumped stay as they were
+        jumps = {k: c.jumps() for k, c in zip(keys, clocks, strict=True) if len(c.pieces) > 1}
+        if jumps:
+            merge_info["clock_jumps"] = jumps
     frame, info = resample(df, time_col, settings)
     frame["current_a"] = -frame["current_a"]
     trimmed = 0.0
@@ -436,7 +556,12 @@ def import_named(cfg: dict, name: str, out_csv) -> dict:
 
 
 __all__ = [
+    "CLOCK_TOLERANCE_S",
     "FIELDS",
+    "MAX_CLOCK_DRIFT",
+    "MIN_PIECE_ROWS",
+    "Clock",
+    "Piece",
     "Settings",
     "bin_means",
     "check_sign",
