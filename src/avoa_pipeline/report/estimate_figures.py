@@ -72,7 +72,10 @@ def soc_estimation_figure(table: pd.DataFrame, stem, goals: dict | None = None) 
     axes = np.atleast_1d(fig.subplots(len(rules), 1, sharex=True, squeeze=False)[:, 0])
     for ax, rule in zip(axes, rules, strict=True):
         rows = table if rule is None else table[table["rule"] == rule]
-        _rmse_panel(ax, rows, goals, "" if rule is None else f"rule: {rule}; ")
+        _rmse_panel(ax, rows, goals, "" if rule is None else f"the filter's rule: {rule}")
+    fig.suptitle("SOC estimation on the unseen Panasonic cycles (o: coulomb counting from the "
+                 "same start with the same current; 0 from the true start)",
+                 fontsize=9)  # fmt: skip
     save(fig, stem)
 
 
@@ -94,7 +97,5 @@ def _rmse_panel(ax, table: pd.DataFrame, goals: dict | None, title: str) -> None
     ax.set_xticks(np.arange(len(cycles)), [f"{t}\n{c}" for t, c in cycles], fontsize=8)
     ax.set_ylabel("SOC RMSE after 5 min (%)")
     ax.set_yscale("log")
-    ax.set_title(f"{title}SOC estimation on the unseen Panasonic cycles (o: coulomb counting "
-                 "from the same start with the same current; 0 from the true start)",
-                 fontsize=9)  # fmt: skip
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, ncols=2)
