@@ -1,7 +1,9 @@
 """The cell temperature a fitted model runs a record on: the record's measured one, or one
 predicted from the ambient by the model's heat block (``model/heat.py``), and the ambient that
 prediction starts from. ``simulate`` and ``export --to pybamm --record`` decide by these rules;
-each refusal is one line naming what is missing.
+each refusal is one line naming what is missing. A model whose voltage needs no temperature may
+still hold a heat block (docs/temperature-rule.md part 6): it predicts the cell temperature where
+an ambient is at hand, and the voltage runs as without it.
 
 ``model_name`` and ``data_name`` are the paths as the user gave them (the messages name them)."""
 
@@ -20,7 +22,7 @@ def needs_temperature(model) -> list[str]:
 def record_ambient(data_name, rec, ambient_c: float | None) -> tuple[float, str]:
     """(ambient °C, where from) for a prediction: ``ambient_c`` (``--ambient-c``), else the CSV's
     sidecar's ``ambient_temperature_c``; else a one-line refusal naming the missing field."""
-    from .io import read_sidecar, sidecar_of
+    from .io import sidecar_of
     from .model import heat
 
     if ambient_c is not None:
@@ -28,7 +30,7 @@ def record_ambient(data_name, rec, ambient_c: float | None) -> tuple[float, str]
         if not lo <= ambient_c <= hi:  # NaN fails too
             raise UserError(f"--ambient-c must lie in {lo:g}..{hi:g} °C, got {ambient_c}")
         return float(ambient_c), "--ambient-c"
-    meta = read_sidecar(data_name) if rec.origin.get("read_as") == "canonical CSV" else {}
+    meta = _sidecar(data_name, rec)
     side = sidecar_of(data_name)
     if "ambient_temperature_c" not in meta:
         what = f"{side}: field 'ambient_temperature_c': missing" if meta else f"no sidecar {side}"
@@ -38,14 +40,22 @@ def record_ambient(data_name, rec, ambient_c: float | None) -> tuple[float, str]
     return heat.check_ambient(meta["ambient_temperature_c"], where), "the sidecar"
 
 
+def _sidecar(data_name, rec) -> dict:
+    """The record's sidecar ({} where it was not read from a canonical CSV or has none)."""
+    from .io import read_sidecar
+
+    return read_sidecar(data_name) if rec.origin.get("read_as") == "canonical CSV" else {}
+
+
 def unused_ambient(ambient_c: float | None, model_name, pred) -> list[str]:
     """An ambient given where nothing predicted a temperature from it (the model has no
-    temperature law, so the record's run needs none): one warning line, as the option changed
-    nothing (a record with temperature_c is refused in :func:`cell_temperature`)."""
+    temperature law, so the record's run needs none, and no heat block to predict one): one
+    warning line, as the option changed nothing (a record with temperature_c is refused in
+    :func:`cell_temperature`)."""
     if ambient_c is None or pred is not None:
         return []
-    return [f"--ambient-c {ambient_c:g}: ignored: {model_name} has no temperature law, so "
-            "no cell temperature is predicted from the ambient"]  # fmt: skip
+    return [f"--ambient-c {ambient_c:g}: ignored: {model_name} has no temperature law and no "
+            "heat block, so no cell temperature is predicted from the ambient"]  # fmt: skip
 
 
 def cell_temperature(model, rec, *, model_name, data_name, ambient_c=None, predict=False,
@@ -53,7 +63,9 @@ def cell_temperature(model, rec, *, model_name, data_name, ambient_c=None, predi
     """``simulate``'s cell temperature: (°C per sample or None, what it is, the prediction or
     None). The record's measured ``temperature_c`` where it has one; predicted from the ambient
     by the model's heat block where it has none and the model needs one, or with ``predict``
-    (``--predict-temperature``); refused where neither is possible."""
+    (``--predict-temperature``); refused where neither is possible. A model that needs none but
+    holds a heat block predicts it where an ambient is at hand (``ambient_c`` or the sidecar's),
+    its voltage unchanged (docs/temperature-rule.md part 6); else it runs without one."""
     from .model import heat
     from .model.ecm import T_DEFAULT_K
 
@@ -66,9 +78,12 @@ def cell_temperature(model, rec, *, model_name, data_name, ambient_c=None, predi
                 "--predict-temperature to predict from the ambient instead"
             )
         return rec.frame["temperature_c"].to_numpy(), "measured (the record's temperature_c)", None
-    if not predict and not needs_t:
-        return (None, f"none (no temperature_c; the model has no temperature law: "
-                      f"{T_DEFAULT_K - heat.KELVIN:g} °C in its 2RT/F)", None)  # fmt: skip
+    if not predict and not needs_t:  # the voltage needs none: predicted only where it can be
+        default = f"the model has no temperature law: {T_DEFAULT_K - heat.KELVIN:g} °C in its 2RT/F"
+        if model.heat is None:
+            return None, f"none (no temperature_c; {default})", None
+        if ambient_c is None and "ambient_temperature_c" not in _sidecar(data_name, rec):
+            return None, f"none (no temperature_c, no ambient for the heat block; {default})", None
     if model.heat is None:
         why = (
             "--predict-temperature"
@@ -76,21 +91,23 @@ def cell_temperature(model, rec, *, model_name, data_name, ambient_c=None, predi
             else f"{data_name} has no temperature_c and the model has {', '.join(needs_t)}"
         )
         raise UserError(f"{model_name}: field 'heat': missing ({why}; diagnose writes it when "
-                        "the model has thermal and its training records a moving measured "
-                        "temperature)")  # fmt: skip
+                        "its training records have a moving measured temperature)")  # fmt: skip
     ambient, where = record_ambient(data_name, rec, ambient_c)
     pred = heat.predict(model, model.heat, rec.frame, ambient, soc0=soc0)
     what = (f"predicted from ambient {ambient:g} °C ({where}) by {model_name}'s heat block, "
             f"{pred.passes} fixed-point passes")  # fmt: skip
+    if not heat.temperature_readers(model):
+        what += f" ({heat.VOLTAGE_BLIND})"
     return pred.temp_k - heat.KELVIN, what, pred
 
 
 def export_ambient(model, rec, *, model_name, record_name, predict=False) -> float | None:
     """``export --to pybamm --record``'s temperature mode: the record's ambient (°C,
     ``heat.ambient_of``) where the module's thermal state is compared (``predict``, or a record
-    without temperature_c and a model with a heat block), else None (the measured temperature,
-    as ``simulate`` uses it); refused where a model needs a temperature and neither is
-    possible."""
+    without temperature_c and a model with a heat block; for a model that needs no temperature,
+    only where the record's sidecar gives the ambient, as in :func:`cell_temperature`), else
+    None (the measured temperature, as ``simulate`` uses it); refused where a model needs a
+    temperature and neither is possible."""
     from .model import heat
 
     if predict and rec is None:
@@ -110,4 +127,7 @@ def export_ambient(model, rec, *, model_name, record_name, predict=False) -> flo
             else (f"{record_name} has no temperature_c and the model has {', '.join(needs_t)}")
         )
         raise UserError(f"{model_name}: field 'heat': missing ({why})")
+    no_ambient = "ambient_temperature_c" not in _sidecar(record_name, rec)
+    if not predict and not needs_temperature(model) and no_ambient:  # the voltage needs none
+        return None
     return heat.ambient_of(rec)[0]

@@ -5,9 +5,11 @@ itself (issue 39).
 are taken as they are), refuses a bad sidecar ambient before any fit (``heat.training_ambients``),
 runs the diagnosis (``gap.diagnose.diagnose_records``: the ladder's verdict and the model handed
 over, ``handover.py``) and fits the handed-over model's heat block where its training records
-allow (``heat.attach``). :meth:`Diagnosis.write` is the one writer of ``diagnosis.json``,
-``model.json`` and ``diagnosis.png`` (all or none, ``io.atomic_paths``), and the Diagnosis says
-the lines a command prints (:meth:`Diagnosis.warning_lines`, :meth:`Diagnosis.summary_line`).
+allow (``heat.attach``; with or without a temperature law, docs/temperature-rule.md part 6;
+diagnosis.json's ``heat`` says which, ``heat.block_summary``). :meth:`Diagnosis.write` is the
+one writer of ``diagnosis.json``, ``model.json`` and ``diagnosis.png`` (all or none,
+``io.atomic_paths``), and the Diagnosis says the lines a command prints
+(:meth:`Diagnosis.warning_lines`, :meth:`Diagnosis.summary_line`).
 The ``diagnose`` command, the workflow's job (``jobs.real.diagnose_one``), the transfer
 benchmark (``jobs.transfer.diagnose_split``) and the Python API (``avoa_pipeline.diagnose``)
 all call it, so what one of them writes the others write too.
@@ -191,6 +193,7 @@ def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | No
         warnings=read.warnings, progress=progress,
         current_accuracy_a=current_accuracy_a)  # fmt: skip
     heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
+    report["heat"] = heat.block_summary(model, heat_line)  # and whether the voltage reads it
     # the files read, never to be written over: paths, and checked records read from a file
     given = [str(p) for p in (*data, *validate, *([ocv] if ocv is not None else ()))
              if _is_path(p)]  # fmt: skip

@@ -51,6 +51,13 @@ irreversible heat, which grows with |i| (the reversible one with i). A model wit
 electrical ``entropic`` element (issue 28 item 1) brings its own dU/dT: it is the reversible
 heat's, and its OCV shift is part of the OCV in q (:data:`ELECTRICAL_DUDT`).
 
+Whether or not the model has a temperature law (docs/temperature-rule.md part 6, issue 41):
+the block predicts the cell temperature, which a user's simulation from the ambient needs either
+way, and the heat is the model's own losses whichever elements it has (the ohmic and RC losses
+are in i·(OCV − V) without any law). Where no element's voltage term reads the temperature
+(:func:`temperature_readers` empty) the prediction leaves the voltage as it is, and
+:func:`attach` says so (:data:`VOLTAGE_BLIND`).
+
 Ambient of a record (:func:`ambient_of`): its sidecar's ``ambient_temperature_c`` where it has
 one, else its first temperature sample (a record starts at rest, at the ambient it soaked in).
 The predicted temperature starts at the ambient.
@@ -443,11 +450,10 @@ def _entry(fit: HeatFit, k: int, value: float) -> dict:
 
 def fit_heat(model, checked) -> tuple[Heat | None, str]:
     """The heat block of ``model`` from its training records (``records.Checked``), or None and
-    why not: the model must carry ``thermal`` (else the temperature does not enter its
-    voltage) and a record must have a moving measured temperature (:func:`training_records`).
-    C_th and hA fitted; dU/dT admitted where identified (module docstring)."""
-    if "thermal" not in model.config.effects:
-        return None, "the model has no thermal element: the temperature does not enter its voltage"
+    why not: a record must have a moving measured temperature (:func:`training_records`),
+    whether or not the model has a temperature law (docs/temperature-rule.md part 6: the block
+    predicts the cell temperature either way). C_th and hA fitted; dU/dT admitted where
+    identified (module docstring)."""
     recs = training_records(model, checked)
     if not recs:
         return None, (f"no training record has a measured temperature_c moving "
@@ -498,9 +504,53 @@ def flags(heat: Heat) -> list[str]:
             "not by the records" for k, e in iv.items() if e["at_bound"]]  # fmt: skip
 
 
+TEMPERATURE_QUANTITIES = frozenset({"rtf", "dinv", "dinv_t", "dtemp", "tk"})
+"""The quantities of the compiled simulator's loop that carry the cell temperature
+(``model/loopgen.py``'s slots: 2RT/F, 1/T − 1/Tref per sample and per record, T − Tref, T): an
+element whose stated physics names one reads the temperature."""
+
+VOLTAGE_BLIND = "the voltage does not depend on the temperature (no element of the model reads it)"
+"""What :func:`attach` and diagnosis.json say of a heat block whose model's voltage reads no
+temperature (:func:`temperature_readers` empty): the block predicts the cell temperature only."""
+
+
+def temperature_readers(model) -> list[str]:
+    """The model's elements whose voltage term reads the cell temperature, sorted: the
+    temperature laws (``Element.needs_temperature``) and any other whose kernel names a
+    temperature quantity (:data:`TEMPERATURE_QUANTITIES`; today Butler–Volmer's 2RT/F, which
+    runs at 25 °C where a record has no temperature). Read from the elements' statements, so a
+    new element is judged by its own physics."""
+    import re
+
+    from . import elements
+
+    def reads(name: str) -> bool:
+        el = elements.get(name)
+        if el.needs_temperature:
+            return True
+        k = el.kernel
+        if k is None:
+            return False
+        code = [c if isinstance(c, str) else c[1] for c in k.code.values()]
+        names = set(k.reads).union(*(re.findall(r"[A-Za-z_]\w*", c)
+                                     for c in (*code, *k.flags.values())))  # fmt: skip
+        return bool(names & TEMPERATURE_QUANTITIES)
+
+    return sorted(e for e in model.config.effects if reads(e))
+
+
+def block_summary(model, line: str) -> dict:
+    """diagnosis.json's ``heat`` entry: whether model.json holds a heat block, :func:`attach`'s
+    line (what was fitted, or why nothing; :data:`VOLTAGE_BLIND` where it applies) and the
+    elements whose voltage reads the temperature the block predicts."""
+    return {"written": model.heat is not None, "summary": line,
+            "voltage_reads_temperature": temperature_readers(model)}  # fmt: skip
+
+
 def attach(model, checked) -> str:
     """``diagnose``'s hook: ``model.heat`` fitted on its training records (``records.Checked``)
-    where they allow (:func:`fit_heat`); returns what was done, for the command's summary."""
+    where they allow (:func:`fit_heat`); returns what was done, for the command's summary (and
+    :func:`block_summary` the same for diagnosis.json)."""
     model.heat, why = fit_heat(model, checked)
     if model.heat is None:
         return f"no heat block ({why})"
@@ -509,4 +559,5 @@ def attach(model, checked) -> str:
         f"heat block: C_th {h.c_th:.3g} J/K, hA {h.ha:.3g} W/K"
         + (f", dU/dT {1e3 * h.dudt:.3g} mV/K" if h.entropic else "")
         + f", {h.report['rmse_k']:.2f} K RMS on its training records from the ambient"
+        + ("" if temperature_readers(model) else f"; {VOLTAGE_BLIND}")
     )
