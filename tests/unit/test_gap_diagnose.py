@@ -155,6 +155,7 @@ def test_figure_failure_writes_no_json(tmp_path, monkeypatch):
     monkeypatch.setattr(diagnose, "diagnose_records", lambda *a, **k: fake)
     # the fake has no model to fit a heat block to (the pipeline fits it before writing)
     monkeypatch.setattr(heat, "attach", lambda model, checked: "no heat block (test)")
+    monkeypatch.setattr(heat, "block_summary", lambda model, line: {"written": False})
 
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")

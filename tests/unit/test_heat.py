@@ -119,10 +119,11 @@ def test_a_synthetic_cell_gives_back_its_heat_capacity_and_conductance(truth):
 
 
 def test_the_block_is_written_only_where_the_records_allow():
+    """A moving measured temperature is what the block needs, not a thermal element
+    (docs/temperature-rule.md part 6; tests/unit/test_heat_without_law.py)."""
     frame = measured(cell(), TRUE, drive(4), 5)
     got, why = heat.fit_heat(cell(("second_rc",)), [checked(frame, 0)])
-    assert got is None
-    assert "no thermal element" in why
+    assert got is not None, why
     flat = frame.assign(temperature_c=AMBIENT_C + 0.5 * np.sin(frame["time_s"] / 100.0))
     got, why = heat.fit_heat(cell(), [checked(flat, 0)])
     assert got is None
@@ -162,9 +163,11 @@ def test_attach_says_what_it_wrote_or_why_not():
     line = heat.attach(model, recs)
     assert line.startswith("heat block: C_th ")
     assert model.heat is not None
-    plain = cell(("second_rc",))
-    assert heat.attach(plain, recs).startswith("no heat block (the model has no thermal")
-    assert plain.heat is None
+    plain = cell(("second_rc",))  # no temperature law: the block, and what the voltage reads
+    assert heat.attach(plain, recs).endswith(f"; {heat.VOLTAGE_BLIND}")
+    assert plain.heat is not None
+    flat = recs[0].frame.assign(temperature_c=AMBIENT_C)
+    assert heat.attach(cell(), [checked(flat, 1)]).startswith("no heat block (no training record")
     bad = records.check(recs[0].frame, "bad.csv", meta={"ambient_temperature_c": "cold"})
     with pytest.raises(DataError, match=r"bad\.csv's sidecar"):
         heat.training_ambients([bad])

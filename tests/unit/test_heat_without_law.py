@@ -56,7 +56,9 @@ def test_its_prediction_tracks_an_unseen_record_and_leaves_the_voltage_as_it_is(
     rms = float(np.sqrt(np.mean((pred.temp_k - heat.KELVIN - frame["temperature_c"]) ** 2)))
     assert rms < 0.1
     # the heat does not depend on the temperature: the second pass moves nothing
-    assert pred.converged and pred.passes == 2 and pred.last_change_k == 0.0
+    assert pred.converged
+    assert pred.passes == 2
+    assert pred.last_change_k == 0.0
     bare = frame.drop(columns="temperature_c")
     v_none = model.simulate(bare)
     v_measured = model.simulate(frame)
@@ -165,7 +167,9 @@ def _simulate(root, model, data, capsys, *extra):
 def test_simulate_predicts_the_temperature_from_the_ambient_and_keeps_the_voltage(
     plain_files, capsys
 ):
-    truth = __import__("pandas").read_csv(plain_files / "with_t.csv")["temperature_c"]
+    import pandas as pd
+
+    truth = pd.read_csv(plain_files / "with_t.csv")["temperature_c"]
     without, _ = _simulate(plain_files, "bare.json", "no_t.csv", capsys)
     assert without["temperature_c_model"].isna().all()
     for extra in ((), ("--ambient-c", "10")):  # the sidecar's ambient, or the option's
@@ -207,3 +211,26 @@ def test_export_compares_the_thermal_state_only_where_an_ambient_is_at_hand(plai
         got = ambient.export_ambient(model, rec, model_name="model.json",
                                      record_name=str(plain_files / name))  # fmt: skip
         assert got == want, name
+
+
+def test_the_pybamm_module_carries_the_block_of_a_model_without_a_law():
+    """``export --to pybamm``'s LumpedHeat on a model whose voltage reads no temperature: its
+    temperature from the ambient is heat.py's, and its voltage ours (test_interop_pybamm's
+    record, tolerances and heat block)."""
+    pytest.importorskip("pybamm", reason="pybamm is not installed")
+    import dataclasses
+
+    from test_interop_pybamm import AMBIENT_C as PYBAMM_AMBIENT_C
+    from test_interop_pybamm import HEAT, SOC0, THERMAL_TOL_K, TOL_RMS_MV, fitted, record
+
+    from avoa_pipeline.interop import pybamm as to_pybamm
+
+    model = dataclasses.replace(fitted("table", PLAIN), heat=HEAT)
+    frame = record(temperature=False)
+    module = to_pybamm.loaded_module(model, SOC0)
+    got = to_pybamm.thermal_agreement(module, model, frame, SOC0, PYBAMM_AMBIENT_C)
+    assert "error" not in got, got
+    ref = heat.predict(model, model.heat, frame, PYBAMM_AMBIENT_C, soc0=SOC0)
+    assert float(ref.temp_k.max()) - heat.KELVIN - PYBAMM_AMBIENT_C > 20 * THERMAL_TOL_K
+    assert got["rms_k"] <= THERMAL_TOL_K
+    assert got["rms_mv"] <= TOL_RMS_MV
