@@ -232,7 +232,7 @@ if PAN_JOINT_ON:
         measured temperature moves), the 25 degC C/20 test as --ocv, every temperature's unseen
         cycles as validation records only: `python -m avoa_pipeline diagnose TRAIN... --ocv C20
         --validate TESTS... --out DIR` without its figure; model.json carries the heat block
-        the command fits where the selected model has thermal (model/heat.py)."""
+        the command fits where a training record's temperature moves (model/heat.py)."""
         input:
             train=[pan_canon(f"{t}/{r}") for t in PAN_EXP_TEMPS for r in (PAN_EXP["train"][t], "hppc")],
             ocv=PAN_OCV_RECORD,
