@@ -194,7 +194,7 @@ def heat_files(tmp_path_factory):
     """A thermal model with a heat block fitted on two synthetic records (test_heat's cell),
     and a third record of the cell: with its temperature, without it (a sidecar naming the
     ambient), and without either."""
-    from test_heat import AMBIENT_C, TRUE, cell, checked, drive, measured
+    from test_heat import TRUE, cell, checked, drive, measured, write_records
 
     from avoa_pipeline.model import heat
 
@@ -205,11 +205,7 @@ def heat_files(tmp_path_factory):
     model.save(root / "model.json")
     bare = cell()
     bare.save(root / "bare.json")
-    frame = measured(model, TRUE, drive(50), 60)
-    frame.to_csv(root / "with_t.csv", index=False)
-    frame.drop(columns="temperature_c").to_csv(root / "no_t.csv", index=False)
-    (root / "no_t.json").write_text(json.dumps({"ambient_temperature_c": AMBIENT_C}))
-    frame.drop(columns="temperature_c").to_csv(root / "alone.csv", index=False)
+    write_records(root, measured(model, TRUE, drive(50), 60))
     return root
 
 

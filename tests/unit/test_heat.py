@@ -4,6 +4,8 @@ whose temperature the module itself made, and what the heat block needs."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -49,6 +51,26 @@ def measured(model, truth: heat.Heat, frame, seed: int) -> pd.DataFrame:
 
 def checked(frame, k: int) -> records.Checked:
     return records.check(frame, f"rec{k}.csv", meta={"ambient_temperature_c": AMBIENT_C})
+
+
+def assert_gives_back(got: heat.Heat, truth: heat.Heat) -> None:
+    """A fitted block's C_th and hA within 5 % of the truth, inside their 95 % intervals and
+    off their bounds."""
+    iv = got.report["intervals"]
+    for key, value in (("c_th_j_per_k", truth.c_th), ("ha_w_per_k", truth.ha)):
+        e = iv[key]
+        assert not e["at_bound"]
+        assert e["low95"] <= value <= e["high95"], (key, e)
+        assert abs(e["value"] / value - 1.0) < 0.05, (key, e)
+
+
+def write_records(root, frame: pd.DataFrame) -> None:
+    """A record of the cell three ways for the commands: with its temperature (with_t.csv),
+    without it beside a sidecar naming the ambient (no_t.csv) and without either (alone.csv)."""
+    frame.to_csv(root / "with_t.csv", index=False)
+    frame.drop(columns="temperature_c").to_csv(root / "no_t.csv", index=False)
+    (root / "no_t.json").write_text(json.dumps({"ambient_temperature_c": AMBIENT_C}))
+    frame.drop(columns="temperature_c").to_csv(root / "alone.csv", index=False)
 
 
 def test_the_exact_step_is_the_ode_integrated_independently():
@@ -104,15 +126,10 @@ def test_a_synthetic_cell_gives_back_its_heat_capacity_and_conductance(truth):
     recs = [checked(measured(model, truth, drive(10 + k), 20 + k), k) for k in range(3)]
     got, why = heat.fit_heat(model, recs)
     assert got is not None, why
-    iv = got.report["intervals"]
-    for key, value in (("c_th_j_per_k", truth.c_th), ("ha_w_per_k", truth.ha)):
-        e = iv[key]
-        assert not e["at_bound"]
-        assert e["low95"] <= value <= e["high95"], (key, e)
-        assert abs(e["value"] / value - 1.0) < 0.05, (key, e)
+    assert_gives_back(got, truth)
     assert got.entropic == truth.entropic
     if truth.entropic:
-        e = iv["dudt_v_per_k"]
+        e = got.report["intervals"]["dudt_v_per_k"]
         assert e["low95"] <= truth.dudt <= e["high95"], e
     assert got.report["rmse_k"] < 0.1  # the 0.05 K noise, from the ambient alone
     assert [r["ambient_from"] for r in got.report["records"]] == ["sidecar"] * 3
