@@ -24,6 +24,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -31,39 +32,12 @@ CHILD_FLAG = "--child"
 
 
 def _model():
-    import numpy as np
+    """``tests/unit/test_estimate.py``'s model of chosen values (table OCV, second RC, ±2 %
+    intervals, a 2 mV residual), with an ``expected_error`` block of this benchmark's own."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "unit"))
+    from test_estimate import fitted
 
-    from avoa_pipeline.model import ecm
-    from avoa_pipeline.model.fitted import FittedModel
-
-    soc = np.linspace(0.0, 1.0, 41)
-    v = 3.3 + 0.8 * soc + 0.12 * np.tanh((soc - 0.1) / 0.05) + 0.03 * np.sin(9 * soc)
-    table = ecm.OcvTable.from_points(soc, v, source="ocv.csv", how="benchmark table")
-    config = ecm.Config(("second_rc",), table)
-    values = {"vnom_v": 3.73, "beta": 0.932, "capacity_ah": 2.57, "r0_ohm": 0.0536,
-              "r1_ohm": 0.0153, "tau1_s": 109.7, "r2_ohm": 0.01, "tau2_s": 1000.0,
-              "voltage_offset_v": -0.01}  # fmt: skip
-    names = config.names()
-    x = ecm.vector({k: val for k, val in values.items() if ecm.BY_REPORT[k] in names})
-    bounds = {n: (x[ecm.IDX[n]] - 1.0, x[ecm.IDX[n]] + 1.0) for n in names
-              if not ecm.PARAMS[n].per_record}  # fmt: skip
-    model = FittedModel(config, x, ecm.Knots(0.2, 0.12), 298.15, bounds, {"selected_by": "bench"})
-    entries = {}
-    for rep, value in model.parameters().items():
-        n = ecm.BY_REPORT.get(rep)
-        if n is None or n not in bounds:
-            continue
-        ends = []
-        for step in (-0.02, 0.02):
-            xe = x.copy()
-            xe[ecm.IDX[n]] += step
-            ends.append(ecm.report(xe, [n])[rep])
-        lo, hi = sorted(ends)
-        entries[rep] = {"value": value, "low95": lo, "high95": hi, "at_bound": False,
-                        "identified": True, "held": False}  # fmt: skip
-    model.intervals = {"method": "bench", "level": 0.95, "samples": 1000,
-                       "effective_samples": 1000.0, "residual_sd_mv": 2.0,
-                       "parameters": entries, "correlated_pairs": [], "flags": []}  # fmt: skip
+    model = fitted("table", ("second_rc",), residual_mv=2.0)
     bins = [{"mode": m, "current": c, "soc": s, "n": 500, "rms_mv": 5.0 + 3.0 * k}
             for k, (m, c) in enumerate((("rest", "-"), ("discharge", "low"),
                                         ("discharge", "high"), ("charge", "low")))
