@@ -137,10 +137,11 @@ ADAPT_MIN_SAMPLES = 50
 """... and at least 50 innovations a batch: the relative sd of a mean of n independent χ²₁ is
 √(2/n), 20 % at 50 (a rest logged every 60 s waits for 50 samples rather than adapting on 5)."""
 ADAPT_BOUNDS = (1.0, 100.0)
-"""The scale λ of e's variance: its sd between half and ten times the expected error. Half:
-``expected_error``'s bins carry up to 25 % relative error (``handover.MIN_BIN_SAMPLES``) and on
-the OCV's plateau a small innovation does not show the SOC is right. Ten times: a record the
-model does not describe (``outside_range``'s business), said by the share of time there."""
+"""The scale λ of e's variance: its sd between once and ten times the expected error. Once, not
+less (docs/soc-filter.md's addendum; part 3 first wrote a half): the SOC's floor lets the SOC,
+not e, carry a persistent error, so a small ê does not show a small model error, and the
+adaptation only widens. Ten times: a record the model does not describe (``outside_range``'s
+business), said by the share of time there."""
 
 CONVERGENCE_S = 300.0
 """The issue's convergence window: errors are scored after the first 5 min."""
@@ -328,11 +329,11 @@ class ErrorBins:
     def of(cls, ee: dict, ambient: tuple[float, str] | None = None) -> ErrorBins:
         """``ambient``: the record's (°C, where it came from); read where ``ee`` is split by
         test temperature (``by_temperature``)."""
-        sd, filled = _bin_table(ee)
-        at = None
         groups = ee.get("by_temperature")
         if groups and ambient is not None:
             sd, filled, at = _at_ambient(groups, *ambient)
+        else:
+            (sd, filled), at = _bin_table(ee), None
         med = ee.get("load_current_median_a")
         return cls(sd, None if med is None else float(med), float(ee["correlation_time_s"]),
                    bool(ee["correlation_time_lower_bound"]), filled, at)  # fmt: skip
