@@ -16,6 +16,7 @@ from contextlib import contextmanager
 
 from avoa_pipeline import estimate as E
 from avoa_pipeline import records
+from avoa_pipeline.model import heat
 from avoa_pipeline.model.fitted import FittedModel
 
 
@@ -33,7 +34,7 @@ def run(model_path: str, record_path: str) -> None:
     model = FittedModel.load(model_path)
     checked = records.read(record_path)
     soc0 = model.initial_soc(model.record(checked.frame))
-    ambient = E.checked_ambient(checked)
+    ambient = heat.ambient_if_any(checked)
     variants = {"the rule": ({}, False), "no adaptation": ({"adapt": False}, False),
                 "no SOC floor": ({}, True)}  # fmt: skip
     for name, (kw, drop_floor) in variants.items():

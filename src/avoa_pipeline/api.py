@@ -109,6 +109,7 @@ class Model:
         every CC-CV end (docs/soc-filter.md part 5). A record that only rests is read."""
         from . import estimate
         from .errors import UserError
+        from .model import heat
 
         rec = self.record(record, rest_ok=True)
         limit = estimate.bias_limit_a(self.fitted, rec.frame["current_a"].to_numpy())
@@ -119,7 +120,7 @@ class Model:
                                         source=self.source, noise=noise, adapt=adapt,
                                         bms_events=bms_events,
                                         reference_full=reference_full,
-                                        ambient=estimate.checked_ambient(rec))  # fmt: skip
+                                        ambient=heat.ambient_if_any(rec))  # fmt: skip
 
     def export(self, to: str = "pybamm", *, record=None, soc0: float | None = None,
                drop_unsupported: bool = False, soc=None, temperature_c=None,

@@ -437,19 +437,10 @@ def noise_of(fitted, source: str = "model.json", rule: str = "training-residual"
     return replace(base, rule="expected-error", bins=ErrorBins.of(fitted.expected_error, ambient))
 
 
-def checked_ambient(checked) -> tuple[float, str] | None:
-    """A checked record's ambient as the diagnosis groups its training records by it
-    (``heat.ambient_of``: its sidecar's, else its first temperature sample), None without."""
-    try:
-        return heat.ambient_of(checked)
-    except DataError:
-        return None
-
-
 def record_ambient(fitted, frame: pd.DataFrame,
                    ambient: tuple[float, str] | None = None) -> tuple[float, str]:  # fmt: skip
     """The record's ambient for part 6 of docs/soc-filter.md: the one given
-    (:func:`checked_ambient`), else the frame's first temperature sample, else the model's
+    (``heat.ambient_if_any``), else the frame's first temperature sample, else the model's
     reference temperature."""
     if ambient is not None:
         return float(ambient[0]), str(ambient[1])
@@ -1015,7 +1006,7 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
     innovation-based scale of it, docs/soc-filter.md; ``bms_events``: the ends of CC-CV charges
     and the lower cut-off as pseudo-measurements, part 5; ``reference_full``: the reference
     counted from SOC = 1 at every CC-CV end; ``ambient``: the record's ambient (°C, where it
-    came from: :func:`checked_ambient`), for a model over temperature, part 6, default
+    came from: ``heat.ambient_if_any``), for a model over temperature, part 6, default
     :func:`record_ambient`'s). A model without
     ``expected_error`` runs the training-residual rule and says so (``Result.warnings``,
     ``noise.rule``)."""

@@ -113,6 +113,7 @@ def run_estimate(args) -> None:
 
     from .. import estimate
     from ..io import atomic_paths, check_output
+    from ..model import heat
     from ..model_inputs import read_model_and_record
     from ..report import estimate_figures
 
@@ -134,7 +135,7 @@ def run_estimate(args) -> None:
                                       source=args.model, noise=args.noise,
                                       adapt=args.adapt, bms_events=args.bms_events,
                                       reference_full=args.reference_full,
-                                      ambient=estimate.checked_ambient(rec))  # fmt: skip
+                                      ambient=heat.ambient_if_any(rec))  # fmt: skip
     summary = {"model": str(args.model), "record": str(args.data), **result.summary}
     with atomic_paths(out, summary_path, png) as (csv_tmp, js_tmp, png_tmp):
         result.frame.to_csv(csv_tmp, index=False)

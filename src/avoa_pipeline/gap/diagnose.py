@@ -512,12 +512,10 @@ def _handed_over_model(ctx, ho, verdict_model: str, ambients_c=None) -> FittedMo
 
 
 def _ambients(train: list[Checked]) -> list[float] | None:
-    """Every training record's ambient (``heat.ambient_of``), or None where one has none: the
-    expected error is then not split by test temperature."""
-    try:
-        return [heat.ambient_of(c)[0] for c in train]
-    except DataError:
-        return None
+    """Every training record's ambient (``heat.ambient_if_any``), or None where one has none:
+    the expected error is then not split by test temperature."""
+    found = [heat.ambient_if_any(c) for c in train]
+    return None if any(a is None for a in found) else [a[0] for a in found]
 
 
 def _heldout_mv(ctx: selection.Context, cand: selection.Candidate, m=None) -> float:

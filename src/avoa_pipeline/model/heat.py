@@ -267,6 +267,16 @@ def ambient_of(checked) -> tuple[float, str]:
                     "'ambient_temperature_c': no ambient")  # fmt: skip
 
 
+def ambient_if_any(checked) -> tuple[float, str] | None:
+    """:func:`ambient_of`, or None for a record with neither a sidecar ambient nor a temperature
+    column (the diagnosis then splits no error by test temperature; the SOC filter falls back to
+    the model's reference temperature)."""
+    try:
+        return ambient_of(checked)
+    except DataError:
+        return None
+
+
 def training_ambients(checked) -> list[tuple[float, str]]:
     """The ambient of every record that could train the heat block (a measured temperature
     moving at least MIN_RANGE_C), so that a bad sidecar is refused before a diagnosis runs."""

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from ... import estimate, records
-from ...model import ecm
+from ...model import ecm, heat
 from ...model.fitted import FittedModel
 
 START_OFFSET = 0.20
@@ -62,11 +62,11 @@ def run_settings(model: FittedModel, frame: pd.DataFrame) -> dict[str, tuple[flo
 def cycle_rows(model: FittedModel, checked: records.Checked, temperature: str, cycle: str,
                source: str = "model.json", rules: dict | None = None) -> list[dict]:  # fmt: skip
     """The four runs on one cycle under each rule (``rules``, default :data:`RULES`), one flat
-    row each; the record's ambient as the command reads it (``estimate.checked_ambient``)."""
+    row each; the record's ambient as the command reads it (``heat.ambient_if_any``)."""
     rows = []
     frame = checked.frame
     rec = model.record(frame)
-    ambient = estimate.checked_ambient(checked)
+    ambient = heat.ambient_if_any(checked)
     settings = run_settings(model, frame).items()
     for (rule, kw), (run, (guess, bias, soc0)) in product((rules or RULES).items(), settings):
         res = estimate.estimate_record(model, frame, guess, bias, soc0, source=source,
