@@ -53,7 +53,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
-from .model import ecm, elements, fitting, intervals
+from .model import ecm, elements, fitting, heat, intervals
 from .model.ecm import Config, Knots, Record
 from .model.fitted import FittedModel, fit_model, model_of, prediction_errors
 
@@ -74,6 +74,8 @@ the residual's autocorrelation and give the tests 100 batches or more."""
 ALPHA = 0.05
 BIC_MAX = -10.0
 """ΔBIC below −10: "very strong" evidence on Kass and Raftery's (1995) scale."""
+RECORD, TEMPERATURE = "record", "temperature"
+"""The two hold-outs (:meth:`Context.scheme`): by record (or block), and by test temperature."""
 MIN_SHRINK = 0.05
 """A candidate must remove at least this share of the held-out ISE: a significant but smaller gain
 is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 % passed the tests).
@@ -202,6 +204,8 @@ class Candidate:
     ho: np.ndarray | None = None  # held-out voltage (each sample from the fit without its fold)
     fold_X: list = field(default_factory=list)
     check: fitting.Check | None = None  # what the fit check did to its fit (``fitting.check_fit``)
+    ho_t: np.ndarray | None = None  # held out by test temperature (:data:`TEMPERATURE`)
+    fold_X_t: list = field(default_factory=list)
 
     @property
     def k(self) -> int:
@@ -216,8 +220,14 @@ class Context:
     """The training records, their layout and weights, and the fitting options shared by every
     candidate."""
 
-    def __init__(self, recs: list[Record], table=None, capacity_ah=None, soc0=None):
+    def __init__(self, recs: list[Record], table=None, capacity_ah=None, soc0=None,
+                 ambients_c=None):  # fmt: skip
         self.recs = recs
+        # the test temperatures (docs/temperature-rule.md part 1): the records' indices grouped
+        # by ambient (``heat.ambient_groups``); one group where the ambients are not known
+        self.ambients_c = ambients_c
+        self.groups = (heat.ambient_groups(ambients_c) if ambients_c is not None
+                       else [list(range(len(recs)))])  # fmt: skip
         self.table = table
         self.fix_q = capacity_ah is not None
         self.fix_s = soc0 is not None
@@ -268,35 +278,54 @@ class Context:
         res = fitting.best_of(self.recs, st, starts, taus=taus)
         return replace(self.evaluate(st, res.X), check=res.checks[-1])
 
-    def cross_validate(self, cand: Candidate) -> Candidate:
+    def scheme(self, effect: str) -> str:
+        """How a candidate adding ``effect`` is held out (docs/temperature-rule.md part 2): a
+        temperature law by test temperature where there are three or more
+        (:data:`TEMPERATURE`), everything else by record or block (:data:`RECORD`)."""
+        law = effect in elements.REGISTRY and elements.get(effect).needs_temperature
+        return TEMPERATURE if law and len(self.groups) >= 3 else RECORD
+
+    def decided_by(self, effect: str) -> str | None:
+        """What admits a temperature law ``effect`` on these records (None: not a law)."""
+        if not (effect in elements.REGISTRY and elements.get(effect).needs_temperature):
+            return None
+        if len(self.groups) >= 3:
+            return "leave one temperature out"
+        if len(self.groups) == 2:
+            return "identification and prior"
+        return "leave one record out" if self.layout.by_record else "held-out blocks"
+
+    def n_folds(self, scheme: str = RECORD) -> int:
+        return len(self.groups) if scheme == TEMPERATURE else len(self.layout.folds)
+
+    def cross_validate(self, cand: Candidate, scheme: str = RECORD) -> Candidate:
         """Each held-out part predicted from a fit that did not see it, warm-started from the
         full fit (the optimum of the training objective is what is scored; starting nearby only
-        saves iterations): whole records with two or more, interleaved blocks with one."""
+        saves iterations): whole records with two or more, interleaved blocks with one; with
+        ``scheme`` :data:`TEMPERATURE`, every test temperature's records at once."""
         ho = np.empty(self.n)
-        cand.fold_X = each(lambda r: self._held_out(cand, r, ho), range(len(self.layout.folds)))
-        self.count(len(self.layout.folds))
-        cand.ho = ho
+        if scheme == TEMPERATURE:
+            cand.fold_X_t = each(lambda g: self._records_out(cand, g, ho), self.groups)
+            cand.ho_t = ho
+        else:
+            cand.fold_X = each(lambda r: self._held_out(cand, r, ho),
+                               range(len(self.layout.folds)))  # fmt: skip
+            cand.ho = ho
+        self.count(self.n_folds(scheme))
         return cand
+
+    def held(self, cand: Candidate, scheme: str = RECORD) -> np.ndarray:
+        """``cand``'s held-out voltage under ``scheme``, held out here if it was not yet."""
+        if (cand.ho_t if scheme == TEMPERATURE else cand.ho) is None:
+            self.cross_validate(cand, scheme)
+        return cand.ho_t if scheme == TEMPERATURE else cand.ho
 
     def _held_out(self, cand: Candidate, r: int, ho: np.ndarray) -> np.ndarray:
         """Fold (or held-out record) ``r`` of :meth:`cross_validate`: its fit's rows; its
         held-out voltage written into ``ho``."""
         f = self.layout.folds[r]
         if self.layout.by_record:
-            keep = [j for j in range(len(self.recs)) if j != r]
-            recs = [self.recs[j] for j in keep]
-            st = self.structure(cand.effects, cand.st.knots, recs)
-            if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
-                st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
-            res = fitting.fit_structure(recs, st, cand.X[keep],
-                                        fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
-                                        max_nfev=100)  # fmt: skip
-            X = np.array(cand.X)
-            X[:, st.shared_idx] = res.X[0, st.shared_idx]
-            X = fitting.complete(st, self.recs, X)  # the held-out record starts by the rule
-            rec = self.recs[r]
-            ho[f] = ecm.simulate_rows(rec, X[r], st.knots, st.config.table,
-                                      st.config.load_ohm)[:, 0]  # fmt: skip
+            return self._records_out(cand, [r], ho)
         else:
             held = self.layout.split(f)
             masks = []
@@ -317,9 +346,31 @@ class Context:
             ])  # fmt: skip
         return X
 
-    def ho_loss(self, cand: Candidate) -> np.ndarray:
+    def _records_out(self, cand: Candidate, out: list[int], ho: np.ndarray) -> np.ndarray:
+        """The records ``out`` held out together: ``cand``'s structure fitted to the others,
+        each of ``out`` predicted from its own start by the rule; their held-out voltage
+        written into ``ho``; the fit's rows returned."""
+        keep = [j for j in range(len(self.recs)) if j not in out]
+        recs = [self.recs[j] for j in keep]
+        st = self.structure(cand.effects, cand.st.knots, recs)
+        if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
+            st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
+        res = fitting.fit_structure(recs, st, cand.X[keep],
+                                    fitting.indices(recs, None, fitting.MAX_FIT_POINTS),
+                                    max_nfev=100)  # fmt: skip
+        X = np.array(cand.X)
+        X[:, st.shared_idx] = res.X[0, st.shared_idx]
+        X = fitting.complete(st, self.recs, X)  # the held-out records start by the rule
+        o = self.layout.offsets
+        for r in out:
+            ho[o[r] : o[r + 1]] = ecm.simulate_rows(
+                self.recs[r], X[r], st.knots, st.config.table, st.config.load_ohm
+            )[:, 0]
+        return X
+
+    def ho_loss(self, cand: Candidate, scheme: str = RECORD) -> np.ndarray:
         """Per sample, the squared held-out error (unweighted; :meth:`ho_mse` weighs records)."""
-        return (cand.ho - self.v) ** 2
+        return (self.held(cand, scheme) - self.v) ** 2
 
     def ho_mse(self, cand: Candidate, mask: np.ndarray | None = None) -> float:
         """The records-alike held-out mean squared error (over ``mask`` if given)."""
@@ -333,10 +384,25 @@ class Context:
 # candidates
 
 
+def temperature_moves(recs: list[Record]) -> bool:
+    """Whether the training records' measured temperature spans ``ecm.THERMAL_MIN_RANGE_C``:
+    within one record (self-heating), or between records at different temperatures, each held
+    constant (docs/temperature-rule.md, implementation notes: records at several chambers
+    whose temperature does not move within any one of them still tell an Arrhenius factor from
+    a constant)."""
+    if any(r.temperature_varies for r in recs):
+        return True
+    temps = [r.temp_c for r in recs if r.temp_c is not None]
+    if len(temps) < 2:
+        return False
+    span = max(float(t.max()) for t in temps) - min(float(t.min()) for t in temps)
+    return span >= ecm.THERMAL_MIN_RANGE_C
+
+
 def applicable(recs: list[Record], effect: str, effects_now=(), table=None) -> tuple[bool, str]:
     """Whether an element can be a candidate on these records (and why not)."""
     el = elements.get(effect)
-    if el.needs_temperature and not any(r.temperature_varies for r in recs):
+    if el.needs_temperature and not temperature_moves(recs):
         if all(r.temp_c is None for r in recs):
             return False, "no temperature_c column"
         return False, f"temperature_c spans less than {ecm.THERMAL_MIN_RANGE_C:g} °C"
@@ -370,10 +436,11 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
             c = ctx.fit(st, [neutral])
             if c.rss > ref.rss:
                 c = ctx.evaluate(st, neutral)
-        if cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX:
-            ctx.cross_validate(c)
+        held = cv and bic(c.rss, ctx.n, c.k) - bic(ref.rss, ctx.n, ref.k) < BIC_MAX
+        if held:
+            ctx.cross_validate(c, ctx.scheme(e))
         done.append(e)
-        ctx.say(f"rung {rung}: {e} fitted{', held out' if c.ho is not None else ''} "
+        ctx.say(f"rung {rung}: {e} fitted{', held out' if held else ''} "
                 f"({len(done)}/{len(remaining)})")  # fmt: skip
         return c
 
@@ -381,24 +448,31 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
 
 
 def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dict]:
-    """Held-out comparison of each candidate against ``ref`` (both cross-validated)."""
+    """Held-out comparison of each candidate against ``ref``, both held out the way the added
+    element is judged (:meth:`Context.scheme`; ``ref`` held out here where it was not yet). A
+    temperature law on two test temperatures must also be identified and inside its physical
+    prior (:func:`law_prior`)."""
     n = ctx.n
-    loss_ref = ctx.ho_loss(ref)
-    ise_ref = float(np.sum(ctx.w * loss_ref))
     bic_ref = bic(ref.rss, n, ref.k)
     m = max(1, len(cands))
     out = []
     for e, c in cands.items():
+        scheme = ctx.scheme(e)
         row = {
             "effect": e,
             "n_params": c.k - ref.k,
             "rmse_mv": 1e3 * float(np.sqrt(c.rss / n)),
             "delta_bic": bic(c.rss, n, c.k) - bic_ref,
         }
-        if c.ho is None:  # not cross-validated: its fit already fails the BIC criterion
+        if (decided := ctx.decided_by(e)) is not None:
+            row["decided_by"] = decided
+        if (c.ho_t if scheme == TEMPERATURE else c.ho) is None:
+            # not cross-validated: its fit already fails the BIC criterion
             row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
         else:
-            loss = ctx.ho_loss(c)
+            loss_ref = ctx.ho_loss(ref, scheme)
+            ise_ref = float(np.sum(ctx.w * loss_ref))
+            loss = ctx.ho_loss(c, scheme)
             t, p_mean, _ = loss_test(loss_ref, loss, ctx.layout.batches, ctx.w)
             wins, p_rank = batch_rank_test(loss_ref, loss, ctx.layout.batches)
             shrink = 1.0 - float(np.sum(ctx.w * loss)) / ise_ref
@@ -407,12 +481,34 @@ def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dic
             # most batches that one unpredictable block hides from the mean
             p = min(1.0, 2.0 * min(p_mean, p_rank))
             row.update(
-                heldout_rmse_mv=1e3 * float(np.sqrt(ctx.ho_mse(c))), shrink=shrink, t=t,
-                p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
+                heldout_rmse_mv=1e3 * float(np.sqrt(float(np.sum(ctx.w * loss)) / n)),
+                shrink=shrink, t=t, p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
                 pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
             )  # fmt: skip
+            if decided == "identification and prior" and row["pays"]:
+                row.update(law_prior(ctx, c, e))
+                row["pays"] = row["identified"] is None and all(
+                    q["inside"] for q in row["prior"].values()
+                )
         out.append(row)
     return out
+
+
+def law_prior(ctx: Context, cand: Candidate, effect: str) -> dict:
+    """Part 2 of docs/temperature-rule.md on two test temperatures: whether the temperature
+    law ``effect`` is identified in ``cand``'s fit (:func:`identified`: None, or why not) and,
+    per parameter, its fitted value against its physical prior (``Param.physical``)."""
+    iv = intervals.of_fit(ctx.recs, cand.st, cand.X)
+    report = iv.report()["parameters"]
+    prior = {}
+    for p in elements.get(effect).params.values():
+        if p.physical is None:
+            continue
+        lo, hi, source = p.physical
+        value = float(report[p.report]["value"])
+        prior[p.report] = {"value": value, "range": [lo, hi], "source": source,
+                           "inside": bool(lo <= value <= hi)}  # fmt: skip
+    return {"identified": identified(iv, effect), "prior": prior}
 
 
 def identified(iv: intervals.Intervals, effect: str) -> str | None:
@@ -446,13 +542,15 @@ def choose(ctx: Context, rows: list[dict], cands: dict[str, Candidate]) -> str |
     if not paying:
         return None
     best = max(paying, key=lambda r: r["shrink"])
-    loss_best = ctx.ho_loss(cands[best["effect"]])
     simpler = []
     for r in paying:
         if r["n_params"] < best["n_params"]:
-            t, _, _ = loss_test(
-                ctx.ho_loss(cands[r["effect"]]), loss_best, ctx.layout.batches, ctx.w
-            )
+            # on one hold-out: the two's own where they share it, else by test temperature
+            pair = {ctx.scheme(r["effect"]), ctx.scheme(best["effect"])}
+            scheme = pair.pop() if len(pair) == 1 else TEMPERATURE
+            t, _, _ = loss_test(ctx.ho_loss(cands[r["effect"]], scheme),
+                                ctx.ho_loss(cands[best["effect"]], scheme),
+                                ctx.layout.batches, ctx.w)  # fmt: skip
             if t <= 1.0:  # worse than the best by at most one standard error
                 simpler.append(r)
     if simpler:
@@ -541,6 +639,8 @@ def prune(ctx: Context, final: Candidate) -> tuple[Candidate, list[dict]]:
     while final.effects:
         order = [e for e in reversed(final.effects)
                  if not any(ecm.REQUIRES.get(x) == e for x in final.effects if x != e)]  # fmt: skip
+        for scheme in dict.fromkeys(ctx.scheme(e) for e in order):  # before the trials share it
+            ctx.held(final, scheme)
         # every element's trial at once (:func:`each`); taken in the sequential order, up to
         # the first drop, as the one-at-a-time loop would
         trials = each(lambda e, f=final: _without(ctx, f, e), order)
@@ -550,7 +650,7 @@ def prune(ctx: Context, final: Candidate) -> tuple[Candidate, list[dict]]:
             ctx.say(f"pruning: {e} {'stays' if row['pays'] else 'dropped'}")
         # the fits counted are those the one-at-a-time rule makes (a reduced model's fit, then
         # one per held-out part, per trial up to the first drop), not those tried ahead
-        ctx.count(-(len(trials) - len(needed)) * (1 + len(ctx.layout.folds)))
+        ctx.count(-sum(1 + ctx.n_folds(ctx.scheme(e)) for e, _, _ in trials[len(needed) :]))
         if drop is None:
             break
         _, reduced, row = trials[drop]
@@ -564,7 +664,7 @@ def _without(ctx: Context, final: Candidate, e: str) -> tuple[str, Candidate, di
     against ``final``."""
     st = ctx.structure(tuple(x for x in final.effects if x != e), final.st.knots)
     reduced = ctx.fit(st, [fitting.neutralise(final.X, (e,))], taus=())  # nested in a checked fit
-    ctx.cross_validate(reduced)
+    ctx.cross_validate(reduced, ctx.scheme(e))
     (row,) = judge(ctx, reduced, {e: final})
     return e, reduced, row
 
@@ -593,11 +693,18 @@ def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
     held.update((e, c) for e, c in cands.items()
                 if bic(c.rss, ctx.n, c.k) - bic(base.rss, ctx.n, base.k) < BIC_MAX)  # fmt: skip
 
-    def hold_out(e: str) -> None:
-        ctx.cross_validate(held[e])
-        ctx.say(f"rung 1: {e} held out")
+    # the base held out every way a candidate held out is (``Context.scheme``)
+    jobs = [
+        ("base", s) for s in dict.fromkeys([RECORD, *(ctx.scheme(e) for e in held if e != "base")])
+    ]
+    jobs += [(e, ctx.scheme(e)) for e in held if e != "base"]
 
-    each(hold_out, held)
+    def hold_out(job) -> None:
+        e, scheme = job
+        ctx.cross_validate(held[e], scheme)
+        ctx.say(f"rung 1: {e} held out{' by temperature' if scheme == TEMPERATURE else ''}")
+
+    each(hold_out, jobs)
     rows = judge(ctx, base, cands)
     winner = choose(ctx, rows, cands)
     ctx.say(f"rung 1: {len(cands)} candidates, {winner or 'none'} wins")

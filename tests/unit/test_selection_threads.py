@@ -98,9 +98,12 @@ def test_pruning_counts_only_the_trials_the_one_at_a_time_rule_makes(monkeypatch
     order, the latest element first) is dropped, and the fits of the trials after it are not
     counted."""
     monkeypatch.setattr(selection, "THREADS", 2)
-    ctx = SimpleNamespace(fits=0, layout=SimpleNamespace(folds=[0, 1, 2]), said=[])
+    ctx = SimpleNamespace(fits=0, layout=SimpleNamespace(folds=[0, 1, 2]), said=[], held=[])
     ctx.count = lambda n: setattr(ctx, "fits", ctx.fits + n)
     ctx.say = ctx.said.append
+    ctx.scheme = lambda e: selection.RECORD
+    ctx.n_folds = lambda scheme: len(ctx.layout.folds)
+    ctx.held = lambda cand, scheme: None
     per_trial = 1 + len(ctx.layout.folds)
 
     def without(ctx, final, e):
@@ -127,6 +130,30 @@ def test_pruning_counts_only_the_trials_the_one_at_a_time_rule_makes(monkeypatch
     # counted; round 2: both stay
     assert ctx.fits == 4 * per_trial
     assert pruned.effects == ("current_offset", "hysteresis")
+
+    # a temperature law is held out by test temperature (two groups here): its trial's fits
+    # are 1 + 2 when it is not counted; the final model is held out that way before the trials
+    held = []
+    ctx.scheme = lambda e: selection.TEMPERATURE if e == "thermal" else selection.RECORD
+    ctx.n_folds = lambda scheme: 2 if scheme == selection.TEMPERATURE else 3
+    ctx.held = lambda cand, scheme: held.append((cand.effects, scheme))
+
+    def without_law(ctx, final, e):
+        ctx.count(1 + ctx.n_folds(ctx.scheme(e)))
+        rest = tuple(x for x in final.effects if x != e)
+        return e, SimpleNamespace(effects=rest), {"pays": e != "hysteresis", "effect": e}
+
+    monkeypatch.setattr(selection, "_without", without_law)
+    ctx.fits = 0
+    final = SimpleNamespace(effects=("thermal", "hysteresis"))
+    pruned, _ = selection.prune(ctx, final)
+    # round 1: hysteresis dropped first, thermal's trial (1 + 2 fits) not counted; round 2:
+    # thermal stays (1 + 2)
+    assert pruned.effects == ("thermal",)
+    assert ctx.fits == (1 + 3) + (1 + 2)
+    assert held == [(("thermal", "hysteresis"), selection.RECORD),
+                    (("thermal", "hysteresis"), selection.TEMPERATURE),
+                    (("thermal",), selection.TEMPERATURE)]  # fmt: skip
 
 
 def test_a_diagnosis_runs_with_one_blas_thread(monkeypatch):

@@ -408,7 +408,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     # its candidates
     ho = handover.hand_over(ctx, lad, current_accuracy_a)
     handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
-    model = _handed_over_model(ctx, ho, selected["name"], _ambients(train))
+    model = _handed_over_model(ctx, ho, selected["name"], ctx.ambients_c)
     notes += [w for w in ho.warnings if w not in notes]
 
     report = {
@@ -473,11 +473,12 @@ def _fit_base(ctx: selection.Context, sources, capacity_ah, soc0) -> selection.C
 
 
 def _context(train: list[Checked], table, capacity_ah, soc0) -> selection.Context:
-    """The selection's context of the training records: one reference temperature for all."""
+    """The selection's context of the training records: one reference temperature for all, and
+    their ambients (the test temperatures a temperature law is held out by)."""
     frames = [c.frame for c in train]
     tref = reference_temperature(frames)
     recs = [Record.from_frame(c.frame, tref_k=tref, source=c.source) for c in train]
-    return selection.Context(recs, table, capacity_ah, soc0)
+    return selection.Context(recs, table, capacity_ah, soc0, _ambients(train))
 
 
 def _where(ctx: selection.Context, base: selection.Candidate):
@@ -665,6 +666,9 @@ def _method(ctx: selection.Context) -> dict:
             "whole records (leave one out)" if ctx.layout.by_record else "interleaved blocks"
         ),
         "folds": len(ctx.layout.folds),
+        # docs/temperature-rule.md part 2: how a temperature law is judged on these records
+        "test_temperatures": len(ctx.groups),
+        "temperature_laws_decided_by": ctx.decided_by("thermal"),
         "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
         "batches": len(ctx.layout.batches),
         "records_weighted_alike": True,

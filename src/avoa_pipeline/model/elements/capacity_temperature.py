@@ -39,6 +39,12 @@ ELEMENT = Element(
             "±2 %/K: a lithium-ion cell's accessible capacity changes by well under 1 %/K "
             "between −20 and 45 °C",
             prior_sd=0.01,
+            physical=(
+                0.0,
+                0.01,
+                "0 ≤ κQ ≤ 1 %/K: capacity falls toward the cold, and a cell "
+                "losing more than 1 %/K would lose all of it within 100 K",
+            ),
         )
     },
     starts=lambda row, imax: [dict(kq=0.002)],

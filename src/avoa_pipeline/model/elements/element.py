@@ -47,6 +47,9 @@ class Param:
     scale: str = ""
     scaled: tuple[float, float] | None = None
     element: str = ""  # filled in by the registry ("base", "rational", "table" or an element)
+    # a temperature law's physical prior (docs/temperature-rule.md part 2): (low, high, source)
+    # in report units; a law fitted on two test temperatures is admitted only inside it
+    physical: tuple[float, float, str] | None = None
 
 
 @dataclass(frozen=True)

@@ -64,6 +64,13 @@ ELEMENT = Element(
             "±1 mV/K: beyond the measured entropic coefficients of lithium-ion cells (within "
             "about ±0.5 mV/K over SOC for graphite/NMC, LFP and LCO)",
             prior_sd=5e-4,
+            physical=(
+                -1e-3,
+                1e-3,
+                "|∂U/∂T| ≤ 1 mV/K: full-cell entropic coefficients of "
+                "graphite against LFP, NMC, NCA and LCO (Viswanathan et al., J. Power "
+                "Sources 195 (2010) 3720)",
+            ),
         )
     },
     starts=lambda row, imax: [dict(dudt=1e-4), dict(dudt=-1e-4)],

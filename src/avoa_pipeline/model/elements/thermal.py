@@ -11,6 +11,20 @@ from .element import Element, Export, Kernel, Param, Piece, Signature, TableLaw,
 THETA_LIMITS = (0.0, 12000.0)
 THETA_WHY = "θ = Ea/R up to 12,000 K (≈ 100 kJ/mol, above any cell's activation energy)"
 
+R_GAS = 8.314462618
+"""The molar gas constant, J/(mol·K) (CODATA 2018): θ = Ea/R."""
+OHMIC_PRIOR = (5e3 / R_GAS, 40e3 / R_GAS,
+               "an ohmic resistance's activation energy 5-40 kJ/mol (electrolyte conduction; "
+               "Valøen & Reimers, J. Electrochem. Soc. 152 (2005) A882)")  # fmt: skip
+"""θ of an ohmic resistance, 601-4,811 K (docs/temperature-rule.md part 2)."""
+CHARGE_TRANSFER_PRIOR = (20e3 / R_GAS, 100e3 / R_GAS,
+                         "a charge-transfer resistance's activation energy 20-100 kJ/mol (Jow "
+                         "et al., J. Electrochem. Soc. 165 (2018) A361: 50-70 kJ/mol, widened "
+                         "for other chemistries)")  # fmt: skip
+"""θ of a charge-transfer resistance, an exchange current or an RC time constant, 2,405-12,027
+K (docs/temperature-rule.md part 2). Sheet electrodes' charge-transfer resistances measured
+30-60 kJ/mol (RSC Adv. 13 (2023) 21667) lie inside it."""
+
 _ARRHENIUS = '''
 def arrhenius(theta_k, T_cell):
     """thermal: exp(θ·(1/T − 1/T_REF_K)), T the cell temperature in K (PyBaMM passes °C)."""
@@ -63,8 +77,24 @@ def _f1(p, s, tk, tref):
 ELEMENT = Element(
     name="thermal",
     params={
-        "th0": Param("thermal_theta_r0_k", "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0),
-        "th1": Param("thermal_theta_rc_k", "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0),
+        "th0": Param(
+            "thermal_theta_r0_k",
+            "lin",
+            0.0,
+            THETA_LIMITS,
+            THETA_WHY,
+            prior_sd=5000.0,
+            physical=OHMIC_PRIOR,
+        ),
+        "th1": Param(
+            "thermal_theta_rc_k",
+            "lin",
+            0.0,
+            THETA_LIMITS,
+            THETA_WHY,
+            prior_sd=5000.0,
+            physical=CHARGE_TRANSFER_PRIOR,
+        ),
     },
     starts=lambda row, imax: [dict(th0=3000.0, th1=3000.0)],
     signature=Signature("load: residual follows I·(T − mean T)", _read),

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .element import Element, Export, Kernel, Param, Piece, TableLaw
-from .thermal import THETA_LIMITS
+from .thermal import CHARGE_TRANSFER_PRIOR, THETA_LIMITS
 
 
 def _piece(p) -> Piece:
@@ -46,6 +46,7 @@ ELEMENT = Element(
             "θτ = Ea/R up to 12,000 K (as thermal's θ); not negative: a branch is not faster "
             "in the cold, its resistance rises and its capacitance does not grow with T",
             prior_sd=5000.0,
+            physical=CHARGE_TRANSFER_PRIOR,  # an RC time constant's: the charge transfer's
         )
     },
     starts=lambda row, imax: [dict(thtau=3000.0)],

@@ -1,0 +1,111 @@
+"""How a temperature law is judged (docs/temperature-rule.md parts 1-2): held out by test
+temperature where there are three or more, by record plus identification and a physical prior
+with two; circuit elements by record whatever the temperatures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_ecm import TRUTH, profile_frame, with_voltage
+
+from avoa_pipeline import selection
+from avoa_pipeline.model import ecm
+from avoa_pipeline.model.ecm import Config
+from avoa_pipeline.selection import RECORD, TEMPERATURE, fitted_model
+
+SEGMENTS = [(300, 0.0), (900, 2.0), (600, 0.0), (300, -1.5), (400, 0.0), (200, 3.0), (400, 0.0)]
+
+
+def at_ambient(ambient_c: float, truth: dict, seed: int, moves: bool = False):
+    """A pulse record of the truth's cell held at ``ambient_c`` (its temperature constant, or,
+    with ``moves``, warming 3 K under load as a cell self-heats)."""
+    frame = profile_frame(SEGMENTS, temperature=False)
+    frame["temperature_c"] = ambient_c + (3.0 * np.sin(frame["time_s"] / 1500.0) ** 2
+                                          if moves else 0.0)  # fmt: skip
+    return with_voltage(frame, {**truth, "tref_k": 298.15}, noise_v=1e-3, seed=seed,
+                        config=Config(("thermal",)))  # fmt: skip
+
+
+def context(frames, ambients):
+    recs = [ecm.Record.from_frame(f, tref_k=298.15, source=f"r{k}.csv")
+            for k, f in enumerate(frames)]  # fmt: skip
+    return selection.Context(recs, ambients_c=ambients)
+
+
+def test_ambients_within_two_kelvin_are_one_test_temperature_and_say_how_a_law_is_judged():
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": 4000.0}
+    frames = [at_ambient(a, truth, seed=k) for k, a in enumerate((0.0, 10.0, 25.0, 26.5))]
+    ctx = context(frames, [0.0, 10.0, 25.0, 26.5])
+    assert ctx.groups == [[0], [1], [2, 3]]
+    assert ctx.scheme("thermal") == TEMPERATURE and ctx.scheme("entropic") == TEMPERATURE
+    assert ctx.scheme("second_rc") == RECORD and ctx.scheme("butler_volmer") == RECORD
+    assert ctx.decided_by("thermal") == "leave one temperature out"
+    assert ctx.decided_by("second_rc") is None
+    two = context(frames[1:], [10.0, 25.0, 26.5])
+    assert two.scheme("thermal") == RECORD
+    assert two.decided_by("thermal") == "identification and prior"
+    one = context(frames[2:], [25.0, 26.5])
+    assert one.decided_by("capacity_temperature") == "leave one record out"
+    assert context(frames, None).groups == [[0, 1, 2, 3]]
+
+
+def test_records_at_several_constant_temperatures_admit_a_law_candidate():
+    """No record's temperature moves, but the records' temperatures differ: an Arrhenius factor
+    is then no constant R0 absorbs, so the laws are candidates; at one constant temperature they
+    are not."""
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": 4000.0}
+    frames = [at_ambient(a, truth, seed=k) for k, a in enumerate((0.0, 25.0))]
+    recs = [ecm.Record.from_frame(f, tref_k=298.15) for f in frames]
+    assert not any(r.temperature_varies for r in recs)
+    assert selection.applicable(recs, "thermal")[0]
+    ok, why = selection.applicable(recs[:1], "thermal")
+    assert not ok and "spans less than" in why
+
+
+def test_a_law_held_out_by_temperature_predicts_a_group_from_the_other_groups_alone():
+    """Each test temperature's records are predicted from the fit to the other temperatures'
+    records: the held-out voltage is what ``simulate`` gives from that fit's parameters (the
+    record started by the rule), and the two records of one chamber are held out together."""
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": 4000.0}
+    ambients = [0.0, 10.0, 25.0, 26.0]
+    frames = [at_ambient(a, truth, seed=k, moves=True) for k, a in enumerate(ambients)]
+    ctx = context(frames, ambients)
+    base = selection.fit_base(ctx)
+    law = selection.try_effects(ctx, base, ["thermal"], cv=False)["thermal"]
+    fits = ctx.fits
+    ctx.cross_validate(law, TEMPERATURE)
+    assert ctx.fits == fits + 3 and law.ho is None
+    for g, group in enumerate(ctx.groups):
+        fold = selection.Candidate(law.st, law.fold_X_t[g], law.v, law.rss)
+        for r in group:
+            v = fitted_model(ctx, fold).simulate(frames[r])
+            np.testing.assert_allclose(law.ho_t[ctx.layout.folds[r]], v, rtol=0, atol=1e-9)
+    th = ecm.IDX["th0"]
+    assert len({round(float(x[0, th]), 6) for x in law.fold_X_t}) == 3  # three different fits
+    # judged by that hold-out, against the base held out the same way (done by judge)
+    (row,) = selection.judge(ctx, base, {"thermal": law})
+    assert base.ho_t is not None and row["decided_by"] == "leave one temperature out"
+    mse = float(np.sum(ctx.w * (law.ho_t - ctx.v) ** 2)) / ctx.n
+    assert row["heldout_rmse_mv"] == pytest.approx(1e3 * np.sqrt(mse))
+    assert row["pays"]
+
+
+@pytest.mark.parametrize("theta_r0_k, admitted", [(3000.0, True), (150.0, False)])
+def test_on_two_temperatures_a_law_must_sit_inside_its_prior(theta_r0_k, admitted):
+    """Two test temperatures (two records each): a law's record hold-out gain is not enough.
+    An ohmic activation energy of 3000 K (25 kJ/mol) is inside the prior (601-4,811 K); one of
+    150 K (1.2 kJ/mol) is identified and pays on the tests but lies outside it."""
+    truth = {**TRUTH, "thermal_theta_r0_k": theta_r0_k, "thermal_theta_rc_k": 4000.0}
+    ambients = [5.0, 5.5, 35.0, 34.0]
+    frames = [at_ambient(a, truth, seed=k, moves=True) for k, a in enumerate(ambients)]
+    ctx = context(frames, ambients)
+    base = ctx.cross_validate(selection.fit_base(ctx))
+    cands = selection.try_effects(ctx, base, ["thermal"], cv=True)
+    (row,) = selection.judge(ctx, base, cands)
+    assert row["decided_by"] == "identification and prior"
+    assert row["shrink"] > 0.5 and row["p"] < 1e-3  # the tests alone would admit it
+    r0 = row["prior"]["thermal_theta_r0_k"]
+    assert r0["value"] == pytest.approx(theta_r0_k, rel=0.2)
+    assert r0["range"] == pytest.approx([601.4, 4811.0], abs=0.5) and "Valøen" in r0["source"]
+    assert row["identified"] is None
+    assert r0["inside"] is admitted and row["pays"] is admitted
