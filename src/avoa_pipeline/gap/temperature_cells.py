@@ -127,15 +127,20 @@ def solve(chemistry: str, ambient_c: float, rate: np.ndarray) -> dict:
             "temperature_k": sol["Volume-averaged cell temperature [K]"].entries}  # fmt: skip
 
 
-def cycler_log(frame: pd.DataFrame, rest_log_s: float = REST_LOG_S) -> pd.DataFrame:
+def cycler_log(frame: pd.DataFrame, rest_log_s: float = REST_LOG_S,
+               slow: np.ndarray | None = None) -> pd.DataFrame:  # fmt: skip
     """A 1-Hz record as a cycler logs it: the current channel one sample late (at an edge the
-    logged current is the one before it), rests kept every ``rest_log_s`` only (and the last
-    row). The same rule as tests/unit/test_soc_filter.py's ``cycler_log``."""
+    logged current is the one before it); the slow rows kept every ``rest_log_s`` only (and the
+    last row). ``slow`` marks the rows a cycler logs coarsely (a constant-voltage phase as well
+    as a rest); by default the rests, rows where the true and the logged current are both zero,
+    so an edge row is logged. The one rule for every development record logged so
+    (tests/unit/test_soc_filter.py's and test_bms_events.py's records too)."""
     cur = frame["current_a"].to_numpy()
     lagged = np.r_[cur[:1], cur[:-1]]
     t = frame["time_s"].to_numpy()
-    rest = (cur == 0.0) & (lagged == 0.0)
-    keep = ~rest | (np.mod(t - t[0], rest_log_s) == 0.0) | (np.arange(t.size) == t.size - 1)
+    if slow is None:
+        slow = (cur == 0.0) & (lagged == 0.0)
+    keep = ~slow | (np.mod(t - t[0], rest_log_s) == 0.0) | (np.arange(t.size) == t.size - 1)
     return frame.assign(current_a=lagged)[keep].reset_index(drop=True)
 
 
