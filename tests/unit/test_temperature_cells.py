@@ -56,20 +56,16 @@ def test_the_set_is_written_as_named_and_reads_through_the_records_layer(written
         assert side["profile"] in T.PROFILES
         assert side["seed"] == 4
         assert side["pybamm_version"]
-        # the only word the records layer may have is the drive's sign (next test)
-        assert all("does not tell the current" in w for w in checked.warnings)
-    assert _read(out / "lfp_25degC_hppc.csv").warnings == ()
+        assert checked.warnings == ()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "records.sign_evidence reads a step's answer in V[k+1] - V[k-1] around the row where the "
-    "logged current changes; with the current a sample late the voltage has already jumped at "
-    "k-1, and the flat LFP drive has no other evidence: 'cannot tell'. The records layer's to "
-    "fix (a window one row earlier too); this test then passes and must lose its mark."
-))  # fmt: skip
 def test_the_lfp_drive_tells_its_sign_despite_the_late_current(written):
+    """The flat LFP drive leaves the first look nothing after the jump (the current a sample
+    late); the records layer's second look, the current a row earlier, tells."""
     out, _ = written
-    assert _read(out / "lfp_25degC_drive.csv").warnings == ()
+    checked = _read(out / "lfp_25degC_drive.csv")
+    assert checked.warnings == ()
+    assert (checked.sign.verdict, checked.sign.current_lag_samples) == ("discharge-positive", 1)
 
 
 def test_the_set_is_all_or_none(tmp_path, monkeypatch):
