@@ -215,6 +215,33 @@ def test_the_workflows_diagnosis_leaves_out_a_validation_record_it_refuses():
         diagnosis._without_refused(read, 0.01, None, None)
 
 
+def test_the_drive_cycle_table_job_gives_a_refused_cycle_no_diagnosis_rows(tmp_path):
+    """``jobs.real.drive_cycle_table`` on a diagnosis that refused its temperature's only unseen
+    cycle (the -20 °C US06): no rows, the diagnosis's model not drawn on the figure cycle (its
+    model.json is not even read), one log line naming the refusal."""
+    us06 = tmp_path / "m20_us06.csv"
+    side = {k: "x" for k in records.SIDECAR_KEYS}
+    records.write(_unrelaxed(), {**side, "nominal_capacity_ah": 2.9,
+                                 "ambient_temperature_c": -20.0}, us06)  # fmt: skip
+    refusal = {"record": str(us06), "refusal": f"{us06}: column 'time_s': the rested voltage ..."}
+    (tmp_path / "d").mkdir()
+    report = {**_report(()), "validation": [], "refused_validation": [refusal]}
+    (tmp_path / "d" / "diagnosis.json").write_text(json.dumps(report))
+    cfg = {"real": {"panasonic": {
+        "temperatures": {"-20degC": {"ambient_c": -20.0,
+                                     "drive_cycles": {"udds": "u.mat", "us06": "s.mat"}}},
+        "experiment": {"train": {"-20degC": "udds"}, "qdis_ah": 1.45,
+                       "figure_cycle": {"-20degC": "us06"}}}}}  # fmt: skip
+    out, log = tmp_path / "rmse.csv", tmp_path / "log"
+    jobs.drive_cycle_table(cfg, [], {"diagnosis": {"-20degC": str(tmp_path / "d")}},
+                           {"-20degC/us06": str(us06)}, out, tmp_path / "runs.csv",
+                           tmp_path / "pred.parquet", log)  # fmt: skip
+    assert pd.read_csv(out).empty
+    assert pd.read_parquet(tmp_path / "pred.parquet").empty
+    lines = [x for x in log.read_text().splitlines() if x.startswith("refused")]
+    assert lines == [f"refused (diagnosis -20degC), no rows: {refusal['refusal']}"]
+
+
 def test_cross_cycle_separates_the_models_own_error_from_the_transfer():
     table = _table()
     a = _frame(1500, seed=6, table=table)

@@ -274,8 +274,8 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
     temps = cfg["real"]["panasonic"]["temperatures"]
     ambient = {t: float(s["ambient_c"]) for t, s in temps.items()}
     summary, runs = dc.table(records, ambient)
-    refused = "".join(f"\nrefused by the {r['prefix']} diagnosis at {r['temperature']}, no rows: "
-                      f"{x['refusal']}" for r in records for x in r.get("refused", ()))  # fmt: skip
+    refused = "".join(f"\nrefused ({r['prefix']} {r['temperature']}), no rows: {x['refusal']}"
+                      for r in records for x in r.get("refused", ()))  # fmt: skip
     exp = dc.experiment(cfg)
     qdis = float(exp["qdis_ah"])
     # the measured and predicted voltage of each temperature's figure cycle, one row per sample
