@@ -145,6 +145,8 @@ class Diagnosis:
         model_json = FILES[2] if out is None else out / FILES[2]
         report_json = FILES[0] if out is None else out / FILES[0]
         lines = list(self.inputs.warnings)
+        lines += [f"{report_json}: validation record refused, left out: {r['refusal']}"
+                  for r in self.report.get("refused_validation", ())]  # fmt: skip
         lines += flag_lines(model_json, self.report.get("at_bounds", ()), self.intervals)
         if self.model.heat is not None:
             lines += [f"{model_json}: {flag}" for flag in heat.flags(self.model.heat)]
@@ -170,28 +172,60 @@ class Diagnosis:
         )
 
 
+def _without_refused(read, capacity_ah, soc0, current_accuracy_a):
+    """(``read`` without the validation records the diagnosis's checks refuse, and per refused
+    record its ``record`` and its ``refusal``: the one line naming file and field). The checks
+    are the diagnosis's own (``gap.diagnose.check_options``: a known capacity tells units,
+    ``records.check_scale``), each validation record taken with the training records alone; a
+    fault of the training records or the options stops the diagnosis as before."""
+    from dataclasses import replace
+
+    from .errors import DataError, UserError
+    from .gap import diagnose as gap_diagnose
+
+    gap_diagnose.check_options(read.train, [], capacity_ah, soc0, read.ocv, current_accuracy_a)
+    kept, refused = [], []
+    for c in read.validate:
+        try:
+            gap_diagnose.check_options(read.train, [c], capacity_ah, soc0, read.ocv,
+                                       current_accuracy_a)  # fmt: skip
+        except (DataError, UserError) as e:
+            refused.append({"record": c.source, "refusal": str(e)})
+            continue
+        kept.append(c)
+    return replace(read, validate=kept), refused
+
+
 def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | None = None,
              soc0: float | None = None, current_accuracy_a: float | None = None,
              cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0],
-             progress=True) -> Diagnosis:  # fmt: skip
+             progress=True, skip_refused_validation: bool = False) -> Diagnosis:  # fmt: skip
     """The diagnosis of one cell's training records ``data`` (paths, checked records or frames;
     one or a list), fitted together; ``validate``: records never used for any choice; ``ocv``:
     the cell's OCV (a table ``soc, ocv_v`` or a slow test, as a path, or an ``OcvTable``; None:
     the rational curve). The options are the ``diagnose`` command's (``--capacity-ah``,
     ``--soc0``, ``--current-accuracy-a``, ``--cycler``, ``--current-sign``); ``progress`` as
     ``gap.diagnose.diagnose_records``. One-line DataError or UserError on bad input, before any
-    fit."""
+    fit. ``skip_refused_validation`` (the workflow's experiments, which predict many unseen
+    records): a validation record the checks refuse is left out and its one-line refusal kept
+    in diagnosis.json's ``refused_validation`` and the warnings, instead of stopping; nothing
+    is loosened (the command, given a file, refuses it)."""
     from .gap import diagnose as gap_diagnose
     from .model import heat
 
     data = [data] if _is_path(data) or not isinstance(data, Sequence) else list(data)
     validate = list(validate)
     read = _read_given(data, validate, ocv, cycler, current_sign)
+    refused = []
+    if skip_refused_validation and read.validate:
+        read, refused = _without_refused(read, capacity_ah, soc0, current_accuracy_a)
     heat.training_ambients(read.train)  # a bad sidecar ambient is refused before any fit
     report, arrays, model = gap_diagnose.diagnose_records(
         read.train, capacity_ah, soc0, ocv_table=read.ocv, validate=read.validate,
         warnings=read.warnings, progress=progress,
         current_accuracy_a=current_accuracy_a)  # fmt: skip
+    if refused:  # absent otherwise: a diagnosis.json without refusals is as before
+        report["refused_validation"] = refused
     heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
     report["heat"] = heat.block_summary(model, heat_line)  # and whether the voltage reads it
     # the files read, never to be written over: paths, and checked records read from a file

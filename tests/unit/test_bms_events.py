@@ -21,6 +21,7 @@ from test_estimate import BASE, files, fitted, run_cli
 from test_soc_filter import CELL, FILTER, LOGGER_MV, expected_error_of, measured
 
 from avoa_pipeline import estimate as E
+from avoa_pipeline.gap.temperature_cells import cycler_log
 
 C = BASE["capacity_ah"]
 V_TOP = 4.232  # the charger's set point: the cell's voltage at full on charge (OCV(1) + h)
@@ -64,12 +65,12 @@ def emulate(cell, steps, soc0: float):
 
 
 def logged(t, i, v, soc, slow, seed: int):
-    """As a cycler logs: the current a sample late, slow phases every SLOW_LOG_S, 1 mV noise."""
-    lagged = np.r_[i[:1], i[:-1]]
-    keep = ~slow | (np.mod(t, SLOW_LOG_S) == 0) | (np.arange(t.size) == t.size - 1)
+    """As a cycler logs (``temperature_cells.cycler_log``): the current a sample late, slow
+    phases every SLOW_LOG_S, 1 mV noise."""
     noise = np.random.default_rng(seed).normal(0.0, 1e-3 * LOGGER_MV, t.size)
-    frame = pd.DataFrame({"time_s": t, "current_a": lagged, "voltage_v": v + noise})
-    return frame[keep].reset_index(drop=True), soc[keep]
+    frame = pd.DataFrame({"time_s": t, "current_a": i, "voltage_v": v + noise, "soc": soc})
+    out = cycler_log(frame, SLOW_LOG_S, slow=slow)
+    return out.drop(columns="soc"), out["soc"].to_numpy()
 
 
 def drive(seed: int, seconds: int) -> list:

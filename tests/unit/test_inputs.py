@@ -122,6 +122,51 @@ def test_sign_check_cannot_tell_on_weak_evidence():
     assert (ev.steps, ev.events, ev.agreeing) == (1, 0, 1.0)
 
 
+def _flat_cell_logged_late(seed=3, lag=1):
+    """A flat-OCV cell (LFP's plateau) under drive-like 1-Hz steps: its voltage answers only
+    through R0 (no drift, no relaxation to tell the sign after the jump), 1 mV of noise; the
+    current channel ``lag`` samples late, as a cycler logs it at each edge."""
+    rng = np.random.default_rng(seed)
+    steps = [np.full(int(rng.integers(10, 61)), rng.choice([0.0, -1.0, 0.5, 1.0, 2.0]))
+             for _ in range(60)]  # fmt: skip
+    cur = np.concatenate(steps)
+    v = 3.30 - 0.03 * cur + 1e-3 * rng.standard_normal(cur.size)
+    logged = np.r_[np.full(lag, cur[0]), cur[: cur.size - lag]]
+    return pd.DataFrame({"time_s": np.arange(cur.size, dtype=float), "current_a": logged,
+                         "voltage_v": v})  # fmt: skip
+
+
+def test_sign_check_reads_a_current_logged_a_sample_late():
+    """With the current a sample late the first look's window V[k+1] − V[k−1] opens after the
+    jump: a flat OCV leaves it nothing. The second look (the current a row earlier) tells, both
+    ways, and says it did; without the lag the first look tells and the second is not taken."""
+    frame = _flat_cell_logged_late()
+    i, v = frame["current_a"].to_numpy(), frame["voltage_v"].to_numpy()
+    first = records._sign_look(frame["time_s"].to_numpy(), i, v, records.SIGN_Z)
+    assert first.verdict == "cannot tell", first
+    ev = records.frame_sign(frame)
+    assert (ev.verdict, ev.current_lag_samples) == ("discharge-positive", 1), ev
+    assert ev.z > 5 * records.SIGN_LATE_Z  # every step clear: 3 units each
+    assert "read a row earlier" in ev.describe()
+    assert records.SignEvidence.from_dict(ev.as_dict()).current_lag_samples == 1  # a sidecar too
+    flipped = records.frame_sign(_flip(frame))
+    assert (flipped.verdict, flipped.current_lag_samples) == ("charge-positive", 1)
+    on_time = records.frame_sign(_flat_cell_logged_late(lag=0))
+    assert (on_time.verdict, on_time.current_lag_samples) == ("discharge-positive", 0)
+    assert "current_lag_samples" not in on_time.as_dict()  # sidecars as before the lag
+
+
+def test_the_second_look_declares_no_sign_on_noise():
+    """Voltage that does not answer the current: neither look declares a sign (at the two
+    looks' thresholds chance declares one in at most 0.15 % of records)."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        cur = np.repeat(rng.choice([0.0, 1.0, -1.0, 2.0], 60), 10)
+        frame = pd.DataFrame({"time_s": np.arange(cur.size, dtype=float), "current_a": cur,
+                              "voltage_v": 3.7 + 1e-3 * rng.standard_normal(cur.size)})  # fmt: skip
+        assert records.frame_sign(frame).verdict == "cannot tell"
+
+
 def test_a_few_odd_rows_do_not_flip_the_sign():
     """Spikes of the wrong sign at a fifth of the steps (glitches, rows logged at the wrong
     instant): each item weighs at most SIGN_CLIP noise units, so the rest carry the verdict."""

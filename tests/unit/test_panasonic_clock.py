@@ -250,25 +250,15 @@ def test_a_piece_between_jumps_is_placed_only_if_its_clocks_agree_on_rate(stamp_
 
 # --- the real -20 degC HPPC test (read in place from the configured data root) ---------------
 
-# its files and sha256 (docs/real-data.md, "-20 degC"), used where config/config.yaml does not
-# list -20 degC yet
-M20_DIR = "panasonic_18650pf/-20degC/5 pulse disch/"
-M20 = {
-    M20_DIR + "06-15-17_11.31 n20degC_5Pulse_HPPC_Pan18650PF.mat":
-        "35cdba040b21d033ad30c6c5e4923c2417323a0e5af2b65aa147d7bd24b4d4b2",
-    M20_DIR + "06-15-17_12.33 3789_dis5_10p.mat":
-        "166bbf6a5db20a2c1fac9ef40dd0e608c6f0b20d445023150879663057b11094",
-}  # fmt: skip
-
 
 def test_the_real_minus_20_hppc_imports_its_step_file_split_at_its_jumps(cfg, tmp_path):
     real = copy.deepcopy(cfg["real"])
     root = Path(real["root"])
     real["root"] = str(root if root.is_absolute() else (Path(__file__).parents[2] / root).resolve())
-    if not Path(real["root"], M20_DIR).is_dir():
+    spec = real["panasonic"]["temperatures"]["-20degC"]  # its files' sha256 in real.sources
+    pulse_key, steps_key = spec["hppc"], spec["hppc_steps"]
+    if not Path(real["root"], pulse_key).is_file():
         pytest.skip(f"Panasonic -20 degC data not found under {real['root']}")
-    real["sources"] = {**M20, **real["sources"]}
-    pulse_key, steps_key = M20
     out = tmp_path / "hppc.csv"
     side = panasonic.import_record(real, [pulse_key, steps_key], "hppc", -20.0, out)
     checked = records.read(out, capacity_ah=side["nominal_capacity_ah"])

@@ -165,6 +165,83 @@ def test_jobs_names_validation_records_by_their_cycle(tmp_path, monkeypatch):
     assert set(rec["models"]["gap_selected"]["cycles"]) == {"us06", "hwfet"}
 
 
+def test_a_refused_validation_record_has_no_rows_and_is_named():
+    """diagnosis.json's ``refused_validation`` (the workflow's diagnoses leave such a record out,
+    docs/real-data.md "-20 °C"): no rows for it, and a diagnosis whose only unseen cycle was
+    refused is still a record of the table, with no validation rows."""
+    refusal = {"record": "b.csv", "refusal": "b.csv: column 'time_s': the rested voltage ..."}
+    report = _report(("a.csv",))
+    rec = dc.diagnosis_record("25degC", {**report, "refused_validation": [refusal]}, "d",
+                              {"a.csv": "us06", "b.csv": "hwfet"})  # fmt: skip
+    assert set(rec["models"]["d_selected"]["cycles"]) == {"us06"}
+    assert rec["refused"] == [refusal]
+    alone = dc.diagnosis_record("-20degC", {**report, "validation": [],
+                                            "refused_validation": [refusal]}, "d")  # fmt: skip
+    assert alone["models"] == {}
+    assert dc.table([alone], {"-20degC": -20.0})[0].empty
+
+
+def _unrelaxed(n_pulses=8):
+    """A record whose rests end far from relaxed (a cold cell's drive-cycle stops): each 60-s
+    1 A pulse moves the rested voltage 0.2 V for 1/60 Ah, 35 V per unit SOC of 2.9 Ah."""
+    cur, v = [], []
+    for k in range(n_pulses):
+        cur += [0.0] * 60 + [1.0] * 60
+        v += [4.0 - 0.2 * k] * 60 + [3.9 - 0.2 * k] * 60
+    cur += [0.0] * 60
+    v += [4.0 - 0.2 * n_pulses] * 60
+    return pd.DataFrame({"time_s": np.arange(len(cur), dtype=float), "current_a": cur,
+                         "voltage_v": v, "temperature_c": 25.0})  # fmt: skip
+
+
+def test_the_workflows_diagnosis_leaves_out_a_validation_record_it_refuses():
+    """``diagnosis._without_refused`` (``skip_refused_validation``): the diagnosis's own checks,
+    each validation record with the training records; the refused one named in one line (file
+    and field), the others kept; a fault of the training records still stops."""
+    from avoa_pipeline import diagnosis, inputs
+    from avoa_pipeline.errors import UserError
+
+    train = records.check(_frame(3000, seed=1), "train.csv")
+    good = records.check(_frame(3000, seed=2), "good.csv")
+    bad = records.check(_unrelaxed(), "cold_us06.csv")  # passes without a capacity
+    read = inputs.Inputs([train], [good, bad], None, ())
+    kept, refused = diagnosis._without_refused(read, 2.9, None, None)
+    assert [c.source for c in kept.validate] == ["good.csv"]
+    assert [r["record"] for r in refused] == ["cold_us06.csv"]
+    line = refused[0]["refusal"]
+    assert line.startswith("cold_us06.csv: column 'time_s': the rested voltage")
+    assert "\n" not in line
+    with pytest.raises(UserError, match="--capacity-ah"):  # the training record's fault stops
+        diagnosis._without_refused(read, 0.01, None, None)
+
+
+def test_the_drive_cycle_table_job_gives_a_refused_cycle_no_diagnosis_rows(tmp_path):
+    """``jobs.real.drive_cycle_table`` on a diagnosis that refused its temperature's only unseen
+    cycle (the -20 °C US06): no rows, the diagnosis's model not drawn on the figure cycle (its
+    model.json is not even read), one log line naming the refusal."""
+    us06 = tmp_path / "m20_us06.csv"
+    side = {k: "x" for k in records.SIDECAR_KEYS}
+    records.write(_unrelaxed(), {**side, "nominal_capacity_ah": 2.9,
+                                 "ambient_temperature_c": -20.0}, us06)  # fmt: skip
+    refusal = {"record": str(us06), "refusal": f"{us06}: column 'time_s': the rested voltage ..."}
+    (tmp_path / "d").mkdir()
+    report = {**_report(()), "validation": [], "refused_validation": [refusal]}
+    (tmp_path / "d" / "diagnosis.json").write_text(json.dumps(report))
+    cfg = {"real": {"panasonic": {
+        "temperatures": {"-20degC": {"ambient_c": -20.0,
+                                     "drive_cycles": {"udds": "u.mat", "us06": "s.mat"}}},
+        "experiment": {"train": {"-20degC": "udds"}, "qdis_ah": 1.45,
+                       "figure_cycle": {"-20degC": "us06"}}}}}  # fmt: skip
+    out, log = tmp_path / "rmse.csv", tmp_path / "log"
+    jobs.drive_cycle_table(cfg, [], {"diagnosis": {"-20degC": str(tmp_path / "d")}},
+                           {"-20degC/us06": str(us06)}, out, tmp_path / "runs.csv",
+                           tmp_path / "pred.parquet", log)  # fmt: skip
+    assert pd.read_csv(out).empty
+    assert pd.read_parquet(tmp_path / "pred.parquet").empty
+    lines = [x for x in log.read_text().splitlines() if x.startswith("refused")]
+    assert lines == [f"refused (diagnosis -20degC), no rows: {refusal['refusal']}"]
+
+
 def test_cross_cycle_separates_the_models_own_error_from_the_transfer():
     table = _table()
     a = _frame(1500, seed=6, table=table)

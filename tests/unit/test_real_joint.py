@@ -134,3 +134,37 @@ def test_job_leaves_the_temperature_columns_empty_without_a_heat_block(tmp_path)
     assert pd.read_csv(traces).empty
     assert (tmp_path / "f" / "h.png").stat().st_size > 0
     assert "no " in (tmp_path / "log").read_text().splitlines()[-1]
+
+
+def test_a_cycle_every_diagnosis_refused_has_no_row_and_the_log_names_it(tmp_path):
+    """The -20 °C case (docs/real-data.md): a temperature whose one unseen cycle the joint and
+    its own diagnosis both refused (``refused_validation``): no row, no failure, one log line
+    each."""
+    tests = {k: str(tmp_path / f"{k.replace('/', '_')}.csv") for k in JOINT}
+    tests["-20degC/us06"] = str(tmp_path / "m20_us06.csv")
+    refusal = {
+        "record": tests["-20degC/us06"],
+        "refusal": f"{tests['-20degC/us06']}: column 'time_s': the rested voltage ...",
+    }
+    (tmp_path / "joint").mkdir()
+    rep = _report("thermal", {tests[k]: e for k, e in JOINT.items()})
+    rep["refused_validation"] = [refusal]
+    (tmp_path / "joint" / "diagnosis.json").write_text(json.dumps(rep))
+    own_dirs = {}
+    for temp, rows in {**OWN, "-20degC": {}}.items():
+        own_dirs[temp] = tmp_path / temp
+        own_dirs[temp].mkdir()
+        rep = _report(f"own_{temp}", {tests[f"{temp}/{c}"]: e for c, e in rows.items()})
+        if not rows:
+            rep["refused_validation"] = [refusal]
+        (own_dirs[temp] / "diagnosis.json").write_text(json.dumps(rep))
+    out = tmp_path / "joint_temperature.csv"
+    log = tmp_path / "log"
+    joint_temperature_table({**AMBIENT, "-20degC": -20.0}, tmp_path / "joint", own_dirs, tests,
+                            out, tmp_path / "figures" / "joint_temperature", log)  # fmt: skip
+    df = pd.read_csv(out)
+    assert -20.0 not in set(df["temperature_c"])
+    assert len(df) == len(JOINT)
+    lines = [x for x in log.read_text().splitlines() if x.startswith("refused")]
+    assert len(lines) == 2
+    assert all("m20_us06.csv: column 'time_s'" in x for x in lines)

@@ -159,6 +159,45 @@ def test_new_temperature_records_import_and_pass_the_checks(real, cfg, tmp_path,
             assert frame["voltage_v"].min() < 2.7, name
 
 
+def test_minus_20_records_import_and_its_us06_is_refused_given_a_capacity(real, cfg, tmp_path):
+    """-20 °C (issue 41 part 4): its HPPC (under the clock rule) and UDDS import and pass every
+    check with the cell's capacity; its US06 imports and passes without one, and given the
+    capacity the rest-slope check refuses it in one line naming file and field (its rests are a
+    few seconds of a cold cell far from relaxed; no check is loosened for it)."""
+    local = {**cfg, "real": real}
+    names = sorted(n for n in panasonic.records(local) if n.startswith("-20degC/"))
+    assert names == ["-20degC/hppc", "-20degC/udds", "-20degC/us06"]
+    for name in names:
+        out = tmp_path / f"{plan.canonical_name(name)}.csv"
+        side = panasonic.import_named(local, name, out)
+        assert all(ev["verdict"] == "discharge-positive" for ev in side["sign_check"].values())
+        assert side["ambient_temperature_c"] == -20.0
+        checked = records.read(out)
+        assert checked.sign.verdict == "discharge-positive", name
+        assert checked.warnings == (), name
+        if name != "-20degC/us06":
+            assert records.read(out, capacity_ah=side["nominal_capacity_ah"]).warnings == ()
+            continue
+        with pytest.raises(DataError) as refused:
+            records.read(out, capacity_ah=side["nominal_capacity_ah"])
+        line = str(refused.value)
+        assert line.startswith(f"{out}: column 'time_s': the rested voltage changes")
+        assert "\n" not in line
+    # the workflow's diagnosis at -20 °C (checks only, no fit): the C/20 test's capacity passes
+    # the training records and refuses the unseen US06, which is left out and named
+    from avoa_pipeline import diagnosis, inputs
+
+    ocv = tmp_path / "panasonic_25degC_ocv_c20.csv"
+    panasonic.import_named(local, "25degC/ocv_c20", ocv)
+    csv = {n: str(tmp_path / f"{plan.canonical_name(n)}.csv") for n in names}
+    read = inputs.read_inputs([csv["-20degC/udds"], csv["-20degC/hppc"]], [csv["-20degC/us06"]],
+                              str(ocv))  # fmt: skip
+    kept, refused = diagnosis._without_refused(read, None, None, None)
+    assert kept.validate == []
+    assert [r["record"] for r in refused] == [csv["-20degC/us06"]]
+    assert refused[0]["refusal"].startswith(f"{csv['-20degC/us06']}: column 'time_s'")
+
+
 def test_trim_leaves_short_rests_alone():
     frame = pd.DataFrame(
         {
@@ -254,17 +293,19 @@ def test_records_need_a_checksum_for_every_file(cfg):
 def test_experiment_temperatures_and_their_cycles(cfg):
     """Issue 19's rule: at each temperature the longest standard drive cycle trains, the others
     are unseen; a list `temperatures` narrows the run (config/tiny.yaml), checked against train."""
-    assert dc.temperatures(cfg) == ["25degC", "10degC", "0degC", "-10degC"]
+    assert dc.temperatures(cfg) == ["25degC", "10degC", "0degC", "-10degC", "-20degC"]
     assert dc.experiment(cfg)["train"] == {"25degC": "la92", "10degC": "hwfet", "0degC": "udds",
-                                           "-10degC": "udds"}  # fmt: skip
+                                           "-10degC": "udds", "-20degC": "udds"}  # fmt: skip
     assert dc.unseen_cycles(cfg, "10degC") == ["us06"]
     assert dc.unseen_cycles(cfg, "-10degC") == ["us06"]
+    assert dc.unseen_cycles(cfg, "-20degC") == ["us06"]
     assert dc.unseen_cycles(cfg, "0degC") == ["us06", "hwfet"]
+    assert dc.experiment(cfg)["figure_cycle"]["-20degC"] == "us06"
     narrowed = copy.deepcopy(cfg)
     narrowed["real"]["panasonic"]["experiment"]["temperatures"] = ["0degC", "25degC"]
     assert dc.temperatures(narrowed) == ["0degC", "25degC"]
-    narrowed["real"]["panasonic"]["experiment"]["temperatures"] = ["-20degC"]
-    with pytest.raises(ConfigError, match=r"experiment\.temperatures: '-20degC' has no training"):
+    narrowed["real"]["panasonic"]["experiment"]["temperatures"] = ["-30degC"]
+    with pytest.raises(ConfigError, match=r"experiment\.temperatures: '-30degC' has no training"):
         dc.temperatures(narrowed)
 
 

@@ -26,6 +26,7 @@ from test_estimate import BASE, files, fitted, run_cli
 from avoa_pipeline import estimate as E
 from avoa_pipeline import handover, records
 from avoa_pipeline.errors import UserError
+from avoa_pipeline.gap.temperature_cells import cycler_log
 from avoa_pipeline.model import intervals
 from avoa_pipeline.model.fitted import FittedModel
 
@@ -36,17 +37,6 @@ SOC0 = 0.9
 STARTS = (0.0, 0.2, -0.2)  # the true start and starts 20 % too high and too low
 REST_LOG_S = 60.0  # a cycler logs a rest every 60 s
 COVERAGE = 0.90  # the issue's lower end of the ±2σ band's coverage
-
-
-def cycler_log(frame: pd.DataFrame) -> pd.DataFrame:
-    """A 1 Hz record as a cycler logs it: the current channel one sample late (at an edge the
-    logged current is the one before it), rests kept every REST_LOG_S only."""
-    cur = frame["current_a"].to_numpy()
-    lagged = np.r_[cur[:1], cur[:-1]]
-    t = frame["time_s"].to_numpy()
-    rest = (cur == 0.0) & (lagged == 0.0)
-    keep = ~rest | (np.mod(t - t[0], REST_LOG_S) == 0.0) | (np.arange(t.size) == t.size - 1)
-    return frame.assign(current_a=lagged)[keep].reset_index(drop=True)
 
 
 def profile(seed: int, slow_s: int) -> pd.DataFrame:
@@ -77,7 +67,7 @@ def measured(seed: int, slow_s: int) -> tuple[pd.DataFrame, np.ndarray]:
     v, tr = truth.simulate(full, soc0=SOC0, traces=True)
     noise = np.random.default_rng(seed + 1000).normal(0.0, 1e-3 * LOGGER_MV, v.size)
     full = full.assign(voltage_v=v + noise, soc_true=tr[0])
-    logged = cycler_log(full)
+    logged = cycler_log(full, REST_LOG_S)
     return logged.drop(columns="soc_true"), logged["soc_true"].to_numpy()
 
 

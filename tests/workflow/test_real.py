@@ -142,7 +142,8 @@ def _dry_run(wd: Path, *configs: str) -> str:
 
 def test_every_temperature_is_wired_and_tiny_narrows_it(tmp_path):
     """Issue 19: the full config's `real` has every per-temperature job at 25, 10, 0 and -10
-    degC (dry run, nothing computed); config/tiny.yaml keeps 25 and 0 degC, imports included."""
+    degC, and -20 degC since issue 41 part 4 (dry run, nothing computed); config/tiny.yaml keeps
+    25 and 0 degC, imports included."""
     root = Path(yaml.safe_load((REPO / "config" / "config.yaml").read_text())["real"]["root"])
     root = root if root.is_absolute() else (REPO / root).resolve()
     if not (root / "panasonic_18650pf").is_dir():
@@ -160,11 +161,12 @@ def test_every_temperature_is_wired_and_tiny_narrows_it(tmp_path):
                 "results/real/canonical/panasonic_{t}_hppc.csv"]  # fmt: skip
     full = _dry_run(tmp_path)
     tiny = _dry_run(tmp_path, "config/tiny.yaml")
-    for t in ("25degC", "10degC", "0degC", "-10degC"):
+    for t in ("25degC", "10degC", "0degC", "-10degC", "-20degC"):
         for path in per_temp:
             assert path.format(t=t) in full, path.format(t=t)
             assert (path.format(t=t) in tiny) == (t in ("25degC", "0degC")), path.format(t=t)
-    for rec in ("10degC_hwfet", "10degC_us06", "-10degC_udds", "-10degC_us06"):
+    cold = ("-10degC_udds", "-10degC_us06", "-20degC_udds", "-20degC_us06")
+    for rec in ("10degC_hwfet", "10degC_us06", *cold):
         assert f"results/real/canonical/panasonic_{rec}.csv" in full
 
 

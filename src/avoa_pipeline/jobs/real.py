@@ -117,18 +117,23 @@ def diagnose_one(train_csvs, tests, out_dir, ocv=None, log=None) -> None:
     (a slow test or a table, as ``--ocv``) and the unseen cycles as validation records:
     ``out_dir``/diagnosis.json and model.json (the handed-over model, docs/handover-rule.md), as
     ``python -m avoa_pipeline diagnose`` writes them (``diagnosis.diagnose``, the one pipeline;
-    its figure left out, docs/real-data.md says why)."""
+    its figure left out, docs/real-data.md says why). An unseen cycle the diagnosis's checks
+    refuse is left out, and said (``diagnosis.json``'s ``refused_validation``, a line of the
+    log each): one refused record does not stop the experiment."""
     from .. import diagnosis, handover
 
-    d = diagnosis.diagnose(list(train_csvs), list(tests.values()), ocv)
+    d = diagnosis.diagnose(list(train_csvs), list(tests.values()), ocv,
+                           skip_refused_validation=True)  # fmt: skip
     out = Path(out_dir)
     d.write(out, figure=False)
     report = d.report
+    refused = "".join(f"\nrefused, left out of the validation: {r['refusal']}"
+                      for r in report.get("refused_validation", ()))  # fmt: skip
     write_log(log, f"{', '.join(map(str, train_csvs))}: verdict's model "
                    f"{report['selected']['name']}; "
                    f"{handover.summary_line(report['handed_over'])} (model.json); {d.heat_line}; "
                    f"wrote {out / 'diagnosis.json'}, {out / 'model.json'}; "
-                   f"{report['wall_s']:.0f} s")  # fmt: skip
+                   f"{report['wall_s']:.0f} s{refused}")  # fmt: skip
 
 
 def attach_heat(model_json, train_csvs, out_json, log=None) -> None:
@@ -181,8 +186,9 @@ def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, 
     ambient = {t: float(a) for t, a in ambient.items()}
     df = jt.table(joint, own, ambient)
     heat_df, traces, heat_note = None, None, ""
-    if traces_csv is not None:
-        heat_df, traces, heat_note = _joint_heat(Path(joint_dir) / "model.json", tests)
+    if traces_csv is not None:  # not on a cycle the joint diagnosis refused (its warnings)
+        kept = {k: p for k, p in tests.items() if not _refused_in(joint, p)}
+        heat_df, traces, heat_note = _joint_heat(Path(joint_dir) / "model.json", kept)
     df = jt.with_heat(df, heat_df, ambient)
     with atomic_path(out_csv) as tmp:
         df.to_csv(tmp, index=False)
@@ -196,8 +202,17 @@ def joint_temperature_table(ambient, joint_dir, own_dirs, tests: dict, out_csv, 
         for r in jt.medians(df).itertuples()
     )
     heat_line = f"\nself-heating from the ambient: {heat_note}" if heat_note else ""
+    refused = "".join(f"\nrefused ({r['prefix']} {r['temperature']}), not predicted: "
+                      f"{x['refusal']}"
+                      for r in (joint, *own.values()) for x in r["refused"])  # fmt: skip
     write_log(log, f"wrote {out_csv}, {figure_stem}.png: joint {joint['selected']}; median unseen "
-                   f"RMSE joint / own [mV]: {medians}{heat_line}")  # fmt: skip
+                   f"RMSE joint / own [mV]: {medians}{heat_line}{refused}")  # fmt: skip
+
+
+def _refused_in(record: dict, csv) -> bool:
+    """Whether a diagnosis's table record (``drive_cycles.diagnosis_record``) refused ``csv``
+    as a validation record."""
+    return any(Path(x["record"]).resolve() == Path(csv).resolve() for x in record["refused"])
 
 
 def _joint_heat(model_json: Path, tests: dict):
@@ -249,14 +264,18 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
     for rec, path in zip(records, fit_jsons, strict=True):
         for name, m in rec.get("models", {}).items():
             drawn[rec["temperature"], name] = (m["model"], f"{path}: models.{name}.model")
+    refused_by = {}  # (temperature, model name) → the diagnosis's record (its refusals)
     for prefix, per_temp in diagnoses.items():
         for temp, out_dir in per_temp.items():
             here = {k.split("/", 1)[1]: p for k, p in tests.items() if k.split("/")[0] == temp}
             records.append(diagnosis_record(temp, prefix, out_dir, here))
             drawn[temp, f"{prefix}_selected"] = Path(out_dir) / "model.json"
+            refused_by[temp, f"{prefix}_selected"] = records[-1]
     temps = cfg["real"]["panasonic"]["temperatures"]
     ambient = {t: float(s["ambient_c"]) for t, s in temps.items()}
     summary, runs = dc.table(records, ambient)
+    refused = "".join(f"\nrefused ({r['prefix']} {r['temperature']}), no rows: {x['refusal']}"
+                      for r in records for x in r.get("refused", ()))  # fmt: skip
     exp = dc.experiment(cfg)
     qdis = float(exp["qdis_ah"])
     # the measured and predicted voltage of each temperature's figure cycle, one row per sample
@@ -276,7 +295,9 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
                 traces.append(pd.DataFrame({**base, "model": f"{rec['model']}_{rec['algorithm']}",
                                             "model_v": v}))  # fmt: skip
         for (t, name), model in drawn.items():
-            if t == temp:
+            if t == temp and not (
+                (t, name) in refused_by and _refused_in(refused_by[t, name], tests[key])
+            ):  # a diagnosis's model is not drawn on a cycle that diagnosis refused
                 fm = (FittedModel.load(model) if isinstance(model, Path)
                       else FittedModel.from_json(*model))  # fmt: skip
                 traces.append(pd.DataFrame({**base, "model": name, "model_v": fm.simulate(frame)}))
@@ -287,7 +308,7 @@ def drive_cycle_table(cfg, fit_jsons, diagnoses: dict, tests: dict, out_csv, out
     pred = pd.concat(traces, ignore_index=True)[cols] if traces else pd.DataFrame(columns=cols)
     with atomic_path(out_predictions) as tmp:
         pred.to_parquet(tmp, index=False)
-    write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} records")
+    write_log(log, f"wrote {out_csv}: {len(summary)} rows from {len(records)} records{refused}")
 
 
 def cross_cycle_one(ambient_c, temp, model_json, cycles, ocv_csv, out_csv, log=None) -> None:

@@ -214,8 +214,10 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
     the verdict's model again as ``<prefix>_verdict``. A report written before the hand-over rule
     (no ``handed_over``) gave the verdict's model as model.json: it is ``<prefix>_selected``
     there. ``cycle_of`` names the unseen cycle of each validation record (default: the record's
-    own name)."""
-    if not report.get("validation"):
+    own name). ``refused``: the validation records the diagnosis refused (``record``, its
+    ``refusal``; ``diagnosis.diagnose``'s ``skip_refused_validation``), which have no rows."""
+    refused = list(report.get("refused_validation", ()))
+    if not report.get("validation") and not refused:
         raise DataError(f"{source}: field 'validation': missing (a diagnosis without --validate "
                         "records predicts no unseen cycle)")  # fmt: skip
     verdict = report["selected"]["name"]
@@ -235,8 +237,9 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
         "verdict_heldout_rmse_mv": report["selected"]["heldout_rmse_mv"],
         "diagnose_wall_s": report["wall_s"],
         "models": {},
+        "refused": refused,
     }  # fmt: skip
-    for row in report["validation"]:
+    for row in report.get("validation") or ():
         cycle = row["record"] if cycle_of is None else cycle_of.get(row["record"])
         if cycle is None:
             raise DataError(f"{source}: field 'validation.record': {row['record']!r} is none of "

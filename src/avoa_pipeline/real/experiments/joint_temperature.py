@@ -41,9 +41,9 @@ def key(temp: str, cycle: str) -> str:
 
 def _selected(record: dict) -> tuple[str, dict]:
     """(the selected configuration's effects, its errors per unseen cycle) of a table record
-    (``drive_cycles.diagnosis_record``)."""
-    m = record["models"][f"{record['prefix']}_selected"]
-    return record["selected"], m["cycles"]
+    (``drive_cycles.diagnosis_record``); none where it refused every unseen cycle."""
+    m = record["models"].get(f"{record['prefix']}_selected")
+    return record["selected"], m["cycles"] if m else {}
 
 
 def table(joint: dict, own: dict[str, dict], ambient: dict[str, float]) -> pd.DataFrame:
