@@ -1,0 +1,275 @@
+"""A model of per-temperature parameter sets (``FittedModel.by_temperature``,
+docs/temperature-rule.md parts 3-4): built from ordinary models (``per_temperature``), written
+and read back with every check, run at a record's ambient (``at_ambient``) by ``simulate``,
+``estimate`` and the table export; refused by the PyBaMM export.
+
+The sets are models of chosen values (test_estimate's, with intervals as a fit writes them): a
+cold cell (0 °C: higher resistances, less capacity, no second RC branch), one at 25 °C with a
+second branch, a warm one at 40 °C.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_ecm import ACTIVE, TRUTH
+from test_estimate import drive, ocv_table
+
+from avoa_pipeline.errors import DataError
+from avoa_pipeline.model import ecm, fitting, intervals
+from avoa_pipeline.model.fitted import FittedModel
+
+SOC0 = 0.9
+BASE = {k: v for k, v in TRUTH.items() if k != "soc0"}
+SETS = {  # ambient °C: (elements, values beside BASE, reference temperature K)
+    0.0: ((), {"r0_ohm": 0.12, "r1_ohm": 0.04, "tau1_s": 150.0, "capacity_ah": 2.40}, 274.0),
+    25.0: (("second_rc",), {}, 299.0),
+    40.0: (("second_rc",), {"r0_ohm": 0.04, "r2_ohm": 0.006, "capacity_ah": 2.62}, 314.0),
+}
+TABLE = ocv_table()
+
+
+def cell(effects, values, tref_k, table=TABLE) -> FittedModel:
+    """A model of chosen values, bounds ±1 around each (internal coordinates), intervals of
+    ±0.02 around each, as ``fit_model`` writes them (test_estimate's ``fitted``)."""
+    config = ecm.Config(tuple(effects), table)
+    names = config.names()
+    chosen = {**BASE, **{k: v for e in effects for k, v in ACTIVE[e].items()}, **values,
+              "voltage_offset_v": -0.01}  # fmt: skip
+    x = ecm.vector({k: v for k, v in chosen.items() if ecm.BY_REPORT[k] in names})
+    bounds = {n: (x[ecm.IDX[n]] - 1.0, x[ecm.IDX[n]] + 1.0) for n in names
+              if not ecm.PARAMS[n].per_record}  # fmt: skip
+    model = FittedModel(config, x, ecm.Knots(0.2, 0.12), tref_k, bounds, {"by": "test"}, 5.0)
+    entries = {}
+    for n in model.names:
+        rep = ecm.PARAMS[n].report
+        ends = sorted(ecm.report(np.where(np.arange(ecm.NX) == ecm.IDX[n], x + d, x), [n])[rep]
+                      for d in (-0.02, 0.02))  # fmt: skip
+        entries[rep] = {"value": model.parameters()[rep], "low95": ends[0], "high95": ends[1],
+                        "at_bound": False, "identified": True, "held": False}  # fmt: skip
+    model.intervals = {"method": "test", "level": intervals.LEVEL, "samples": 1000,
+                       "effective_samples": 1000.0, "residual_sd_mv": 2.0,
+                       "parameters": entries, "correlated_pairs": [],
+                       "flags": intervals.flags(entries, [])}  # fmt: skip
+    return model
+
+
+def sets() -> list[tuple[float, FittedModel]]:
+    return [(a, cell(*spec)) for a, spec in SETS.items()]
+
+
+def joint() -> FittedModel:
+    return FittedModel.per_temperature(sets(), {"handed_over": "per-temperature models"})
+
+
+def frame_at(ambient_c: float, temperature: bool = True, seconds: int = 900) -> pd.DataFrame:
+    """test_estimate's drive record, its temperature starting at ``ambient_c``."""
+    f = drive(seconds, temperature=temperature)
+    if temperature:
+        f["temperature_c"] += ambient_c - float(f["temperature_c"].iloc[0])
+    return f
+
+
+def inverse_k(c: float) -> float:
+    return 1.0 / (c + 273.15)
+
+
+# ----------------------------------------------------------------------------------------------
+# the format
+
+
+def test_the_sets_are_widened_ordered_and_the_top_level_is_the_set_at_25_c():
+    given = sets()
+    m = FittedModel.per_temperature(given[::-1])  # any order: coldest first after
+    assert [a for a, _ in m.by_temperature] == [0.0, 25.0, 40.0]
+    assert all(s.config.effects == ("second_rc",) for _, s in m.by_temperature)
+    assert m.config.effects == ("second_rc",)
+    # the top level is the 25 °C set (the sets' references differ: 25 °C), a reader of the
+    # top level alone runs it
+    assert m.parameters() == given[1][1].parameters()
+    frame = frame_at(25.0)
+    assert np.array_equal(FittedModel.simulate(m, frame, SOC0), given[1][1].simulate(frame, SOC0))
+    with pytest.raises(ValueError, match="at least 2"):
+        FittedModel.per_temperature(given[:1])
+    with pytest.raises(ValueError, match="two at 25"):
+        FittedModel.per_temperature([given[1], given[1]])
+
+
+def test_a_missing_element_is_neutral_within_the_librarys_limits_and_changes_nothing():
+    cold = sets()[0][1]
+    wide = joint().by_temperature[0][1]
+    assert cold.config.effects == ()
+    assert wide.config.effects == ("second_rc",)
+    assert wide.parameters()["r2_ohm"] == 0.0  # neutral
+    for n in ecm.element_params("second_rc"):
+        assert wide.bounds[n] == fitting.internal_limits(n)
+    for temperature in (True, False):
+        frame = frame_at(0.0, temperature)
+        assert np.array_equal(wide.simulate(frame, SOC0), cold.simulate(frame, SOC0))
+        assert wide.initial_soc(wide.record(frame)) == cold.initial_soc(cold.record(frame))
+    # the element's interval entries say what its bounds say: R2 at its lower limit (0), τ2 no
+    # fit's, its interval the whole range, not identified
+    entries = wide.intervals["parameters"]
+    assert entries["r2_ohm"]["at_bound"]
+    assert entries["r2_ohm"]["low95"] is None
+    assert entries["tau2_s"]["low95"] == pytest.approx(wide.physical_bounds("ltau2")[0])
+    assert not entries["tau2_s"]["identified"]
+
+
+def test_it_round_trips_through_save_and_load(tmp_path):
+    m = joint()
+    m.save(tmp_path / "model.json")
+    back = FittedModel.load(tmp_path / "model.json")
+    assert back.to_json() == json.loads((tmp_path / "model.json").read_text())
+    assert back.to_json() == json.loads(json.dumps(m.to_json()))
+    d = back.to_json()
+    assert [e["ambient_c"] for e in d["by_temperature"]] == [0.0, 25.0, 40.0]
+    assert all("by_temperature" not in e["model"] for e in d["by_temperature"])
+    for (a, s), (b, t) in zip(m.by_temperature, back.by_temperature, strict=True):
+        assert a == b
+        assert t.parameters() == pytest.approx(s.parameters(), rel=1e-12)
+        assert t.tref_k == s.tref_k
+    frame = frame_at(10.0)
+    assert np.allclose(back.simulate(frame, SOC0), m.simulate(frame, SOC0), rtol=0, atol=1e-12)
+
+
+def test_a_model_json_without_the_block_loads_as_before(tmp_path):
+    one = sets()[1][1]
+    one.save(tmp_path / "one.json")
+    back = FittedModel.load(tmp_path / "one.json")
+    assert back.by_temperature is None
+    assert "by_temperature" not in back.to_json()
+    assert back.at_ambient(-10.0) is back
+
+
+def _broken(d, how):
+    sets_ = d["by_temperature"]
+    if how == "not-increasing":
+        sets_[2]["ambient_c"] = 25.0
+    elif how == "one-set":
+        del sets_[1:]
+    elif how == "bad-set":
+        sets_[1]["model"]["parameters"]["r0_ohm"] = "text"
+    elif how == "bad-set-value":
+        sets_[0]["model"]["parameters"]["r0_ohm"] = 50.0
+    elif how == "bad-ambient":
+        sets_[1]["ambient_c"] = 400.0
+    elif how == "ambient-not-a-number":
+        sets_[0]["ambient_c"] = True
+    elif how == "nested":
+        sets_[1]["model"]["by_temperature"] = [1, 2]
+    elif how == "other-elements":  # the cold set as it was fitted, not widened
+        sets_[0]["model"] = cell(*SETS[0.0]).to_json()
+    elif how == "top-not-its-set":  # the 0 °C set now lies nearest 25 °C
+        sets_[0]["ambient_c"], sets_[1]["ambient_c"], sets_[2]["ambient_c"] = 24.0, 50.0, 60.0
+    elif how == "extra-field":
+        sets_[0]["note"] = "x"
+    return d
+
+
+BROKEN = {
+    "not-increasing": "field 'by_temperature[2].ambient_c': 25 °C, not above the set before",
+    "one-set": "field 'by_temperature': a list of 1, need at least 2",
+    "bad-set": "field 'by_temperature[1].model.parameters.r0_ohm': a string",
+    "bad-set-value": "field 'by_temperature[0].model.parameters.r0_ohm': 50 outside",
+    "bad-ambient": "field 'by_temperature[1].ambient_c': 400 outside a cell's ambient",
+    "ambient-not-a-number": "field 'by_temperature[0].ambient_c': a boolean (true)",
+    "nested": "field 'by_temperature[1].model.by_temperature': a set holds no sets",
+    "other-elements": "field 'by_temperature[0].model.effects': [], but the top level's",
+    "top-not-its-set": "field 'parameters': not by_temperature[0]'s (24 °C",
+    "extra-field": "field 'by_temperature[0].note': not a field",
+}
+
+
+@pytest.mark.parametrize("how", list(BROKEN))
+def test_a_broken_block_is_refused_in_one_line_naming_the_field(tmp_path, how):
+    path = tmp_path / "model.json"
+    d = _broken(joint().to_json(), how)
+    path.write_text(json.dumps(d))
+    with pytest.raises(DataError) as err:
+        FittedModel.load(path)
+    text = str(err.value)
+    assert "\n" not in text
+    assert text.startswith(f"{path}: field '")
+    assert BROKEN[how] in text, text
+
+
+# ----------------------------------------------------------------------------------------------
+# at_ambient
+
+
+def test_at_a_sets_own_ambient_it_is_that_set_exactly():
+    m = joint()
+    for a, s in m.by_temperature:
+        frame = frame_at(a)
+        want = s.simulate(frame, SOC0)
+        assert np.array_equal(m.at_ambient(a).simulate(frame, SOC0), want)
+        assert np.array_equal(m.simulate(frame, SOC0), want)  # the first temperature sample
+        assert np.array_equal(m.simulate(frame), s.simulate(frame))  # the library's start
+
+
+def test_between_two_sets_each_parameter_is_linear_in_one_over_t():
+    m = joint()
+    cold, room = m.by_temperature[0][1].parameters(), m.by_temperature[1][1].parameters()
+    got = m.at_ambient(10.0).parameters()
+    w = (inverse_k(10.0) - inverse_k(0.0)) / (inverse_k(25.0) - inverse_k(0.0))
+    assert 0.0 < w < 1.0
+    assert w != pytest.approx(10.0 / 25.0, abs=1e-3)
+    # by hand: R0 0.12 Ω at 0 °C, 0.0536 Ω at 25 °C
+    assert got["r0_ohm"] == pytest.approx(0.12 + w * (0.0536 - 0.12), rel=1e-12)
+    assert got["tau1_s"] == pytest.approx(150.0 + w * (TRUTH["tau1_s"] - 150.0), rel=1e-12)
+    for k in cold:
+        lo, hi = sorted((cold[k], room[k]))
+        assert lo - 1e-12 * abs(lo) <= got[k] <= hi + 1e-12 * abs(hi), k
+    # linear in 1/T: three ambients between lie on one line
+    r0 = [m.at_ambient(c).parameters()["r0_ohm"] for c in (5.0, 12.0, 20.0)]
+    slope = [(r0[j + 1] - r0[j]) / (inverse_k(c1) - inverse_k(c0))
+             for j, (c0, c1) in enumerate([(5.0, 12.0), (12.0, 20.0)])]  # fmt: skip
+    assert slope[0] == pytest.approx(slope[1], rel=1e-9)
+    assert "interpolated linearly in 1/T between the sets at 0 and 25" in m.ambient_note(10.0)
+    # and the voltage lies between the two sets' on a record at 10 °C
+    frame = frame_at(10.0)
+    v = [s.simulate(frame, SOC0) for _, s in m.by_temperature[:2]]
+    mid = m.simulate(frame, SOC0)
+    assert np.all((mid - np.minimum(*v) >= -1e-9) & (np.maximum(*v) - mid >= -1e-9))
+    assert not np.array_equal(mid, v[0])
+    assert not np.array_equal(mid, v[1])
+
+
+def test_outside_the_sets_span_it_is_the_nearest_set():
+    m = joint()
+    frame = frame_at(-10.0)
+    assert np.array_equal(m.at_ambient(-10.0).simulate(frame, SOC0),
+                          m.by_temperature[0][1].simulate(frame, SOC0))  # fmt: skip
+    assert m.at_ambient(55.0).parameters() == m.by_temperature[2][1].parameters()
+    assert "outside the sets' 0..40 °C" in m.ambient_note(55.0)
+
+
+def test_sets_whose_parameters_mean_different_things_fall_back_to_the_nearest_set():
+    other = ecm.OcvTable(TABLE.lo, TABLE.step, TABLE.values + 0.002, source="other.csv")
+    given = sets()
+    given[0] = (0.0, cell((), SETS[0.0][1], 274.0, table=other))
+    m = FittedModel.per_temperature(given)
+    assert m.at_ambient(10.0).parameters() == m.by_temperature[0][1].parameters()  # nearer 0
+    assert m.at_ambient(15.0).parameters() == m.by_temperature[1][1].parameters()  # nearer 25
+    assert "differ in their OCV" in m.ambient_note(10.0)
+    # the reference temperatures differ too, but no law reads them: 25 and 40 °C interpolate
+    assert "interpolated" in m.ambient_note(30.0)
+
+
+def test_a_record_without_temperature_is_refused_in_one_line():
+    with pytest.raises(DataError, match="field 'by_temperature': the model holds per-temperature"):
+        joint().simulate(frame_at(25.0, temperature=False))
+
+
+def test_the_sets_ambients_are_the_heat_blocks_range():
+    from avoa_pipeline.model import heat
+
+    lo, hi = heat.AMBIENT_RANGE_C
+    d = joint().to_json()
+    d["by_temperature"][0]["ambient_c"] = lo - 1.0
+    with pytest.raises(DataError, match=f"outside a cell's ambient .°C. \\[{lo:g}, {hi:g}\\]"):
+        FittedModel.from_json(d)
