@@ -18,6 +18,7 @@ import pytest
 from test_ecm import ACTIVE, TRUTH
 from test_estimate import drive, ocv_table
 
+from avoa_pipeline import cli
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm, fitting, intervals
 from avoa_pipeline.model.fitted import FittedModel
@@ -239,6 +240,27 @@ def test_between_two_sets_each_parameter_is_linear_in_one_over_t():
     assert not np.array_equal(mid, v[1])
 
 
+def test_an_interpolated_model_carries_intervals_that_load_and_estimate_reads(tmp_path):
+    """``estimate`` sets its noise from the intervals' widths: the interpolated model's are the
+    sets' interpolated, consistent with its bounds (the model saves and loads)."""
+    from avoa_pipeline import estimate
+
+    m = joint()
+    mid = m.at_ambient(10.0)
+    r0 = mid.intervals["parameters"]["r0_ohm"]
+    assert r0["low95"] < mid.parameters()["r0_ohm"] < r0["high95"]
+    mid.save(tmp_path / "mid.json")
+    assert FittedModel.load(tmp_path / "mid.json").parameters() == pytest.approx(
+        mid.parameters(), rel=1e-12)  # fmt: skip
+    frame = frame_at(10.0, seconds=600)
+    frame["voltage_v"] = mid.simulate(frame, SOC0)
+    got = estimate.estimate_record(m, frame)  # the first temperature sample: 10 °C
+    want = estimate.estimate_record(mid, frame)
+    assert got.summary["capacity_ah"] == pytest.approx(mid.parameters()["capacity_ah"])
+    assert np.array_equal(got.frame["soc"], want.frame["soc"])
+    assert got.summary["noise"] == want.summary["noise"]
+
+
 def test_outside_the_sets_span_it_is_the_nearest_set():
     m = joint()
     frame = frame_at(-10.0)
@@ -263,6 +285,98 @@ def test_sets_whose_parameters_mean_different_things_fall_back_to_the_nearest_se
 def test_a_record_without_temperature_is_refused_in_one_line():
     with pytest.raises(DataError, match="field 'by_temperature': the model holds per-temperature"):
         joint().simulate(frame_at(25.0, temperature=False))
+
+
+# ----------------------------------------------------------------------------------------------
+# the commands
+
+
+def run_cli(args, capsys):
+    code = cli.main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def files(tmp_path):
+    """model.json of the sets; a record at 0 °C (its temperature measured), and one without
+    temperature whose sidecar gives 40 °C; each the voltage of its own set."""
+    m = joint()
+    m.save(tmp_path / "model.json")
+    cold, warm = m.by_temperature[0][1], m.by_temperature[2][1]
+    f = frame_at(0.0)
+    f.assign(voltage_v=cold.simulate(f, SOC0)).to_csv(tmp_path / "cold.csv", index=False)
+    f = frame_at(40.0, temperature=False)
+    f.assign(voltage_v=warm.simulate(f, SOC0)).to_csv(tmp_path / "warm.csv", index=False)
+    (tmp_path / "warm.json").write_text(json.dumps({"ambient_temperature_c": 40.0}))
+    f.assign(voltage_v=warm.simulate(f, SOC0)).to_csv(tmp_path / "bare.csv", index=False)
+    return tmp_path
+
+
+def test_simulate_runs_the_set_at_the_records_ambient(files, capsys):
+    for data, ambient, where in (("cold", 0, "first temperature sample"),
+                                 ("warm", 40, "sidecar")):  # fmt: skip
+        out = files / f"{data}-pred.csv"
+        code, _text, err = run_cli(["simulate", str(files / "model.json"),
+                                   str(files / f"{data}.csv"), "--out", str(out),
+                                   "--soc0", str(SOC0)], capsys)  # fmt: skip
+        assert code == 0, err
+        assert f"parameters at ambient {ambient:g} °C ({where})" in err, err
+        assert f"the set at {ambient:g} °C" in err
+        assert pd.read_csv(out)["error_mv"].abs().max() < 1e-6  # the set's own voltage
+    # --ambient-c chooses the parameters; the measured temperature still runs
+    out = files / "cold-at-25.csv"
+    code, _, err = run_cli(["simulate", str(files / "model.json"), str(files / "cold.csv"),
+                            "--out", str(out), "--soc0", str(SOC0), "--ambient-c", "25"],
+                           capsys)  # fmt: skip
+    assert code == 0, err
+    assert "parameters at ambient 25 °C (--ambient-c)" in err
+    assert pd.read_csv(out)["error_mv"].abs().max() > 5.0  # the 25 °C cell, not the cold one
+
+
+def test_simulate_refuses_a_record_with_no_ambient_in_one_line(files, capsys):
+    out = files / "bare-pred.csv"
+    code, _, err = run_cli(["simulate", str(files / "model.json"), str(files / "bare.csv"),
+                            "--out", str(out)], capsys)  # fmt: skip
+    assert code == 2
+    assert err.count("\n") == 1, err
+    assert "model.json: field 'by_temperature': the model holds per-temperature" in err
+    assert not out.exists()
+
+
+def test_estimate_runs_the_set_at_the_records_ambient(files, capsys):
+    joint().by_temperature[1][1].save(files / "room.json")  # the 25 °C set alone
+
+    def estimate(model, data):
+        out = files / f"{model}-{data}-soc.csv"
+        code, _, err = run_cli(["estimate", str(files / f"{model}.json"),
+                                str(files / f"{data}.csv"), "--out", str(out)],
+                               capsys)  # fmt: skip
+        assert code == 0, err
+        return json.loads(out.with_suffix(".json").read_text()), err
+
+    for data, ambient, capacity in (("cold", 0, 2.40), ("warm", 40, 2.62)):
+        summary, err = estimate("model", data)
+        assert f"parameters at ambient {ambient:g} °C" in err
+        assert summary["capacity_ah"] == pytest.approx(capacity, rel=1e-12)
+        # the record's own set follows its voltage better than the 25 °C set would
+        other, _ = estimate("room", data)
+        assert summary["innovation_rms_mv"] < 0.5 * other["innovation_rms_mv"]
+    code, _, err = run_cli(["estimate", str(files / "model.json"), str(files / "bare.csv"),
+                            "--out", str(files / "bare-soc.csv")], capsys)  # fmt: skip
+    assert code == 2
+    assert "field 'by_temperature'" in err
+    assert err.count("\n") == 1
+
+
+def test_the_api_runs_the_set_at_the_records_ambient(files):
+    from avoa_pipeline import load_model
+
+    model = load_model(files / "model.json")
+    pred = model.simulate(files / "cold.csv", soc0=SOC0)
+    assert pred["error_mv"].abs().max() < 1e-6
+    est = model.estimate(files / "warm.csv")
+    assert est.summary["capacity_ah"] == pytest.approx(2.62, rel=1e-12)
 
 
 def test_the_sets_ambients_are_the_heat_blocks_range():
