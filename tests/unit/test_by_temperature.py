@@ -379,6 +379,49 @@ def test_the_api_runs_the_set_at_the_records_ambient(files):
     assert est.summary["capacity_ah"] == pytest.approx(2.62, rel=1e-12)
 
 
+def test_the_table_holds_each_sets_rows_at_its_ambient(files, capsys):
+    out = files / "cell.csv"
+    code, _text, err = run_cli(["export", str(files / "model.json"), "--to", "table", "--out",
+                               str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    tab = pd.read_csv(out)
+    side = json.loads(out.with_suffix(".json").read_text())
+    assert sorted(set(tab["temperature_c"])) == [0.0, 25.0, 40.0]
+    assert side["grid"]["temperature_c"] == [0.0, 25.0, 40.0]
+    m = joint()
+    for a, s in m.by_temperature:
+        rows = tab[tab["temperature_c"] == a]
+        p = s.parameters()
+        assert np.allclose(rows["r0_ohm"], p["r0_ohm"], rtol=1e-9)
+        assert np.allclose(rows["capacity_ah"], p["capacity_ah"], rtol=1e-9)
+        assert np.allclose(rows["r2_ohm"], p["r2_ohm"], rtol=1e-9)
+    cold = tab[tab["temperature_c"] == 0.0]
+    assert (cold["r2_ohm"] == 0).all()
+    assert cold["c2_f"].isna().all()
+    assert tab.loc[tab["temperature_c"] == 25.0, "c2_f"].notna().all()
+    assert [e["ambient_c"] for e in side["by_temperature"]] == [0.0, 25.0, 40.0]
+    assert side["by_temperature"][0]["scalars"]["capacity_ah"]["value"] == pytest.approx(2.40)
+    assert "1/T" in side["columns"]["temperature_c"]["meaning"]
+    assert any("per-temperature parameter sets" in c for c in side["cannot"])
+    assert "NaN" not in out.with_suffix(".json").read_text()
+    # on a grid between the sets, a row is at_ambient's there
+    code, _, err = run_cli(["export", str(files / "model.json"), "--to", "table", "--out",
+                            str(files / "mid.csv"), "--temperatures", "10"], capsys)  # fmt: skip
+    assert code == 0, err
+    mid = pd.read_csv(files / "mid.csv")
+    assert np.allclose(mid["r0_ohm"], m.at_ambient(10.0).parameters()["r0_ohm"], rtol=1e-9)
+
+
+def test_the_pybamm_export_refuses_it_in_one_line(files, capsys):
+    out = files / "cell.py"
+    code, _, err = run_cli(["export", str(files / "model.json"), "--to", "pybamm", "--out",
+                            str(out)], capsys)  # fmt: skip
+    assert code == 2
+    assert err.count("\n") == 1, err
+    assert "model.json: field 'by_temperature': per-temperature parameter sets" in err
+    assert not out.exists()
+
+
 def test_the_sets_ambients_are_the_heat_blocks_range():
     from avoa_pipeline.model import heat
 
