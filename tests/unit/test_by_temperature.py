@@ -15,13 +15,13 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
-from test_ecm import ACTIVE, TRUTH
+from test_ecm import ACTIVE, TRUTH, profile_frame, with_voltage
 from test_estimate import drive, ocv_table
 
 from avoa_pipeline import cli
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.model import ecm, fitting, intervals
-from avoa_pipeline.model.fitted import FittedModel
+from avoa_pipeline.model.fitted import FittedModel, fit_model
 
 SOC0 = 0.9
 BASE = {k: v for k, v in TRUTH.items() if k != "soc0"}
@@ -135,6 +135,29 @@ def test_it_round_trips_through_save_and_load(tmp_path):
         assert t.tref_k == s.tref_k
     frame = frame_at(10.0)
     assert np.allclose(back.simulate(frame, SOC0), m.simulate(frame, SOC0), rtol=0, atol=1e-12)
+
+
+def test_fitted_sets_round_trip_and_their_interpolation_loads(tmp_path):
+    """Sets as ``fit_model`` leaves them (its bounds and intervals, each its records' knots and
+    mean temperature): the widened cold set and the model interpolated between load back."""
+    fits = []
+    for ambient, effects, values in ((0.0, (), {"r0_ohm": 0.1}), (25.0, ("second_rc",), {})):
+        frame = profile_frame().assign(temperature_c=ambient)
+        cfg = ecm.Config(effects)
+        truth = {**TRUTH, **{k: v for e in effects for k, v in ACTIVE[e].items()}, **values}
+        fit = fit_model(with_voltage(frame, truth, noise_v=1e-3, config=cfg), cfg).model
+        fits.append((ambient, fit, frame))
+    m = FittedModel.per_temperature([(a, f) for a, f, _ in fits])
+    m.save(tmp_path / "model.json")
+    back = FittedModel.load(tmp_path / "model.json")
+    assert back.by_temperature[0][1].intervals["parameters"]["r2_ohm"]["at_bound"]
+    mid = back.at_ambient(12.0)
+    assert "interpolated" in back.ambient_note(12.0)  # the trefs differ, no law reads them
+    mid.save(tmp_path / "mid.json")
+    FittedModel.load(tmp_path / "mid.json")
+    cold_frame = fits[0][2].assign(voltage_v=0.0)
+    assert np.allclose(back.simulate(cold_frame, SOC0), fits[0][1].simulate(cold_frame, SOC0),
+                       rtol=0.0, atol=1e-12)  # fmt: skip
 
 
 def test_a_model_json_without_the_block_loads_as_before(tmp_path):
