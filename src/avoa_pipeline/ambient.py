@@ -40,6 +40,32 @@ def record_ambient(data_name, rec, ambient_c: float | None) -> tuple[float, str]
     return heat.check_ambient(meta["ambient_temperature_c"], where), "the sidecar"
 
 
+def model_at_ambient(model, rec, *, model_name, data_name, ambient_c: float | None = None):
+    """(the ordinary model to run ``rec`` with, the line that says so or None): for a model of
+    per-temperature sets (``FittedModel.by_temperature``), its parameters at the record's
+    ambient (``FittedModel.at_ambient``): ``ambient_c`` (``--ambient-c``), else the CSV's
+    sidecar's ``ambient_temperature_c``, else its first temperature sample (``heat.ambient_of``);
+    refused in one line where the record has none. An ordinary model is run as it is."""
+    from .model import heat
+
+    if model.by_temperature is None:
+        return model, None
+    if ambient_c is not None:
+        ambient, where = record_ambient(data_name, rec, ambient_c)
+    elif ("temperature_c" in rec.frame.columns
+          or "ambient_temperature_c" in _sidecar(data_name, rec)):  # fmt: skip
+        ambient, where = heat.ambient_of(rec)
+    else:
+        temps = ", ".join(f"{a:g}" for a, _ in model.by_temperature)
+        raise UserError(f"{model_name}: field 'by_temperature': the model holds per-temperature "
+                        f"parameter sets ({temps} °C), and {data_name} has no temperature_c and "
+                        "no sidecar ambient_temperature_c to choose among them; give "
+                        "--ambient-c")  # fmt: skip
+    line = (f"{model_name}: parameters at ambient {ambient:g} °C ({where}): "
+            f"{model.ambient_note(ambient)}")  # fmt: skip
+    return model.at_ambient(ambient), line
+
+
 def _sidecar(data_name, rec) -> dict:
     """The record's sidecar ({} where it was not read from a canonical CSV or has none)."""
     from .io import read_sidecar

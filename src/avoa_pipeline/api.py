@@ -75,21 +75,30 @@ class Model:
         command's rule (``ambient.cell_temperature``): the record's where it has one; predicted
         by the model's heat block from ``ambient_c`` where given (as ``--ambient-c
         --predict-temperature``), else, where the model needs a temperature the record lacks,
-        from the record's sidecar's ambient."""
+        from the record's sidecar's ambient. A model of per-temperature sets
+        (``by_temperature``) runs its parameters at the record's ambient
+        (``ambient.model_at_ambient``: ``ambient_c``, else the sidecar's, else the first
+        temperature sample); on a record with ``temperature_c``, ``ambient_c`` then chooses the
+        parameters and the measured temperature still runs, as in ``simulate``."""
         import numpy as np
 
-        from .ambient import cell_temperature
+        from .ambient import cell_temperature, model_at_ambient
         from .errors import UserError
         from .model_inputs import prediction_frame
 
         if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
             raise UserError(f"soc0 must lie in [0, 1], got {soc0}")
         rec = self.record(record)
+        sets = self.fitted.by_temperature is not None
+        fitted, _ = model_at_ambient(self.fitted, rec, model_name=self.source,
+                                     data_name=rec.source, ambient_c=ambient_c)  # fmt: skip
+        if sets and "temperature_c" in rec.frame.columns:
+            ambient_c = None
         temp_c, where, _ = cell_temperature(
-            self.fitted, rec, model_name=self.source, data_name=rec.source, ambient_c=ambient_c,
+            fitted, rec, model_name=self.source, data_name=rec.source, ambient_c=ambient_c,
             predict=ambient_c is not None, soc0=soc0)  # fmt: skip
         run = rec.frame if temp_c is None else rec.frame.assign(temperature_c=temp_c)
-        v = self.fitted.predict(run, soc0=soc0, source=self.source)
+        v = fitted.predict(run, soc0=soc0, source=self.source)
         return prediction_frame(rec.frame, v, temp_c, where)
 
     def estimate(self, record, soc0: float | None = None, bias_a: float = 0.0,
@@ -106,17 +115,22 @@ class Model:
         widen the error from what the filter attributes to it (docs/soc-filter.md);
         ``bms_events``: the ends of CC-CV charges and the lower cut-off as pseudo-measurements
         (``.summary["bms_events"]``); ``reference_full``: the reference counted from SOC = 1 at
-        every CC-CV end (docs/soc-filter.md part 5). A record that only rests is read."""
+        every CC-CV end (docs/soc-filter.md part 5). A record that only rests is read. A model
+        of per-temperature sets runs its parameters at the record's ambient (the sidecar's, else
+        its first temperature sample; ``ambient.model_at_ambient``)."""
         from . import estimate
+        from .ambient import model_at_ambient
         from .errors import UserError
         from .model import heat
 
         rec = self.record(record, rest_ok=True)
-        limit = estimate.bias_limit_a(self.fitted, rec.frame["current_a"].to_numpy())
+        fitted, _ = model_at_ambient(self.fitted, rec, model_name=self.source,
+                                     data_name=rec.source)  # fmt: skip
+        limit = estimate.bias_limit_a(fitted, rec.frame["current_a"].to_numpy())
         if not abs(bias_a) <= limit:  # NaN fails too
             raise UserError(f"bias_a {bias_a:g} A: beyond the currents of {rec.source} (|I| at "
                             f"most {limit:.4g} A)")  # fmt: skip
-        return estimate.estimate_record(self.fitted, rec.frame, soc0, bias_a, reference_soc0,
+        return estimate.estimate_record(fitted, rec.frame, soc0, bias_a, reference_soc0,
                                         source=self.source, noise=noise, adapt=adapt,
                                         bms_events=bms_events,
                                         reference_full=reference_full,

@@ -86,6 +86,7 @@ from .handover import SOC_EDGES
 from .model import ecm, elements, heat
 from .model.ecm import IDX, N_KNOTS
 from .model.elements.element import FARADAY, GAS_R
+from .model.fitted import first_temperature
 
 LOGGER_NOISE_V = 1e-3
 """White voltage noise (V): a cell tester's noise and resolution. The Panasonic records' step
@@ -1009,11 +1010,16 @@ def estimate_record(fitted, rec_frame: pd.DataFrame, soc0: float | None = None,
     came from: ``heat.ambient_if_any``), for a model over temperature, part 6, default
     :func:`record_ambient`'s). A model without
     ``expected_error`` runs the training-residual rule and says so (``Result.warnings``,
-    ``noise.rule``)."""
+    ``noise.rule``). A model of per-temperature sets runs ``FittedModel.at_ambient`` of
+    ``ambient``, else of the record's first temperature sample (refused without one)."""
     if noise not in NOISE_RULES:
         raise UserError(f"noise must be one of {', '.join(NOISE_RULES)}, got {noise!r}")
     if reference_full and reference_soc0 is not None:
         raise UserError("reference_soc0 and reference_full are two references: give one")
+    if fitted.by_temperature is not None:  # per-temperature sets: those at the record's ambient
+        if ambient is None:
+            ambient = (first_temperature(fitted, rec_frame, source), "first temperature sample")
+        fitted = fitted.at_ambient(ambient[0])
     model = filter_model(fitted, source)
     rule = noise_of(fitted, source, noise, record_ambient(fitted, rec_frame, ambient))
     rec = fitted.record(rec_frame)

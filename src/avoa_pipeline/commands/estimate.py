@@ -3,6 +3,8 @@ issue 29)."""
 
 from __future__ import annotations
 
+import sys
+
 from ..errors import UserError
 from .options import CURRENT_SIGN, CYCLER, csv_and_sidecar, number
 from .registry import register
@@ -112,6 +114,7 @@ def run_estimate(args) -> None:
     import json
 
     from .. import estimate
+    from ..ambient import model_at_ambient
     from ..io import atomic_paths, check_output
     from ..model import heat
     from ..model_inputs import read_model_and_record
@@ -126,6 +129,7 @@ def run_estimate(args) -> None:
     # a record that only rests is read too: its SOC is the OCV's
     model, rec = read_model_and_record(args.model, args.data, cycler=args.cycler,
                                        current_sign=args.current_sign, rest_ok=True)  # fmt: skip
+    model, at_line = model_at_ambient(model, rec, model_name=args.model, data_name=args.data)
     limit = estimate.bias_limit_a(model, rec.frame["current_a"].to_numpy())
     if abs(args.current_bias_a) > limit:
         raise UserError(f"--current-bias-a {args.current_bias_a:g} A: beyond the currents of "
@@ -142,6 +146,8 @@ def run_estimate(args) -> None:
         js_tmp.write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
         estimate_figures.render(result.frame, summary, png_tmp, title=str(args.data))
     _warn(args, model, rec, result)
+    if at_line is not None:
+        print(at_line, file=sys.stderr)
     line = (f"{args.data}: final SOC {summary['final_soc']:.4f} ± {summary['final_soc_sd']:.4f}"
             + (" (the record only rests: the SOC of its OCV)" if summary["rest_only"] else "")
             + f" ({summary['times_real_time']:.0f}× real time)")  # fmt: skip

@@ -30,7 +30,9 @@ def arguments(s) -> None:
         metavar="T",
         help="the ambient (°C) from which the model's heat block predicts the cell temperature "
         "when the record has no temperature_c (or with --predict-temperature); default: the "
-        "CSV's sidecar's ambient_temperature_c",
+        "CSV's sidecar's ambient_temperature_c; for a model of per-temperature parameter sets "
+        "(by_temperature) also the ambient whose parameters run (default: the sidecar's, else "
+        "the record's first temperature sample)",
     )
     s.add_argument(
         "--predict-temperature",
@@ -53,7 +55,7 @@ def expected_line(model) -> str:
     )
 
 
-def _warn(args, model, rec, pred) -> None:
+def _warn(args, model, rec, pred, sets: bool = False) -> None:
     from .. import diagnosis, inputs
     from ..ambient import unused_ambient
     from ..model import heat
@@ -62,7 +64,8 @@ def _warn(args, model, rec, pred) -> None:
     inputs.warn(diagnosis.flag_lines(args.model, model.at_bounds(), model.intervals))
     if model.heat is not None:
         inputs.warn(f"{args.model}: {flag}" for flag in heat.flags(model.heat))
-    inputs.warn(unused_ambient(args.ambient_c, args.model, pred))
+    if not sets:  # per-temperature sets: the ambient chose the set
+        inputs.warn(unused_ambient(args.ambient_c, args.model, pred))
     if pred is not None and not pred.converged:
         inputs.warn([f"{args.model}: the temperature's fixed point moved "
                      f"{pred.last_change_k:.3g} K in its last of {pred.passes} passes "
@@ -74,7 +77,7 @@ def _warn(args, model, rec, pred) -> None:
 def run_simulate(args) -> None:
     import numpy as np
 
-    from ..ambient import cell_temperature
+    from ..ambient import cell_temperature, model_at_ambient
     from ..io import atomic_path, check_output
     from ..model_inputs import prediction_frame, read_model_and_record
 
@@ -82,8 +85,14 @@ def run_simulate(args) -> None:
     model, rec = read_model_and_record(args.model, args.data, soc0=args.soc0, cycler=args.cycler,
                                        current_sign=args.current_sign, predicts=True)  # fmt: skip
     frame = rec.frame
+    sets = model.by_temperature is not None
+    model, at_line = model_at_ambient(model, rec, model_name=args.model, data_name=args.data,
+                                      ambient_c=args.ambient_c)  # fmt: skip
+    # for per-temperature sets --ambient-c chose the set; a measured temperature still runs
+    measured = "temperature_c" in frame.columns and not args.predict_temperature
+    ambient_c = None if sets and measured else args.ambient_c
     temp_c, source, pred = cell_temperature(
-        model, rec, model_name=args.model, data_name=args.data, ambient_c=args.ambient_c,
+        model, rec, model_name=args.model, data_name=args.data, ambient_c=ambient_c,
         predict=args.predict_temperature, soc0=args.soc0)  # fmt: skip
     run = frame if temp_c is None else frame.assign(temperature_c=temp_c)
     v = model.predict(run, soc0=args.soc0, source=args.model)
@@ -91,7 +100,9 @@ def run_simulate(args) -> None:
     with atomic_path(args.out) as tmp:
         out.to_csv(tmp, index=False)
     rmse = float(np.sqrt(np.mean(out["error_mv"] ** 2)))
-    _warn(args, model, rec, pred)
+    _warn(args, model, rec, pred, sets)
+    if at_line is not None:
+        print(at_line, file=sys.stderr)
     print(f"{args.data}: temperature {source}", file=sys.stderr)
     line = f"{args.data}: RMSE {rmse:.2f} mV, max |error| {out['error_mv'].abs().max():.2f} mV"
     if pred is not None and "temperature_c" in frame.columns:

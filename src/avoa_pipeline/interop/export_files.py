@@ -83,6 +83,7 @@ def write_pybamm(model_path, out, *, record=None, soc0=None, drop_unsupported=Fa
     check_output(cost_path, inputs=[model_path, record], what="--out's cost file")
     model, rec = read_model_and_record(model_path, record, soc0=soc0, cycler=cycler,
                                        current_sign=current_sign, predicts=True)  # fmt: skip
+    to_pybamm.check_one_set(model, model_path)
     ambient = export_ambient(model, rec, model_name=model_path, record_name=record,
                              predict=predict_temperature)  # fmt: skip
     to_pybamm.check_exportable(model, model_path, drop_unsupported)

@@ -108,8 +108,24 @@ def unsupported(model: FittedModel) -> list[str]:
     return [e for e in model.config.effects if not elements.get(e).pybamm.exported]
 
 
+def check_one_set(model: FittedModel, source: str) -> None:
+    """A model of per-temperature parameter sets (``by_temperature``) is refused in one line:
+    PyBaMM's Thevenin parameters may be functions of the cell temperature, but the sets are
+    chosen by a record's ambient, and the capacity and time constants per set would need
+    interpolants of their own over the ambient (docs/temperature-rule.md, part 3's check)."""
+    if model.by_temperature is not None:
+        temps = ", ".join(f"{a:g}" for a, _ in model.by_temperature)
+        raise UserError(f"{source}: field 'by_temperature': per-temperature parameter sets "
+                        f"({temps} °C) cannot be exported to PyBaMM's Thevenin model (the sets "
+                        "are chosen by a record's ambient, not the cell temperature its "
+                        "parameters read); export --to table writes them over "
+                        "temperature")  # fmt: skip
+
+
 def check_exportable(model: FittedModel, source: str, drop_unsupported: bool) -> list[str]:
-    """The elements to drop (with ``drop_unsupported``), or a one-line UserError naming them."""
+    """The elements to drop (with ``drop_unsupported``), or a one-line UserError naming them (or
+    the model's per-temperature sets, :func:`check_one_set`)."""
+    check_one_set(model, source)
     if model.config.load_ohm is not None:
         raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
                         "test rig, not of the cell; PyBaMM's Thevenin model has none")  # fmt: skip

@@ -91,12 +91,15 @@ def _product(value, laws, resistor: str, p, s, tk, tref):
     return value
 
 
-def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
+def grid_values(model: FittedModel, soc, temperature_c, branches=()) -> pd.DataFrame:
     """Every column of the table at each (temperature, SOC) pair (temperature outer): R0 and the
-    RC branches (each where its R is not 0) times the factors the model's elements state for
-    them (``Element.table``: SOC and temperature laws; ·exp(ρ) on charge), the OCV of the SOC
-    (with ocv_shape and the offset) plus the elements' OCV terms, and the elements' own columns
-    (Butler–Volmer's slope at I = 0, the capacity at the temperature)."""
+    RC branches (each where its R is not 0, or numbered in ``branches``) times the factors the
+    model's elements state for them (``Element.table``: SOC and temperature laws; ·exp(ρ) on
+    charge), the OCV of the SOC (with ocv_shape and the offset) plus the elements' OCV terms,
+    and the elements' own columns (Butler–Volmer's slope at I = 0, the capacity at the
+    temperature). A model of per-temperature sets: :func:`sets_grid_values`."""
+    if model.by_temperature is not None:
+        return sets_grid_values(model, soc, temperature_c)
     P = ecm.to_physical(model.x)[0]
     s = np.asarray(soc, dtype=float)
     temps = np.asarray(temperature_c, dtype=float)
@@ -112,25 +115,43 @@ def grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
             ocv = ocv + law.ocv(*at)
     out = {"temperature_c": T, "soc": S, "ocv_v": ocv, "r0_ohm": r0,
            "r0_charge_ohm": _product(r0, laws, "r0_charge", *at)}  # fmt: skip
-    for j, r, tau in _branches(P):
+    for j, r, tau in _branches(P, branches):
         rj = _product(P[r] * np.ones_like(S), laws, "rc", *at)
         rj = _product(rj, laws, "r1", *at) if j == 1 else rj
         tj = _product(P[tau] * np.ones_like(S), laws, "tau", *at)
-        out |= {f"r{j}_ohm": rj, f"tau{j}_s": tj, f"c{j}_f": tj / rj}
+        cj = np.divide(tj, rj, out=np.full_like(tj, np.nan), where=rj != 0)  # no C without R
+        out |= {f"r{j}_ohm": rj, f"tau{j}_s": tj, f"c{j}_f": cj}
     for law in laws:
         out |= {name: f(*at) for name, (_, _, f) in law.columns.items()}
     return pd.DataFrame(out)
 
 
-def _branches(P: np.ndarray) -> list[tuple[int, int, int]]:
+def _branches(P: np.ndarray, keep=()) -> list[tuple[int, int, int]]:
     """The RC branches a table carries: (number, R column, τ column), each where its
-    resistance is not 0 (a branch with R = 0 holds no voltage, and its C = τ/R has no value);
-    numbered as the model numbers them (branch 1 the base's, the others the elements')."""
+    resistance is not 0 (a branch with R = 0 holds no voltage, and its C = τ/R has no value) or
+    its number is in ``keep`` (another temperature's set has it); numbered as the model numbers
+    them (branch 1 the base's, the others the elements')."""
     branches = [(1, ecm.R1, ecm.TAU1)] + [
         (j, ecm.IDX[f"r{j}"], ecm.IDX[f"ltau{j}"])
         for e in elements.REGISTRY.values() if (j := e.kernel.branch) is not None
     ]  # fmt: skip
-    return [(j, r, t) for j, r, t in branches if P[r] != 0]
+    return [(j, r, t) for j, r, t in branches if P[r] != 0 or j in keep]
+
+
+def sets_grid_values(model: FittedModel, soc, temperature_c) -> pd.DataFrame:
+    """:func:`grid_values` of a model of per-temperature sets: the rows at each temperature
+    those of ``FittedModel.at_ambient`` there (at a set's ambient, that set's own; between, the
+    parameters interpolated in 1/T), with every RC branch any of them carries (R = 0 and C
+    empty where one lacks it) and a ``capacity_ah`` column (each set has its own)."""
+    runs = [model.at_ambient(t) for t in np.asarray(temperature_c, dtype=float)]
+    keep = {j for m in runs for j, _, _ in _branches(ecm.to_physical(m.x)[0])}
+    parts = []
+    for t, m in zip(np.asarray(temperature_c, dtype=float), runs, strict=True):
+        part = grid_values(m, soc, [t], keep)
+        if "capacity_ah" not in part.columns:
+            part["capacity_ah"] = float(10.0 ** m.x[ecm.IDX["lq"]])
+        parts.append(part)
+    return pd.concat(parts, ignore_index=True)
 
 
 def default_soc_grid(model: FittedModel) -> np.ndarray:
@@ -143,7 +164,10 @@ def default_soc_grid(model: FittedModel) -> np.ndarray:
 
 def default_temperatures(model: FittedModel) -> np.ndarray:
     """T_ref alone for a model whose laws do not depend on temperature; else T_ref ±
-    TEMPERATURE_SPAN_K in TEMPERATURE_STEP_K (°C, rounded to 0.01 K)."""
+    TEMPERATURE_SPAN_K in TEMPERATURE_STEP_K (°C, rounded to 0.01 K). A model of
+    per-temperature sets: the sets' ambients (as a BMS table holds its test temperatures)."""
+    if model.by_temperature is not None:
+        return np.array([a for a, _ in model.by_temperature])
     tref_c = model.tref_k - 273.15
     if not TEMPERATURE_DEPENDENT & set(model.config.effects):
         return np.array([round(tref_c, 2)])
@@ -218,8 +242,9 @@ RECURSION = (
     "ie = i if i > 0 else coulombic_efficiency·i; "
     "h ← e·h − (1 − e)·sgn(i), e = exp(−|hysteresis_gamma·ie·Δt/(3600·Q)|); "
     "s ← s − ie·Δt/(3600·Q), Q = the capacity_ah column at T_k where the table has one "
-    "(capacity_temperature), else the scalar capacity_ah. States start at v_j = δ = h = 0; the "
-    "initial SOC is the record's (avoa-pipeline reads it from the OCV at the first sample)."
+    "(capacity_temperature, or per-temperature sets), else the scalar capacity_ah. States "
+    "start at v_j = δ = h = 0; the initial SOC is the record's (avoa-pipeline reads it from "
+    "the OCV at the first sample)."
 )
 
 
@@ -300,6 +325,13 @@ def cannot(model: FittedModel) -> list[str]:
         )
     if "coulombic_efficiency" in effects:
         out.append("coulombic_efficiency: charge counts less than discharge (the recursion)")
+    if model.by_temperature is not None:
+        out.append("per-temperature parameter sets: the model reads them at a record's ambient "
+                   "(its sidecar's, else its first temperature sample) and holds them through "
+                   "the record, where this table's reader may follow the cell temperature; "
+                   "between the sets the model interpolates linearly in 1/T, a table reader "
+                   "linearly in T (interpolation_error); the scalars differ by set: "
+                   "by_temperature gives each set's, scalars the top level's")  # fmt: skip
     return out
 
 
@@ -319,6 +351,7 @@ def interpolation_error(model: FittedModel, soc: np.ndarray, temperature_c: np.n
         for exact, linear in pairs:
             law = exact[col].to_numpy()
             d = np.abs(linear[col] - law)
+            d = np.where(np.isfinite(d), d, 0.0)  # an empty C (a branch without R) strays nowhere
             k = int(np.argmax(d))
             if d[k] > worst["max_abs"]:
                 worst |= {"max_abs": float(d[k]), "at_soc": float(exact["soc"].iloc[k]),
@@ -340,9 +373,27 @@ def _midpoints(frame: pd.DataFrame, n_soc: int, axis: int) -> dict:
     return out
 
 
+SETS_COLUMNS = {
+    "temperature_c": ("°C", "the ambient of this row (grid): at a per-temperature set's ambient "
+                      "the rows are that set's own, between two sets each parameter is "
+                      "interpolated linearly in 1/T (absolute temperature), outside them the "
+                      "nearest set's; a set with a temperature law has it evaluated here"),
+    "capacity_ah": ("A·h", "the capacity the SOC counts at this row's temperature (each "
+                    "per-temperature set has its own)"),
+}  # fmt: skip
+"""What two columns mean in a table of a model of per-temperature sets (``by_temperature``)."""
+
+
+def _column(model: FittedModel, name: str) -> tuple[str, str]:
+    """(unit, meaning) of a column of ``model``'s table."""
+    if model.by_temperature is not None and name in SETS_COLUMNS:
+        return SETS_COLUMNS[name]
+    return COLUMNS[name]
+
+
 def sidecar(model: FittedModel, source: str, table: pd.DataFrame, soc: np.ndarray,
             temperature_c: np.ndarray, temperature_note: str) -> dict:  # fmt: skip
-    return {
+    out = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "package_version": __version__,
@@ -353,13 +404,19 @@ def sidecar(model: FittedModel, source: str, table: pd.DataFrame, soc: np.ndarra
         "grid": {"soc": [float(v) for v in soc],
                  "temperature_c": [float(v) for v in temperature_c],
                  "temperature_note": temperature_note},
-        "columns": {c: {"unit": COLUMNS[c][0], "meaning": COLUMNS[c][1]} for c in table.columns},
+        "columns": {c: dict(zip(("unit", "meaning"), _column(model, c), strict=True))
+                    for c in table.columns},
         "scalars": scalars(model),
         "recursion": RECURSION,
         "cannot": cannot(model),
         "interpolation_error": interpolation_error(model, soc, temperature_c),
         "parameters": model.parameters(),
     }  # fmt: skip
+    if model.by_temperature is not None:  # each set's scalars and parameters, coldest first
+        out["by_temperature"] = [{"ambient_c": float(a), "scalars": scalars(m),
+                                  "parameters": m.parameters()}
+                                 for a, m in model.by_temperature]  # fmt: skip
+    return out
 
 
 def export_table(model: FittedModel, source: str, soc: np.ndarray | None = None,
@@ -377,7 +434,9 @@ def export_table(model: FittedModel, source: str, soc: np.ndarray | None = None,
     soc = default_soc_grid(model) if soc is None else np.asarray(soc, dtype=float)
     if temperature_c is None:
         temperature_c = default_temperatures(model)
-        note = ("default: T_ref alone (the model's laws do not depend on temperature)"
+        note = ("default: the ambients of the model's per-temperature parameter sets"
+                if model.by_temperature is not None else
+                "default: T_ref alone (the model's laws do not depend on temperature)"
                 if temperature_c.size == 1 else
                 f"default: T_ref ± {TEMPERATURE_SPAN_K:g} K in {TEMPERATURE_STEP_K:g} K steps "
                 "(model.json does not store its training records' temperature range; "

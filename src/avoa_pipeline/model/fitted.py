@@ -28,12 +28,20 @@ A model may carry an ``expected_error`` block (the error to expect on profiles u
 training records, from its held-out training data: ``avoa_pipeline.handover``,
 docs/handover-rule.md): checked by the schema (its ``expected_error``), read for
 ``simulate`` to print; a model.json without it loads.
+
+A model may hold one parameter set per test temperature (``by_temperature``: each an ordinary
+model, coldest first; docs/temperature-rule.md parts 3-4, :meth:`FittedModel.per_temperature`):
+the top level is one of them (what a reader that knows nothing of the sets runs), and
+:meth:`FittedModel.at_ambient` gives the ordinary model at a record's ambient, interpolated in
+1/T between the sets around it. Each set is read back with the same checks as the top level.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
+import itertools
 import json
 import math
 from dataclasses import dataclass, field
@@ -84,6 +92,8 @@ class FittedModel:
     intervals: dict | None = None  # model/intervals.py's report of the fit (read, not used)
     heat: heat_mod.Heat | None = None  # the lumped thermal state (model/heat.py), if fitted
     expected_error: dict | None = None  # the error to expect on other profiles (handover.py)
+    by_temperature: list[tuple[float, FittedModel]] | None = None
+    # (ambient °C, that test temperature's model), coldest first; None for an ordinary model
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -109,7 +119,11 @@ class FittedModel:
 
     def simulate(self, frame: pd.DataFrame, soc0: float | None = None, traces: bool = False):
         """Model voltage for ``frame`` (a record of the same cell); with ``traces`` also the
-        (5, n) state traces (SOC, h, RC voltage, thermal factor, current)."""
+        (5, n) state traces (SOC, h, RC voltage, thermal factor, current). A model of
+        per-temperature sets runs :meth:`at_ambient` of the record's first ``temperature_c``
+        sample (a caller that knows the ambient better calls :meth:`at_ambient` first)."""
+        if self.by_temperature is not None:
+            return self.at_ambient(first_temperature(self, frame)).simulate(frame, soc0, traces)
         rec = self.record(frame)
         x = self.x.copy()
         x[IDX["h0"]] = 0.0
@@ -160,7 +174,12 @@ class FittedModel:
                    source: str = "model.json") -> None:  # fmt: skip
         """What ``export`` refuses, by ``simulate``'s own check (:meth:`predict`): on the
         record given (from ``soc0``, else by the library's rule, as ``simulate`` starts it);
-        without one, on :func:`probe_record`."""
+        without one, on :func:`probe_record` (of every set of a model of per-temperature sets,
+        each named by its place and ambient)."""
+        if frame is None and self.by_temperature is not None:
+            for j, (ambient, m) in enumerate(self.by_temperature):
+                m.check_cell(None, None, f"{source} (by_temperature[{j}], {ambient:g} °C)")
+            return
         if frame is not None:
             self.predict(frame, soc0=soc0, source=source)
             return
@@ -169,6 +188,101 @@ class FittedModel:
         self.predict(probe, soc0=start, source=source,
                      on=f"{what} ({max(grid[0], 0.0):.3g}-{grid[-1]:.3g}; --record checks a "
                      "record of the cell instead)")  # fmt: skip
+
+    # ------------------------------------------------------------------------------------------
+    # per-temperature parameter sets (docs/temperature-rule.md parts 3-4)
+
+    @classmethod
+    def per_temperature(cls, sets: list[tuple[float, FittedModel]],
+                        provenance: dict | None = None) -> FittedModel:  # fmt: skip
+        """One model of several test temperatures' own models (each an ordinary FittedModel,
+        possibly with different elements). Each set widened to the union of the sets'
+        elements (a missing element at its neutral value, its bounds the library's limits for
+        it), in ecm.EFFECTS order; the top level (what a reader that knows nothing of the sets
+        sees, and what validates like any model.json) is the set whose ambient is nearest the
+        sets' tref_k (25 °C usually; :func:`top_set`); by_temperature holds all sets, coldest
+        first. ``provenance``: the top level's (default the top set's own)."""
+        sets = sorted(((float(a), m) for a, m in sets), key=lambda s: s[0])
+        if len(sets) < 2:
+            raise ValueError(f"per-temperature sets: {len(sets)} given, need at least 2")
+        for (a, _), (b, _) in itertools.pairwise(sets):
+            if not b > a:
+                raise ValueError(f"per-temperature sets: two at {a:g} °C (one per ambient)")
+        for a, m in sets:
+            if m.by_temperature is not None:
+                raise ValueError(f"per-temperature sets: the set at {a:g} °C holds sets itself")
+            heat_mod.check_ambient(a, f"per-temperature sets: ambient {a!r}")
+        effects = tuple(e for e in ecm.EFFECTS if any(e in m.config.effects for _, m in sets))
+        widened = [(a, widened_to(m, effects)) for a, m in sets]
+        top = widened[top_set(widened)][1]
+        return dataclasses.replace(
+            top,
+            provenance=dict(top.provenance if provenance is None else provenance),
+            by_temperature=widened,
+        )
+
+    def at_ambient(self, ambient_c: float) -> FittedModel:
+        """The ordinary model at ``ambient_c``: for a by_temperature model, the two sets around
+        it interpolated linearly in 1/T (each parameter's physical value; absolute
+        temperature), where both sets share what their parameters mean (:func:`interpolable`:
+        elements, OCV kind and table, load; the knots where an element lives on them, the
+        reference temperature where a law reads it); else (and outside the sets' span) the
+        nearest set in 1/T. At a set's own ambient, that set (its voltage exactly). An ordinary
+        model returns itself. :meth:`ambient_note` says which it was."""
+        return self._at_ambient(ambient_c)[0]
+
+    def ambient_note(self, ambient_c: float) -> str:
+        """What :meth:`at_ambient` does at ``ambient_c``, in words (for a command's line)."""
+        return self._at_ambient(ambient_c)[1]
+
+    def _at_ambient(self, ambient_c: float) -> tuple[FittedModel, str]:
+        sets = self.by_temperature
+        if sets is None:
+            return self, "an ordinary model (one parameter set)"
+        ambient_c = float(ambient_c)
+        temps = [a for a, _ in sets]
+        for j, a in enumerate(temps):
+            if a == ambient_c:
+                return self._run_set(j), f"the set at {a:g} °C (by_temperature[{j}])"
+        inv = 1.0 / (ambient_c + heat_mod.KELVIN)
+        invs = [1.0 / (a + heat_mod.KELVIN) for a in temps]
+        span = f"{temps[0]:g}..{temps[-1]:g} °C"
+        if ambient_c < temps[0] or ambient_c > temps[-1]:
+            j = 0 if ambient_c < temps[0] else len(sets) - 1
+            return self._run_set(j), (f"the nearest set, {temps[j]:g} °C (by_temperature[{j}]; "
+                                      f"{ambient_c:g} °C lies outside the sets' "
+                                      f"{span})")  # fmt: skip
+        k = int(np.searchsorted(temps, ambient_c))  # temps[k - 1] < ambient < temps[k]
+        near = k - 1 if abs(inv - invs[k - 1]) <= abs(inv - invs[k]) else k
+        (a0, m0), (a1, m1) = sets[k - 1], sets[k]
+        why = interpolable(m0, m1)
+        if why:
+            return self._run_set(near), (f"the nearest set in 1/T, {temps[near]:g} °C "
+                                         f"(by_temperature[{near}]; the sets at {a0:g} and "
+                                         f"{a1:g} °C differ in {why})")  # fmt: skip
+        w = (inv - invs[k - 1]) / (invs[k] - invs[k - 1])
+        run = self._run_set(near)
+        x = run.x.copy()
+        for n in m0.names:
+            rep = ecm.PARAMS[n].report
+            v0, v1 = ecm.report(m0.x, [n])[rep], ecm.report(m1.x, [n])[rep]
+            x[IDX[n]] = x[IDX[n]] if v0 == v1 else ecm.internal_value(rep, v0 + w * (v1 - v0))[1]
+        bounds = {n: (min(m0.bounds[n][0], m1.bounds[n][0]), max(m0.bounds[n][1], m1.bounds[n][1]))
+                  for n in m0.names}  # fmt: skip
+        out = dataclasses.replace(run, x=x, bounds=bounds)
+        out.intervals = interpolated_intervals(m0, m1, w, out, run.intervals)
+        return out, (f"interpolated linearly in 1/T between the sets at {a0:g} and {a1:g} °C "
+                     f"(by_temperature[{k - 1}] and [{k}])")  # fmt: skip
+
+    def _run_set(self, j: int) -> FittedModel:
+        """Set ``j`` as it runs: its own heat block and expected error, or the top level's where
+        it has none (the voltage is the set's exactly)."""
+        m = self.by_temperature[j][1]
+        return dataclasses.replace(
+            m,
+            heat=self.heat if m.heat is None else m.heat,
+            expected_error=self.expected_error if m.expected_error is None else m.expected_error,
+        )
 
     # ------------------------------------------------------------------------------------------
 
@@ -191,7 +305,10 @@ class FittedModel:
             "provenance": self.provenance,
             **({} if self.heat is None else {"heat": self.heat.to_json()}),
             **({} if self.expected_error is None else {"expected_error": self.expected_error}),
-        }
+            **({} if self.by_temperature is None else {"by_temperature": [
+                {"ambient_c": float(a), "model": _without_sets(m.to_json())}
+                for a, m in self.by_temperature]}),
+        }  # fmt: skip
 
     def physical_bounds(self, name: str) -> list[float]:
         lo, hi = self.bounds[name]
@@ -276,6 +393,8 @@ class FittedModel:
         if d.get("heat") is not None:
             _check_heat(d["heat"], source)
             model.heat = heat_mod.Heat.from_json(d["heat"])
+        if d.get("by_temperature") is not None:
+            model.by_temperature = _read_sets(d, model, source)
         return model
 
     @classmethod
@@ -408,6 +527,8 @@ def _library_schema() -> dict:
         heat["bounds"]["properties"][key] = _pair(value)
         heat["intervals"]["properties"][key] = {"$ref": "#/$defs/heat_entry"}
     heat["parameters"]["required"] = heat["bounds"]["required"] = list(_HEAT_LIMITS)
+    sets = d["by_temperature"]["items"]["properties"]
+    sets["ambient_c"].update(minimum=lo_c, maximum=hi_c)
     heat["intervals"]["required"] = [k for k in _HEAT_LIMITS if k != "dudt_v_per_k"]
     return s
 
@@ -696,6 +817,180 @@ def _table(d: dict, source: str) -> ecm.OcvTable:
                 f"soc_step give {want:.10g} (written for readers, never read)"
             )
     return ocv_mod.from_json(d)
+
+
+# ----------------------------------------------------------------------------------------------
+# per-temperature parameter sets (``by_temperature``)
+
+
+def first_temperature(model: FittedModel, frame: pd.DataFrame, source: str = "model.json") -> float:
+    """The ambient a model of per-temperature sets runs ``frame`` at without being told one: its
+    first ``temperature_c`` sample; a one-line DataError naming ``source`` where it has none."""
+    if "temperature_c" not in frame.columns or not len(frame):
+        temps = ", ".join(f"{a:g}" for a, _ in model.by_temperature)
+        raise DataError(f"{source}: field 'by_temperature': the model holds per-temperature "
+                        f"parameter sets ({temps} °C); the record needs temperature_c or an "
+                        "ambient to choose among them")  # fmt: skip
+    return float(frame["temperature_c"].iloc[0])
+
+
+def widened_to(model: FittedModel, effects: tuple[str, ...]) -> FittedModel:
+    """``model`` with the elements of ``effects`` it lacks added at their neutral values (so
+    its voltage is unchanged), their bounds the library's limits (``fitting.internal_limits``)
+    and, where it has intervals, their entries as those bounds say (an element no fit moved:
+    at a bound, or an interval of the whole range, not identified)."""
+    from . import fitting, intervals
+
+    missing = tuple(e for e in effects if e not in model.config.effects)
+    if not missing and model.config.effects == effects:
+        return model
+    config = Config(effects, model.config.table, model.config.load_ohm)
+    x = fitting.neutralise(model.x[None, :], missing)[0]
+    added = [n for e in missing for n in ecm.element_params(e) if not ecm.PARAMS[n].per_record]
+    bounds = {**model.bounds, **{n: fitting.internal_limits(n) for n in added}}
+    bounds = {n: bounds[n] for n in config.names() if not ecm.PARAMS[n].per_record}
+    out = dataclasses.replace(model, config=config, x=x, bounds=bounds)
+    iv = model.intervals
+    if iv is not None:
+        entries = dict(iv["parameters"])
+        values = out.parameters()
+        for n in added:
+            lo, hi = bounds[n]
+            rep = ecm.PARAMS[n].report
+            at = bool(fitting.at_bound(x[IDX[n]], lo, hi))
+            ends = (None, None) if at else tuple(out.physical_bounds(n))
+            entries[rep] = {"value": values[rep], "low95": ends[0], "high95": ends[1],
+                            "at_bound": at, "identified": False if at else
+                            intervals.identified(hi - lo, lo, hi), "held": False}  # fmt: skip
+        entries = {ecm.PARAMS[n].report: entries[ecm.PARAMS[n].report] for n in out.names}
+        out.intervals = {**iv, "parameters": entries,
+                         "flags": intervals.flags(entries, iv["correlated_pairs"])}  # fmt: skip
+    return out
+
+
+def interpolated_intervals(m0: FittedModel, m1: FittedModel, w: float, out: FittedModel,
+                           near: dict | None) -> dict | None:  # fmt: skip
+    """The intervals of ``out``, the sets ``m0`` and ``m1`` interpolated with weight ``w`` (in
+    1/T): each end interpolated as its value is (so it still brackets the value; ``estimate``
+    reads the widths), the flags what ``out``'s bounds say (``_check_intervals``'s rules, so a
+    saved interpolated model loads), and the rest (training residual, samples, correlated
+    pairs) the nearer set's ``near``. None where either set has none."""
+    from . import fitting, intervals
+
+    if near is None or m0.intervals is None or m1.intervals is None:
+        return None
+    entries, values = {}, out.parameters()
+    for n in out.names:
+        rep = ecm.PARAMS[n].report
+        e0, e1 = m0.intervals["parameters"][rep], m1.intervals["parameters"][rep]
+        lo, hi = out.bounds[n]
+        held = bool(hi <= lo)
+        at = not held and bool(fitting.at_bound(out.x[IDX[n]], lo, hi))
+        entry = {"value": values[rep], "low95": None, "high95": None, "at_bound": at,
+                 "identified": False, "held": held}  # fmt: skip
+        if not (held or at):
+            if None in (e0["low95"], e1["low95"]):  # a set without one: nothing excluded
+                ends = out.physical_bounds(n)
+            else:
+                ends = [e0[k] + w * (e1[k] - e0[k]) for k in ("low95", "high95")]
+                ends = [min(ends[0], values[rep]), max(ends[1], values[rep])]
+            width = abs(ecm.internal_value(rep, ends[1])[1] - ecm.internal_value(rep, ends[0])[1])
+            entry |= {"low95": ends[0], "high95": ends[1],
+                      "identified": intervals.identified(width, lo, hi)}  # fmt: skip
+        entries[rep] = entry
+    pairs = near["correlated_pairs"]
+    return {**near, "method": f"interpolated in 1/T between two sets' intervals; {near['method']}",
+            "parameters": entries, "flags": intervals.flags(entries, pairs)}  # fmt: skip
+
+
+def top_set(sets: list[tuple[float, FittedModel]]) -> int:
+    """Which set is a model's top level: the one whose ambient is nearest (in 1/T; the colder
+    of two as near) the sets' reference temperature where they share one, else 25 °C
+    (``ecm.T_DEFAULT_K``: where a record without a temperature runs, so what a reader that
+    knows nothing of the sets should see)."""
+    trefs = {m.tref_k for _, m in sets}
+    ref = trefs.pop() if len(trefs) == 1 else ecm.T_DEFAULT_K
+    dist = [abs(1.0 / (a + heat_mod.KELVIN) - 1.0 / ref) for a, _ in sets]
+    return int(np.argmin(dist))
+
+
+def interpolable(a: FittedModel, b: FittedModel) -> str:
+    """What keeps two sets' parameters from being interpolated ('' where nothing does): they
+    mean the same only on the same elements, OCV (kind and table) and load; on the same knots
+    where an element's values live on them (ocv_shape, r0_soc, r1_soc); on the same reference
+    temperature where a law reads 1/T − 1/Tref or T − Tref (``Element.needs_temperature``).
+    Elsewhere the knots and Tref change no voltage, so sets fitted apart (each its own records'
+    knots and mean temperature) still interpolate."""
+    ca, cb = a.config, b.config
+    if ca.effects != cb.effects:
+        return "their elements"
+    if ca.load_ohm != cb.load_ohm:
+        return "their load"
+    ta, tb = ca.table, cb.table
+    same_table = (ta is None and tb is None) or (
+        ta is not None and tb is not None and ta.lo == tb.lo and ta.step == tb.step
+        and np.array_equal(ta.values, tb.values)
+    )  # fmt: skip
+    if not same_table:
+        return "their OCV"
+    if any(elements.get(e).vector is not None for e in ca.effects) and a.knots != b.knots:
+        return "their SOC knots"
+    if any(elements.get(e).needs_temperature for e in ca.effects) and a.tref_k != b.tref_k:
+        return "their reference temperature"
+    return ""
+
+
+def _without_sets(d: dict) -> dict:
+    return {k: v for k, v in d.items() if k != "by_temperature"}
+
+
+_VOLTAGE_FIELDS = ("ocv", "effects", "load_ohm", "parameters", "bounds", "knots", "tref_k",
+                   "ocv_table", "capacity_ah")  # fmt: skip
+"""The fields of a model.json that decide its voltage: the top level of per-temperature sets
+equals its top set's in each."""
+
+
+def _read_sets(d: dict, top: FittedModel, source: str) -> list[tuple[float, FittedModel]]:
+    """A model.json's ``by_temperature`` after the schema (at least 2 entries, each an ambient
+    in ``heat.AMBIENT_RANGE_C`` and an object): ambients strictly increasing, each set a valid
+    model.json of its own (every check of the top level, its refusal naming the set's place)
+    holding no sets, all with the top level's elements, and the top level the set
+    :func:`top_set` names in every field that decides the voltage."""
+    sets = []
+    for j, entry in enumerate(d["by_temperature"]):
+        at = f"by_temperature[{j}]"
+        a = float(entry["ambient_c"])
+        if sets and not a > sets[-1][0]:
+            raise DataError(f"{source}: field '{at}.ambient_c': {a:g} °C, not above the set "
+                            f"before ({sets[-1][0]:g} °C): the sets run coldest first, one per "
+                            "test temperature")  # fmt: skip
+        sd = entry["model"]
+        if isinstance(sd, dict) and sd.get("by_temperature") is not None:
+            raise DataError(f"{source}: field '{at}.model.by_temperature': a set holds no sets")
+        try:
+            m = FittedModel.from_json(sd, source)
+        except DataError as exc:
+            text, head = str(exc), f"{source}: field '"
+            if text.startswith(head):
+                text = f"{head}{at}.model.{text.removeprefix(head)}"
+            else:
+                text = f"{source}: field '{at}.model': {text.removeprefix(f'{source}: ')}"
+            raise DataError(text) from None
+        if m.config.effects != top.config.effects:
+            raise DataError(f"{source}: field '{at}.model.effects': {list(m.config.effects)}, "
+                            f"but the top level's are {list(top.config.effects)} (every set "
+                            "holds the union of the sets' elements, a missing one "
+                            "neutral)")  # fmt: skip
+        sets.append((a, m))
+    k = top_set(sets)
+    want = d["by_temperature"][k]["model"]
+    for key in _VOLTAGE_FIELDS:
+        if d[key] != want[key]:
+            raise DataError(f"{source}: field '{key}': not by_temperature[{k}]'s ({sets[k][0]:g} "
+                            "°C, the set nearest the sets' reference temperature): the top "
+                            "level is that set, what a reader that knows nothing of the sets "
+                            "runs")  # fmt: skip
+    return sets
 
 
 def training_current_scale(recs) -> float:
