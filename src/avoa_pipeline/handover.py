@@ -385,7 +385,10 @@ def summary_line(handed: dict) -> str:
     )
     left = [f"{v['effect']} ({v['why']})" for v in handed["verdict_elements"]
             if not v["handed_over"]]  # fmt: skip
-    return line + ("; left out of the verdict's model: " + "; ".join(left) if left else "")
+    line += "; left out of the verdict's model: " + "; ".join(left) if left else ""
+    if handed.get("per_temperature"):
+        line += "; " + per_temperature_summary(handed["per_temperature"])
+    return line
 
 
 # ----------------------------------------------------------------------------------------------
@@ -478,3 +481,73 @@ def correlation_time(ctx: Context, held) -> dict:
         "correlation_time_s": float(np.sum(w * secs) / w.sum()),
         "correlation_time_lower_bound": bool(bounded),
     }
+
+
+# ----------------------------------------------------------------------------------------------
+# never worse than one model per temperature (docs/temperature-rule.md part 4)
+
+PER_TEMPERATURE = "per-temperature models"
+"""``handed_over.name`` where the joint model would be worse at a test temperature than that
+temperature's own diagnosis, and the per-temperature models are handed over instead."""
+
+
+def group_ambient(ctx: Context, group: list[int]) -> float:
+    """A test temperature's ambient: the mean of its records' (as ``expected_error`` labels it)."""
+    return float(np.mean([ctx.ambients_c[r] for r in group]))
+
+
+def against_own(ctx: Context, ho: HandOver, own: list[HandOver]) -> dict:
+    """Part 4: at each test temperature (``ctx.groups``, with ``own[g]`` that temperature's own
+    hand-over, its records alone), the joint hand-over's held-out errors on the samples the own
+    diagnosis scored (leave one record out within the temperature, or its forward stretches)
+    against the own hand-over's, on the same samples. The selection's paired loss test (batch
+    means, one-sided: is the own model's loss lower), each temperature at ALPHA / G (Bonferroni
+    over the temperatures), every held-out segment weighing alike. Returns diagnosis.json's
+    ``handed_over.per_temperature``; its ``joint_worse`` says whether any temperature is worse."""
+    o = ctx.layout.offsets
+    joint = np.empty(ctx.n)
+    for r, idx, e in ho.chosen.held:  # leave one record out: every sample of every record
+        joint[o[r] + idx] = e
+    level = selection.ALPHA / len(ctx.groups)
+    rows = []
+    for group, mine in zip(ctx.groups, own, strict=True):
+        a, b, w, batches, n = [], [], [], [], 0
+        for r_local, idx, e in mine.chosen.held:
+            a.append(joint[o[group[r_local]] + idx])
+            b.append(e)
+            w.append(np.full(idx.size, 1.0 / idx.size))  # each segment counts once
+            seg = np.arange(n, n + idx.size)
+            batches += [x for x in np.array_split(seg, min(selection.BATCHES_PER_RECORD,
+                                                           seg.size)) if x.size]  # fmt: skip
+            n += idx.size
+        la, lb, wt = np.concatenate(a) ** 2, np.concatenate(b) ** 2, np.concatenate(w)
+        t, p, _ = selection.loss_test(la, lb, batches, wt)
+        rows.append({
+            "ambient_c": group_ambient(ctx, group),
+            "records": [ctx.recs[r].source for r in group],
+            "own_model": mine.name,
+            "own_score": mine.kind,
+            "joint_heldout_rmse_mv": _mv(float(np.sum(wt * la) / wt.sum())),
+            "own_heldout_rmse_mv": _mv(float(np.sum(wt * lb) / wt.sum())),
+            "t": t, "p": p,
+            "joint_worse": bool(p < level),
+        })  # fmt: skip
+    worse = any(r["joint_worse"] for r in rows)
+    return {
+        "test": "the selection's paired loss test (batch means, one-sided), on the samples each "
+                "temperature's own diagnosis held out, every held-out segment alike",
+        "level": level,
+        "groups": rows,
+        "joint_worse": worse,
+        "decision": PER_TEMPERATURE if worse else "the joint model",
+    }  # fmt: skip
+
+
+def per_temperature_summary(pt: dict) -> str:
+    """The summary line's words for ``handed_over.per_temperature``."""
+    worse = [f"{r['ambient_c']:g} °C ({_shown(r['joint_heldout_rmse_mv'])} mV against "
+             f"{_shown(r['own_heldout_rmse_mv'])})"
+             for r in pt["groups"] if r["joint_worse"]]  # fmt: skip
+    if not worse:
+        return "not worse than the per-temperature models at any test temperature"
+    return f"the joint model is worse at {', '.join(worse)}: {PER_TEMPERATURE} handed over"

@@ -37,8 +37,10 @@ def test_ambients_within_two_kelvin_are_one_test_temperature_and_say_how_a_law_i
     frames = [at_ambient(a, truth, seed=k) for k, a in enumerate((0.0, 10.0, 25.0, 26.5))]
     ctx = context(frames, [0.0, 10.0, 25.0, 26.5])
     assert ctx.groups == [[0], [1], [2, 3]]
-    assert ctx.scheme("thermal") == TEMPERATURE and ctx.scheme("entropic") == TEMPERATURE
-    assert ctx.scheme("second_rc") == RECORD and ctx.scheme("butler_volmer") == RECORD
+    assert ctx.scheme("thermal") == TEMPERATURE
+    assert ctx.scheme("entropic") == TEMPERATURE
+    assert ctx.scheme("second_rc") == RECORD
+    assert ctx.scheme("butler_volmer") == RECORD
     assert ctx.decided_by("thermal") == "leave one temperature out"
     assert ctx.decided_by("second_rc") is None
     two = context(frames[1:], [10.0, 25.0, 26.5])
@@ -59,7 +61,8 @@ def test_records_at_several_constant_temperatures_admit_a_law_candidate():
     assert not any(r.temperature_varies for r in recs)
     assert selection.applicable(recs, "thermal")[0]
     ok, why = selection.applicable(recs[:1], "thermal")
-    assert not ok and "spans less than" in why
+    assert not ok
+    assert "spans less than" in why
 
 
 def test_a_law_held_out_by_temperature_predicts_a_group_from_the_other_groups_alone():
@@ -74,7 +77,8 @@ def test_a_law_held_out_by_temperature_predicts_a_group_from_the_other_groups_al
     law = selection.try_effects(ctx, base, ["thermal"], cv=False)["thermal"]
     fits = ctx.fits
     ctx.cross_validate(law, TEMPERATURE)
-    assert ctx.fits == fits + 3 and law.ho is None
+    assert ctx.fits == fits + 3
+    assert law.ho is None
     for g, group in enumerate(ctx.groups):
         fold = selection.Candidate(law.st, law.fold_X_t[g], law.v, law.rss)
         for r in group:
@@ -84,13 +88,14 @@ def test_a_law_held_out_by_temperature_predicts_a_group_from_the_other_groups_al
     assert len({round(float(x[0, th]), 6) for x in law.fold_X_t}) == 3  # three different fits
     # judged by that hold-out, against the base held out the same way (done by judge)
     (row,) = selection.judge(ctx, base, {"thermal": law})
-    assert base.ho_t is not None and row["decided_by"] == "leave one temperature out"
+    assert base.ho_t is not None
+    assert row["decided_by"] == "leave one temperature out"
     mse = float(np.sum(ctx.w * (law.ho_t - ctx.v) ** 2)) / ctx.n
     assert row["heldout_rmse_mv"] == pytest.approx(1e3 * np.sqrt(mse))
     assert row["pays"]
 
 
-@pytest.mark.parametrize("theta_r0_k, admitted", [(3000.0, True), (150.0, False)])
+@pytest.mark.parametrize(("theta_r0_k", "admitted"), [(3000.0, True), (150.0, False)])
 def test_on_two_temperatures_a_law_must_sit_inside_its_prior(theta_r0_k, admitted):
     """Two test temperatures (two records each): a law's record hold-out gain is not enough.
     An ohmic activation energy of 3000 K (25 kJ/mol) is inside the prior (601-4,811 K); one of
@@ -103,9 +108,92 @@ def test_on_two_temperatures_a_law_must_sit_inside_its_prior(theta_r0_k, admitte
     cands = selection.try_effects(ctx, base, ["thermal"], cv=True)
     (row,) = selection.judge(ctx, base, cands)
     assert row["decided_by"] == "identification and prior"
-    assert row["shrink"] > 0.5 and row["p"] < 1e-3  # the tests alone would admit it
+    assert row["shrink"] > 0.5
+    assert row["p"] < 1e-3
     r0 = row["prior"]["thermal_theta_r0_k"]
     assert r0["value"] == pytest.approx(theta_r0_k, rel=0.2)
-    assert r0["range"] == pytest.approx([601.4, 4811.0], abs=0.5) and "Valøen" in r0["source"]
+    assert r0["range"] == pytest.approx([601.4, 4811.0], abs=0.5)
+    assert "Valøen" in r0["source"]
     assert row["identified"] is None
-    assert r0["inside"] is admitted and row["pays"] is admitted
+    assert r0["inside"] is admitted
+    assert row["pays"] is admitted
+
+
+def _held(errors, idx=None):
+    """A hand-over's chosen entry holding the given held-out error segments."""
+    from types import SimpleNamespace
+
+    idx = idx or [np.arange(e.size) for e in errors]
+    held = [(r, i, e) for r, (i, e) in enumerate(zip(idx, errors, strict=True))]
+    return SimpleNamespace(chosen=SimpleNamespace(held=held), name="base",
+                           kind="leave one record out")  # fmt: skip
+
+
+def test_the_joint_model_is_compared_with_each_temperatures_own_on_the_samples_it_held_out():
+    """Part 4's comparison: at each test temperature, the joint model's held-out errors on the
+    samples the temperature's own diagnosis scored, against its own; worse only where the
+    paired test says more than noise, at ALPHA / G."""
+    from avoa_pipeline import handover
+
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": 4000.0}
+    ambients = [0.0, 25.0, 25.5]
+    ctx = context([at_ambient(a, truth, seed=k) for k, a in enumerate(ambients)], ambients)
+    assert ctx.groups == [[0], [1, 2]]
+    rng = np.random.default_rng(0)
+    n = [r.n for r in ctx.recs]
+    joint = [0.010 * rng.standard_normal(k) for k in n]  # 10 mV everywhere
+    # 0 °C: one record, its own diagnosis scores the forward stretch after half of it, 4 mV
+    cut = np.arange(n[0] // 2, n[0])
+    cold = _held([0.004 * rng.standard_normal(cut.size)], [cut])
+    # 25 °C: two records held out by record, as good as the joint model (the same errors)
+    warm = _held([joint[1], joint[2]])
+    pt = handover.against_own(ctx, _held(joint), [cold, warm])
+    assert pt["level"] == pytest.approx(selection.ALPHA / 2)
+    c, w = pt["groups"]
+    assert c["ambient_c"] == 0.0
+    assert w["ambient_c"] == pytest.approx(25.25)
+    assert c["joint_heldout_rmse_mv"] == pytest.approx(1e3 * np.sqrt(np.mean(joint[0][cut] ** 2)))
+    assert c["own_heldout_rmse_mv"] == pytest.approx(4.0, rel=0.1)
+    assert c["joint_worse"]
+    assert not w["joint_worse"]
+    assert w["p"] == 1.0
+    assert pt["joint_worse"]
+    assert pt["decision"] == handover.PER_TEMPERATURE
+    line = handover.per_temperature_summary(pt)
+    assert line.startswith("the joint model is worse at 0 °C")
+    assert "25.2" not in line
+    # as good everywhere: the joint model stays
+    same = handover.against_own(ctx, _held(joint), [_held([joint[0][cut]], [cut]), warm])
+    assert not same["joint_worse"]
+    assert same["decision"] == "the joint model"
+
+
+@pytest.mark.slow  # four diagnoses: about 75 s
+def test_a_joint_model_worse_than_each_temperatures_own_hands_over_the_per_temperature_sets(
+    tmp_path,
+):
+    """Part 4 end to end: an R0 that rises at both ends of 0-40 °C (no Arrhenius law follows
+    it), one record per chamber. The joint model is worse than the chambers' own models, so
+    model.json holds their sets, each set's R0 its chamber's, and a validation record at 40 °C
+    is predicted by the 40 °C set."""
+    from avoa_pipeline import diagnosis, handover
+    from avoa_pipeline.model.fitted import FittedModel
+
+    r0 = {0.0: 0.060, 20.0: 0.030, 40.0: 0.070}
+    frames = [at_ambient(a, {**TRUTH, "r0_ohm": r}, seed=k) for k, (a, r) in enumerate(r0.items())]
+    held = at_ambient(40.0, {**TRUTH, "r0_ohm": r0[40.0], "soc0": 0.8}, seed=9)
+    d = diagnosis.diagnose(frames, validate=[held], progress=False)
+    handed = d.report["handed_over"]
+    pt = handed["per_temperature"]
+    assert [g["ambient_c"] for g in pt["groups"]] == [0.0, 20.0, 40.0]
+    assert pt["joint_worse"]
+    assert handed["name"] == handover.PER_TEMPERATURE
+    assert handed["joint"]["name"] != handover.PER_TEMPERATURE
+    d.write(tmp_path, figure=False)
+    model = FittedModel.load(tmp_path / "model.json")
+    assert [a for a, _ in model.by_temperature] == [0.0, 20.0, 40.0]
+    for (a, m), want in zip(model.by_temperature, r0.values(), strict=True):
+        assert m.parameters()["r0_ohm"] == pytest.approx(want, rel=0.1), a
+    (row,) = [v for v in d.report["validation"] if v["model"] == "handed_over"]
+    assert row["ambient_c"] == 40.0
+    assert row["rmse_mv"] < 5.0  # the 40 °C set (the 20 °C set misses by 40 mΩ × 2 A = 80 mV)

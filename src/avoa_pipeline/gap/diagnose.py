@@ -53,6 +53,8 @@ from ..model.ecm import Record
 from ..model.elements.element import View
 from ..model.fitted import (
     FittedModel,
+    fit_model,
+    prediction_errors,
     reference_temperature,
 )
 from ..records import REST_FRACTION, STEP_FRACTION, Checked
@@ -410,6 +412,10 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
     model = _handed_over_model(ctx, ho, selected["name"], ctx.ambients_c)
     notes += [w for w in ho.warnings if w not in notes]
+    # never worse than one model per temperature (docs/temperature-rule.md part 4)
+    per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a)
+    if per_t is not None:
+        handed, model = _never_worse(ctx, handed, model, *per_t)
 
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
@@ -446,8 +452,86 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         floor = selection.floors(ctx, final, vframes, capacity_ah)
         report["validation"] = selection.validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
-        _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
+        if handed["name"] == handover.PER_TEMPERATURE:
+            _validate_per_temperature(report, model, validate, capacity_ah)
+        else:
+            _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
+
+
+def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accuracy_a):
+    """With two test temperatures or more: each one's own diagnosis (its records alone, the
+    same options and the same reference temperature, so that the sets interpolate: the base
+    fit, the ladder and the hand-over; what the joint diagnosis reports beside them is not
+    needed for the model) and the comparison of the joint hand-over with them
+    (``handover.against_own``). Returns (the comparison, the own models by ambient) or None."""
+    if len(ctx.groups) < 2:
+        return None
+    own, models = [], []
+    for group in ctx.groups:
+        ambient = handover.group_ambient(ctx, group)
+        g = selection.Context([ctx.recs[r] for r in group], ctx.table, capacity_ah, soc0,
+                              [ctx.ambients_c[r] for r in group])  # fmt: skip
+        g.progress = lambda what, a=ambient: ctx.say(f"{a:g} °C alone: {what}")
+        lad = selection.ladder(g, selection.fit_base(g, capacity_ah, soc0))
+        mine = handover.hand_over(g, lad, current_accuracy_a)
+        ctx.count(g.fits)
+        own.append(mine)
+        models.append((ambient, _handed_over_model(g, mine, handover.model_name(
+            lad.selected.effects), g.ambients_c)))  # fmt: skip
+    return handover.against_own(ctx, ho, own), models
+
+
+def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
+    """``handed_over`` with its ``per_temperature`` comparison; where the joint model is worse
+    at a test temperature, the per-temperature models handed over as one model.json
+    (``FittedModel.per_temperature``) and said so, the joint hand-over kept beside them."""
+    handed = {**handed, "per_temperature": pt}
+    if not pt["joint_worse"]:
+        return handed, model
+    combined = FittedModel.per_temperature(
+        models,
+        provenance={
+            **model.provenance,
+            "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}; "
+            "never worse than one model per temperature (docs/temperature-rule.md part 4)",
+        },
+    )
+    joint = {k: handed[k] for k in ("name", "effects", "n_params", "heldout_rmse_mv", "score",
+                                    "parameters")}  # fmt: skip
+    sq = np.mean([(r["own_heldout_rmse_mv"] or np.inf) ** 2 for r in pt["groups"]])
+    handed.update(
+        name=handover.PER_TEMPERATURE, candidate=handover.PER_TEMPERATURE,
+        effects=list(combined.config.effects), joint=joint,
+        score="each test temperature's own diagnosis's held-out score, temperatures alike",
+        heldout_rmse_mv=float(np.sqrt(sq)) if np.isfinite(sq) else None,
+        parameters={"by_temperature": [{"ambient_c": a, "name": pt["groups"][k]["own_model"],
+                                        "parameters": m.parameters()}
+                                       for k, (a, m) in enumerate(models)]},
+    )  # fmt: skip
+    return handed, combined
+
+
+def _validate_per_temperature(report: dict, model: FittedModel, validate: list[Checked],
+                              capacity_ah) -> None:  # fmt: skip
+    """The validation rows of handed-over per-temperature models: each record predicted by the
+    sets at its ambient (``heat.ambient_if_any``; ``FittedModel.at_ambient``), beside the floor
+    of the sets' configuration fitted to it."""
+    for c in validate:
+        found = heat.ambient_if_any(c)
+        fm = model if found is None else model.at_ambient(found[0])
+        v, tr = fm.simulate(c.frame, traces=True)
+        err = prediction_errors(v, c.frame["voltage_v"].to_numpy())
+        fl = fit_model(c.frame, model.config, capacity_ah)
+        report["floors"].append({"record": c.source, "model": "handed_over",
+                                 "rmse_mv": fl.train_rmse_mv,
+                                 "parameters": fl.model.parameters()})  # fmt: skip
+        report["validation"].append({
+            "record": c.source, "model": "handed_over", "effects": list(model.config.effects),
+            "starts_at_rest": ecm.starts_at_rest(fm.record(c.frame)), "soc0": float(tr[0][0]),
+            "ambient_c": None if found is None else found[0], "training_soc_range": None,
+            **err, "floor_rmse_mv": fl.train_rmse_mv,
+            "above_floor_mv": err["rmse_mv"] - fl.train_rmse_mv})  # fmt: skip
 
 
 def _validate_handed_over(ctx, report: dict, ho, final, vframes: dict, floor: dict,
