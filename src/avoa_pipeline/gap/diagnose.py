@@ -407,15 +407,9 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     selected = _selected(ctx, final)
 
     # 5. the model handed over (docs/handover-rule.md): its own rule, the verdict's model among
-    # its candidates
-    ho = handover.hand_over(ctx, lad, current_accuracy_a)
-    handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
-    model = _handed_over_model(ctx, ho, selected["name"], ctx.ambients_c)
+    # its candidates; never worse than one model per temperature (docs/temperature-rule.md)
+    ho, handed, model = _hand_over(ctx, lad, selected, capacity_ah, soc0, current_accuracy_a)
     notes += [w for w in ho.warnings if w not in notes]
-    # never worse than one model per temperature (docs/temperature-rule.md part 4)
-    per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a)
-    if per_t is not None:
-        handed, model = _never_worse(ctx, handed, model, *per_t)
 
     report = {
         "source": sources[0] if len(sources) == 1 else sources,
@@ -457,6 +451,21 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         else:
             _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
+
+
+def _hand_over(ctx: selection.Context, lad, selected: dict, capacity_ah, soc0,
+               current_accuracy_a):  # fmt: skip
+    """The hand-over rule's model (``handover.hand_over``), its report and model.json; with two
+    test temperatures or more, set against each one's own diagnosis and replaced by their sets
+    where it is worse (docs/temperature-rule.md part 4). Returns (the rule's result, diagnosis.
+    json's ``handed_over``, the model handed over)."""
+    ho = handover.hand_over(ctx, lad, current_accuracy_a)
+    handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
+    model = _handed_over_model(ctx, ho, selected["name"], ctx.ambients_c)
+    per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a)
+    if per_t is not None:
+        handed, model = _never_worse(ctx, handed, model, *per_t)
+    return ho, handed, model
 
 
 def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accuracy_a):
