@@ -232,23 +232,25 @@ def score(ctx: Context, entry: Entry) -> None:
         entry.score = np.inf
 
 
-def forward(ctx: Context, cand: Candidate, cut: float):
-    """One forward stretch of a single record: ``cand`` fitted to the samples before ``cut`` of
-    the record (a mask; warm-started from its full fit, as the selection's held-out fits are),
-    the whole record simulated with those parameters, the samples after the cut scored. Returns
-    (0, the scored sample indices, their errors)."""
-    rec = ctx.recs[0]
+def forward(ctx: Context, cand: Candidate, cut: float, r: int = 0):
+    """One forward stretch of record ``r`` (a single record's score; part 4's joint model on a
+    one-record temperature): ``cand`` fitted to the samples before ``cut`` of the record and to
+    every other record whole (masks; warm-started from its full fit, as the selection's
+    held-out fits are), the whole record simulated with those parameters, the samples after the
+    cut scored. Returns (r, the scored sample indices, their errors)."""
+    rec = ctx.recs[r]
     n0 = round(cut * rec.n)
-    mask = np.arange(rec.n) < n0
+    masks = [np.ones(x.n, dtype=bool) for x in ctx.recs]
+    masks[r] = np.arange(rec.n) < n0
     st = cand.st
     if "ocv_shape" in st.effects:  # the correction spans the fitted samples' SOC
-        st = replace(st, knots=fitting.knots_for(ctx.recs, cand.X, [mask]))
+        st = replace(st, knots=fitting.knots_for(ctx.recs, cand.X, masks))
     # a held-out refit, not checked (as the selection's own held-out refits)
-    fit = fitting.best_of(ctx.recs, st, [cand.X], masks=[mask], max_nfev=100, check=False)
+    fit = fitting.best_of(ctx.recs, st, [cand.X], masks=masks, max_nfev=100, check=False)
     ctx.count(1)
-    v = ecm.simulate_rows(rec, fit.X[0], st.knots, st.config.table, st.config.load_ohm)[:, 0]
+    v = ecm.simulate_rows(rec, fit.X[r], st.knots, st.config.table, st.config.load_ohm)[:, 0]
     after = np.arange(n0, rec.n)
-    return 0, after, v[after] - rec.v[after]
+    return r, after, v[after] - rec.v[after]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -496,24 +498,37 @@ def group_ambient(ctx: Context, group: list[int]) -> float:
     return float(np.mean([ctx.ambients_c[r] for r in group]))
 
 
-def against_own(ctx: Context, ho: HandOver, own: list[HandOver]) -> dict:
-    """Part 4: at each test temperature (``ctx.groups``, with ``own[g]`` that temperature's own
-    hand-over, its records alone), the joint hand-over's held-out errors on the samples the own
-    diagnosis scored (leave one record out within the temperature, or its forward stretches)
-    against the own hand-over's, on the same samples. The selection's paired loss test (batch
-    means, one-sided: is the own model's loss lower), each temperature at ALPHA / G (Bonferroni
-    over the temperatures), every held-out segment weighing alike. Returns diagnosis.json's
-    ``handed_over.per_temperature``; its ``joint_worse`` says whether any temperature is worse."""
+def joint_on_own(ctx: Context, ho: HandOver, group: list[int], mine: HandOver) -> list:
+    """Part 4: the joint hand-over's held-out errors on the samples a test temperature's own
+    diagnosis (``mine``, the records ``group``) scored, the joint model having seen what the own
+    one saw and the other temperatures' records besides: its leave-one-record-out errors where
+    the own score held out whole records; where the temperature has one record (the own score's
+    forward stretches), the joint structure refitted to the record's samples before each cut and
+    every other record (:func:`forward`). One error array per segment of ``mine.chosen.held``."""
     o = ctx.layout.offsets
+    if len(group) == 1:
+        return [e for _, _, e in selection.each(
+            lambda cut: forward(ctx, ho.chosen.cand, cut, group[0]), FORWARD_CUTS)]  # fmt: skip
     joint = np.empty(ctx.n)
     for r, idx, e in ho.chosen.held:  # leave one record out: every sample of every record
         joint[o[r] + idx] = e
+    return [joint[o[group[r_local]] + idx] for r_local, idx, _ in mine.chosen.held]
+
+
+def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
+    """Part 4: at each test temperature (``ctx.groups``, with ``own[g]`` that temperature's own
+    hand-over, its records alone, and ``joint[g]`` the joint model's errors on the same samples,
+    :func:`joint_on_own`), the two sets of held-out errors compared by the selection's paired
+    loss test (batch means, one-sided: is the own model's loss lower), each temperature at
+    ALPHA / G (Bonferroni over the temperatures), every held-out segment weighing alike. Returns
+    diagnosis.json's ``handed_over.per_temperature``; its ``joint_worse`` says whether any
+    temperature is worse."""
     level = selection.ALPHA / len(ctx.groups)
     rows = []
-    for group, mine in zip(ctx.groups, own, strict=True):
+    for group, mine, theirs in zip(ctx.groups, own, joint, strict=True):
         a, b, w, batches, n = [], [], [], [], 0
-        for r_local, idx, e in mine.chosen.held:
-            a.append(joint[o[group[r_local]] + idx])
+        for (_, idx, e), ej in zip(mine.chosen.held, theirs, strict=True):
+            a.append(ej)
             b.append(e)
             w.append(np.full(idx.size, 1.0 / idx.size))  # each segment counts once
             seg = np.arange(n, n + idx.size)
@@ -535,7 +550,8 @@ def against_own(ctx: Context, ho: HandOver, own: list[HandOver]) -> dict:
     worse = any(r["joint_worse"] for r in rows)
     return {
         "test": "the selection's paired loss test (batch means, one-sided), on the samples each "
-                "temperature's own diagnosis held out, every held-out segment alike",
+                "temperature's own diagnosis held out, every held-out segment alike; the joint "
+                "model fitted to what the own one saw and the other temperatures' records",
         "level": level,
         "groups": rows,
         "joint_worse": worse,

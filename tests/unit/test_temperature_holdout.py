@@ -147,7 +147,7 @@ def test_the_joint_model_is_compared_with_each_temperatures_own_on_the_samples_i
     cold = _held([0.004 * rng.standard_normal(cut.size)], [cut])
     # 25 °C: two records held out by record, as good as the joint model (the same errors)
     warm = _held([joint[1], joint[2]])
-    pt = handover.against_own(ctx, _held(joint), [cold, warm])
+    pt = handover.against_own(ctx, [[joint[0][cut]], [joint[1], joint[2]]], [cold, warm])
     assert pt["level"] == pytest.approx(selection.ALPHA / 2)
     c, w = pt["groups"]
     assert c["ambient_c"] == 0.0
@@ -163,9 +163,43 @@ def test_the_joint_model_is_compared_with_each_temperatures_own_on_the_samples_i
     assert line.startswith("the joint model is worse at 0 °C")
     assert "25.2" not in line
     # as good everywhere: the joint model stays
-    same = handover.against_own(ctx, _held(joint), [_held([joint[0][cut]], [cut]), warm])
+    same = handover.against_own(ctx, [[joint[0][cut]], [joint[1], joint[2]]],
+                                [_held([joint[0][cut]], [cut]), warm])  # fmt: skip
     assert not same["joint_worse"]
     assert same["decision"] == "the joint model"
+
+
+def test_the_joint_model_sees_what_each_temperatures_own_model_saw_and_more():
+    """Where a temperature has two records, the joint model's errors are its leave-one-record-
+    out errors on them; where it has one, the joint structure is refitted to the record's
+    samples before each forward cut and to every other record, and scores the samples after."""
+    from types import SimpleNamespace
+
+    from avoa_pipeline import handover
+
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": 4000.0}
+    ambients = [0.0, 25.0, 25.5]
+    ctx = context([at_ambient(a, truth, seed=k) for k, a in enumerate(ambients)], ambients)
+    base = selection.fit_base(ctx)
+    base = ctx.cross_validate(selection.try_effects(ctx, base, ["thermal"], cv=False)["thermal"])
+    o = ctx.layout.offsets
+    held = [(r, np.arange(o[r + 1] - o[r]), base.ho[o[r]:o[r + 1]] - ctx.recs[r].v)
+            for r in range(3)]  # fmt: skip
+    ho = SimpleNamespace(chosen=SimpleNamespace(cand=base, held=held))
+    warm = handover.joint_on_own(ctx, ho, [1, 2], _held([np.zeros(n) for n in np.diff(o)[1:]]))
+    np.testing.assert_array_equal(warm[0], held[1][2])
+    np.testing.assert_array_equal(warm[1], held[2][2])
+    fits = ctx.fits
+    cold = handover.joint_on_own(ctx, ho, [0], None)
+    assert ctx.fits == fits + len(handover.FORWARD_CUTS)
+    n0 = ctx.recs[0].n
+    assert [e.size for e in cold] == [n0 - round(c * n0) for c in handover.FORWARD_CUTS]
+    # each from a fit that saw the other records whole: the truth's structure (its law) predicts
+    # the rest of the record to about the noise (1 mV)
+    for r, after, e in [handover.forward(ctx, base, c, 0) for c in handover.FORWARD_CUTS]:
+        assert r == 0
+        np.testing.assert_array_equal(e, cold[0] if after.size == cold[0].size else cold[1])
+        assert 1e3 * np.sqrt(np.mean(e**2)) < 3.0
 
 
 @pytest.mark.slow  # four diagnoses: about 75 s

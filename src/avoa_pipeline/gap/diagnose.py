@@ -488,7 +488,9 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
         own.append(mine)
         models.append((ambient, _handed_over_model(g, mine, handover.model_name(
             lad.selected.effects), g.ambients_c)))  # fmt: skip
-    return handover.against_own(ctx, ho, own), models
+    joint = [handover.joint_on_own(ctx, ho, group, mine)
+             for group, mine in zip(ctx.groups, own, strict=True)]  # fmt: skip
+    return handover.against_own(ctx, joint, own), models
 
 
 def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
