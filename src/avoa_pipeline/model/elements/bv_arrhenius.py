@@ -3,8 +3,8 @@ top of ``butler_volmer`` and only where the temperature moves."""
 
 from __future__ import annotations
 
-from .element import Element, Export, Kernel, Param, Piece, TableLaw
-from .thermal import CHARGE_TRANSFER_PRIOR, THETA_LIMITS, THETA_WHY
+from .element import Element, Export, Kernel, Piece, TableLaw
+from .thermal import CHARGE_TRANSFER_PRIOR, theta
 
 KERNEL = Kernel(
     columns={"thbv": "thbv"},
@@ -16,17 +16,7 @@ KERNEL = Kernel(
 
 ELEMENT = Element(
     name="bv_arrhenius",
-    params={
-        "thbv": Param(
-            "bv_theta_i0_k",
-            "lin",
-            0.0,
-            THETA_LIMITS,
-            THETA_WHY,
-            prior_sd=5000.0,
-            physical=CHARGE_TRANSFER_PRIOR,
-        )
-    },  # an exchange current's
+    params={"thbv": theta("bv_theta_i0_k", CHARGE_TRANSFER_PRIOR)},  # an exchange current's
     starts=lambda row, imax: [dict(thbv=3000.0)],
     signature="thermal's (the residual against I·ΔT) reads it",
     # its θ is a constant of butler_volmer's piece, which it needs

@@ -25,6 +25,13 @@ CHARGE_TRANSFER_PRIOR = (20e3 / R_GAS, 100e3 / R_GAS,
 K (docs/temperature-rule.md part 2). Sheet electrodes' charge-transfer resistances measured
 30-60 kJ/mol (RSC Adv. 13 (2023) 21667) lie inside it."""
 
+
+def theta(report: str, physical: tuple[float, float, str]) -> Param:
+    """An Arrhenius θ = Ea/R (K): 0 (no temperature dependence) up to THETA_LIMITS, a weak
+    prior at 0, and its physical prior (docs/temperature-rule.md part 2)."""
+    return Param(report, "lin", 0.0, THETA_LIMITS, THETA_WHY, prior_sd=5000.0, physical=physical)
+
+
 _ARRHENIUS = '''
 def arrhenius(theta_k, T_cell):
     """thermal: exp(θ·(1/T − 1/T_REF_K)), T the cell temperature in K (PyBaMM passes °C)."""
@@ -77,24 +84,8 @@ def _f1(p, s, tk, tref):
 ELEMENT = Element(
     name="thermal",
     params={
-        "th0": Param(
-            "thermal_theta_r0_k",
-            "lin",
-            0.0,
-            THETA_LIMITS,
-            THETA_WHY,
-            prior_sd=5000.0,
-            physical=OHMIC_PRIOR,
-        ),
-        "th1": Param(
-            "thermal_theta_rc_k",
-            "lin",
-            0.0,
-            THETA_LIMITS,
-            THETA_WHY,
-            prior_sd=5000.0,
-            physical=CHARGE_TRANSFER_PRIOR,
-        ),
+        "th0": theta("thermal_theta_r0_k", OHMIC_PRIOR),
+        "th1": theta("thermal_theta_rc_k", CHARGE_TRANSFER_PRIOR),
     },
     starts=lambda row, imax: [dict(th0=3000.0, th1=3000.0)],
     signature=Signature("load: residual follows I·(T − mean T)", _read),
