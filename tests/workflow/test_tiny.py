@@ -156,6 +156,11 @@ def test_restyling_a_figure_reruns_no_fit(runs):
     assert "fit" not in plan
 
 
+AGGREGATES = "results/aggregate/runs.parquet"
+"""Every fit record and the aggregates read from them: what the added seed's run makes (the
+dry run plans `paper`; the tables and figures after the aggregates are run_j2's)."""
+
+
 def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
     """The new seed joins block 1 (seeds 1-30): its 4 jobs (one per scenario × case, every
     algorithm) run, keep the 24 records they find (current job_key, untouched on disk) and
@@ -169,7 +174,7 @@ def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
     assert plan.get("fit_1") == 2 * 2  # 2 scenarios × 2 cases (3 algorithms in each job)
     before = {p: p.read_bytes() for p in (wd / "results/fits").rglob("*.json")}
     assert len(before) == 24
-    proc = snakemake(wd, "-j2", "paper", configs=configs)
+    proc = snakemake(wd, "-j2", AGGREGATES, configs=configs)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert all(p.read_bytes() == b for p, b in before.items())
     logs = list((wd / "logs/fits").rglob("block1.log"))
