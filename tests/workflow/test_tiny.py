@@ -61,9 +61,13 @@ def fresh_copy(tmp: Path) -> Path:
     return tmp
 
 
-def _run(base: Path, jobs: str) -> Path:
+COMPARED = [*(p for p in TABLES if p.endswith(".csv")), "results/tables/claims.csv"]
+"""What the -j1 run is compared on: the tables' CSVs (their fit records come with them)."""
+
+
+def _run(base: Path, jobs: str, *targets: str) -> Path:
     wd = fresh_copy(base / f"j{jobs}")
-    proc = snakemake(wd, "-j", jobs)
+    proc = snakemake(wd, "-j", jobs, *targets)
     assert proc.returncode == 0, proc.stderr[-4000:]
     return wd
 
@@ -76,7 +80,10 @@ def run_j2(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def runs(run_j2, tmp_path_factory):
-    return {"2": run_j2, "1": _run(tmp_path_factory.mktemp("tiny"), "1")}
+    """The whole run at -j2 and, at -j1, what the comparison reads: the fits and the tables
+    (not the figures and the gap diagnoses, which no test reads from it; the -j2 run makes
+    them all)."""
+    return {"2": run_j2, "1": _run(tmp_path_factory.mktemp("tiny"), "1", *COMPARED)}
 
 
 def test_every_table_and_figure_is_written(runs):
@@ -149,6 +156,11 @@ def test_restyling_a_figure_reruns_no_fit(runs):
     assert "fit" not in plan
 
 
+AGGREGATES = "results/aggregate/runs.parquet"
+"""Every fit record and the aggregates read from them: what the added seed's run makes (the
+dry run plans `paper`; the tables and figures after the aggregates are run_j2's)."""
+
+
 def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
     """The new seed joins block 1 (seeds 1-30): its 4 jobs (one per scenario × case, every
     algorithm) run, keep the 24 records they find (current job_key, untouched on disk) and
@@ -162,7 +174,7 @@ def test_adding_a_seed_computes_only_the_new_fits(runs, tmp_path):
     assert plan.get("fit_1") == 2 * 2  # 2 scenarios × 2 cases (3 algorithms in each job)
     before = {p: p.read_bytes() for p in (wd / "results/fits").rglob("*.json")}
     assert len(before) == 24
-    proc = snakemake(wd, "-j2", "paper", configs=configs)
+    proc = snakemake(wd, "-j2", AGGREGATES, configs=configs)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert all(p.read_bytes() == b for p, b in before.items())
     logs = list((wd / "logs/fits").rglob("block1.log"))
@@ -240,11 +252,16 @@ def cpu_hogs(n: int = HOGS, limit_s: float = HOG_LIMIT_S):
             h.wait()
 
 
+KILLED_TARGET = "paper"
+"""What the kill test runs: the fits, tables and figures it compares with the clean run, not the
+gap diagnoses (minutes of jobs that no assertion reads; run_j2 runs them)."""
+
+
 def test_kill_9_leaves_nothing_running_and_a_plain_rerun_completes(run_j2, tmp_path):
     """kill -9 of Snakemake while fits run, and again while a notebook runs, with two CPU-bound
     processes beside it: within a few seconds no job of it computes any more; then a plain
-    `snakemake -j2` (no --unlock, no --rerun-incomplete on the command line) completes with the
-    clean run's records and tables."""
+    `snakemake -j2 paper` (no --unlock, no --rerun-incomplete on the command line) completes with
+    the clean run's records and tables."""
     with cpu_hogs() as hogs:  # the kills under load; the rerun after them on a quiet machine
         wd = _kill_twice(tmp_path)
         assert all(h.poll() is None for h in hogs)  # they were spinning all along
@@ -262,7 +279,8 @@ def _kill_twice(tmp_path: Path) -> Path:
     env = {**os.environ, "XDG_CACHE_HOME": str(wd / ".cache")}
     for marker in ("fit.py", "papermill"):
         proc = subprocess.Popen(
-            [sys.executable, "-m", "snakemake", "-j2", "--configfile", "config/tiny.yaml"],
+            [sys.executable, "-m", "snakemake", "-j2", KILLED_TARGET,
+             "--configfile", "config/tiny.yaml"],
             cwd=wd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             start_new_session=True,
         )  # fmt: skip
@@ -286,9 +304,9 @@ def _kill_twice(tmp_path: Path) -> Path:
 
 
 def _rerun_matches(clean: Path, wd: Path) -> None:
-    """A plain `snakemake -j2` in the killed copy completes with the clean run's records and
-    tables."""
-    rerun = snakemake(wd, "-j2")
+    """A plain `snakemake -j2 paper` in the killed copy completes with the clean run's records
+    and tables."""
+    rerun = snakemake(wd, "-j2", KILLED_TARGET)
     assert rerun.returncode == 0, rerun.stderr[-3000:]
     a, b = clean, wd
     recs = sorted((a / "results/fits").rglob("*.json"))
