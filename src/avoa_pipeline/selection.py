@@ -76,6 +76,10 @@ BIC_MAX = -10.0
 """ΔBIC below −10: "very strong" evidence on Kass and Raftery's (1995) scale."""
 RECORD, TEMPERATURE = "record", "temperature"
 """The two hold-outs (:meth:`Context.scheme`): by record (or block), and by test temperature."""
+LEAVE_ONE_TEMPERATURE_OUT = "leave one temperature out"
+IDENTIFICATION_AND_PRIOR = "identification and prior"
+"""What admits a temperature law with three test temperatures or more, and with two
+(:attr:`Context.law_rule`)."""
 MIN_SHRINK = 0.05
 """A candidate must remove at least this share of the held-out ISE: a significant but smaller gain
 is no diagnosis (on a badly misspecified record, a voltage offset removing 0.7 % passed the tests).
@@ -211,6 +215,11 @@ class Candidate:
     def k(self) -> int:
         return self.st.k
 
+    def heldout(self, scheme: str) -> np.ndarray | None:
+        """The held-out voltage under ``scheme`` (:data:`RECORD` or :data:`TEMPERATURE`), None
+        where it was not held out so."""
+        return self.ho_t if scheme == TEMPERATURE else self.ho
+
     @property
     def effects(self) -> tuple[str, ...]:
         return self.st.effects
@@ -282,18 +291,20 @@ class Context:
         """How a candidate adding ``effect`` is held out (docs/temperature-rule.md part 2): a
         temperature law by test temperature where there are three or more
         (:data:`TEMPERATURE`), everything else by record or block (:data:`RECORD`)."""
-        law = effect in elements.REGISTRY and elements.get(effect).needs_temperature
-        return TEMPERATURE if law and len(self.groups) >= 3 else RECORD
+        return TEMPERATURE if _is_law(effect) and len(self.groups) >= 3 else RECORD
+
+    @property
+    def law_rule(self) -> str:
+        """What admits a temperature law on these records (docs/temperature-rule.md part 2)."""
+        if len(self.groups) >= 3:
+            return LEAVE_ONE_TEMPERATURE_OUT
+        if len(self.groups) == 2:
+            return IDENTIFICATION_AND_PRIOR
+        return "leave one record out" if self.layout.by_record else "held-out blocks"
 
     def decided_by(self, effect: str) -> str | None:
-        """What admits a temperature law ``effect`` on these records (None: not a law)."""
-        if not (effect in elements.REGISTRY and elements.get(effect).needs_temperature):
-            return None
-        if len(self.groups) >= 3:
-            return "leave one temperature out"
-        if len(self.groups) == 2:
-            return "identification and prior"
-        return "leave one record out" if self.layout.by_record else "held-out blocks"
+        """What admits ``effect`` where it is a temperature law (:attr:`law_rule`), else None."""
+        return self.law_rule if _is_law(effect) else None
 
     def n_folds(self, scheme: str = RECORD) -> int:
         return len(self.groups) if scheme == TEMPERATURE else len(self.layout.folds)
@@ -316,9 +327,9 @@ class Context:
 
     def held(self, cand: Candidate, scheme: str = RECORD) -> np.ndarray:
         """``cand``'s held-out voltage under ``scheme``, held out here if it was not yet."""
-        if (cand.ho_t if scheme == TEMPERATURE else cand.ho) is None:
+        if cand.heldout(scheme) is None:
             self.cross_validate(cand, scheme)
-        return cand.ho_t if scheme == TEMPERATURE else cand.ho
+        return cand.heldout(scheme)
 
     def _held_out(self, cand: Candidate, r: int, ho: np.ndarray) -> np.ndarray:
         """Fold (or held-out record) ``r`` of :meth:`cross_validate`: its fit's rows; its
@@ -382,6 +393,12 @@ class Context:
 
 # ----------------------------------------------------------------------------------------------
 # candidates
+
+
+def _is_law(effect: str) -> bool:
+    """Whether ``effect`` is a temperature law (``Element.needs_temperature``; a name outside
+    the library, e.g. a hand-over's label, is not)."""
+    return effect in elements.REGISTRY and elements.get(effect).needs_temperature
 
 
 def temperature_moves(recs: list[Record]) -> bool:
@@ -466,7 +483,7 @@ def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dic
         }
         if (decided := ctx.decided_by(e)) is not None:
             row["decided_by"] = decided
-        if (c.ho_t if scheme == TEMPERATURE else c.ho) is None:
+        if c.heldout(scheme) is None:
             # not cross-validated: its fit already fails the BIC criterion
             row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
         else:
@@ -485,7 +502,7 @@ def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dic
                 shrink=shrink, t=t, p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
                 pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
             )  # fmt: skip
-            if decided == "identification and prior" and row["pays"]:
+            if decided == IDENTIFICATION_AND_PRIOR and row["pays"]:
                 row.update(law_prior(ctx, c, e))
                 row["pays"] = row["identified"] is None and all(
                     q["inside"] for q in row["prior"].values()

@@ -763,7 +763,7 @@ def _method(ctx: selection.Context) -> dict:
         "folds": len(ctx.layout.folds),
         # docs/temperature-rule.md part 2: how a temperature law is judged on these records
         "test_temperatures": len(ctx.groups),
-        "temperature_laws_decided_by": ctx.decided_by("thermal"),
+        "temperature_laws_decided_by": ctx.law_rule,
         "blocks_per_fold": None if ctx.layout.by_record else selection.BLOCKS_PER_FOLD,
         "batches": len(ctx.layout.batches),
         "records_weighted_alike": True,
