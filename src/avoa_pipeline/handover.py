@@ -431,7 +431,7 @@ def expected_error(ctx: Context, ho: HandOver, ambients_c: list[float] | None = 
     groups = [] if ambients_c is None else heat.ambient_groups(ambients_c)
     if len(groups) > 1:
         out["by_temperature"] = [
-            {"ambient_c": float(np.mean([ambients_c[r] for r in g])),
+            {"ambient_c": group_ambient(ambients_c, g),
              "records": [ctx.recs[r].source for r in g], "samples": int(k.sum()),
              "rms_mv": 1e3 * float(np.sqrt(np.mean(err[k] ** 2))),
              "by_operating_point": _bins(err[k], mode[k], amps[k], sc[k], median)}
@@ -493,9 +493,10 @@ PER_TEMPERATURE = "per-temperature models"
 temperature's own diagnosis, and the per-temperature models are handed over instead."""
 
 
-def group_ambient(ctx: Context, group: list[int]) -> float:
-    """A test temperature's ambient: the mean of its records' (as ``expected_error`` labels it)."""
-    return float(np.mean([ctx.ambients_c[r] for r in group]))
+def group_ambient(ambients_c, group: list[int]) -> float:
+    """A test temperature's ambient: the mean of its records' ambients (``expected_error``'s
+    labels and the per-temperature sets')."""
+    return float(np.mean([ambients_c[r] for r in group]))
 
 
 def joint_on_own(ctx: Context, ho: HandOver, group: list[int], mine: HandOver) -> list:
@@ -538,7 +539,7 @@ def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
         la, lb, wt = np.concatenate(a) ** 2, np.concatenate(b) ** 2, np.concatenate(w)
         t, p, _ = selection.loss_test(la, lb, batches, wt)
         rows.append({
-            "ambient_c": group_ambient(ctx, group),
+            "ambient_c": group_ambient(ctx.ambients_c, group),
             "records": [ctx.recs[r].source for r in group],
             "own_model": mine.name,
             "own_score": mine.kind,

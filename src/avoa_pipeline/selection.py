@@ -767,12 +767,12 @@ def training_soc_range(ctx: Context, cand: Candidate) -> tuple[float, float]:
     return lo, hi
 
 
-def floors(ctx, selected: Candidate, frames: dict, capacity_ah=None) -> dict[str, dict]:
-    """Per validation record, the selected configuration fitted to that record alone (started by
-    the same rule): what the model family reaches on it when it may see it."""
+def floors(config: Config, frames: dict, capacity_ah=None) -> dict[str, dict]:
+    """Per validation record, the configuration ``config`` fitted to that record alone (started
+    by the same rule): what the model family reaches on it when it may see it."""
     out = {}
     for source, frame in frames.items():
-        fit = fit_model(frame, selected.st.config, capacity_ah)
+        fit = fit_model(frame, config, capacity_ah)
         out[source] = {"rmse_mv": fit.train_rmse_mv, "parameters": fit.model.parameters()}
     return out
 

@@ -53,7 +53,6 @@ from ..model.ecm import Record
 from ..model.elements.element import View
 from ..model.fitted import (
     FittedModel,
-    fit_model,
     prediction_errors,
     reference_temperature,
 )
@@ -443,11 +442,11 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
     }
     if vframes:  # records never used for any choice, predicted by every rung
         ctx.say(f"ladder done ({selected['name']}); validation records")
-        floor = selection.floors(ctx, final, vframes, capacity_ah)
+        floor = selection.floors(final.st.config, vframes, capacity_ah)
         report["validation"] = selection.validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
         if handed["name"] == handover.PER_TEMPERATURE:
-            _validate_per_temperature(report, model, validate, capacity_ah)
+            _validate_per_temperature(report, model, validate, vframes, capacity_ah)
         else:
             _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
@@ -461,7 +460,7 @@ def _hand_over(ctx: selection.Context, lad, selected: dict, capacity_ah, soc0,
     json's ``handed_over``, the model handed over)."""
     ho = handover.hand_over(ctx, lad, current_accuracy_a)
     handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
-    model = _handed_over_model(ctx, ho, selected["name"], ctx.ambients_c)
+    model = _handed_over_model(ctx, ho, selected["name"])
     per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a)
     if per_t is not None:
         handed, model = _never_worse(ctx, handed, model, *per_t)
@@ -478,7 +477,7 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
         return None
     own, models = [], []
     for group in ctx.groups:
-        ambient = handover.group_ambient(ctx, group)
+        ambient = handover.group_ambient(ctx.ambients_c, group)
         g = selection.Context([ctx.recs[r] for r in group], ctx.table, capacity_ah, soc0,
                               [ctx.ambients_c[r] for r in group])  # fmt: skip
         g.progress = lambda what, a=ambient: ctx.say(f"{a:g} °C alone: {what}")
@@ -487,7 +486,7 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
         ctx.count(g.fits)
         own.append(mine)
         models.append((ambient, _handed_over_model(g, mine, handover.model_name(
-            lad.selected.effects), g.ambients_c)))  # fmt: skip
+            lad.selected.effects))))  # fmt: skip
     joint = [handover.joint_on_own(ctx, ho, group, mine)
              for group, mine in zip(ctx.groups, own, strict=True)]  # fmt: skip
     return handover.against_own(ctx, joint, own), models
@@ -524,25 +523,23 @@ def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
 
 
 def _validate_per_temperature(report: dict, model: FittedModel, validate: list[Checked],
-                              capacity_ah) -> None:  # fmt: skip
+                              vframes: dict, capacity_ah) -> None:  # fmt: skip
     """The validation rows of handed-over per-temperature models: each record predicted by the
     sets at its ambient (``heat.ambient_if_any``; ``FittedModel.at_ambient``), beside the floor
-    of the sets' configuration fitted to it."""
+    of the sets' configuration fitted to it (``selection.floors``)."""
+    floor = selection.floors(model.config, vframes, capacity_ah)
+    report["floors"] += [{"record": k, "model": "handed_over", **f} for k, f in floor.items()]
     for c in validate:
         found = heat.ambient_if_any(c)
         fm = model if found is None else model.at_ambient(found[0])
         v, tr = fm.simulate(c.frame, traces=True)
         err = prediction_errors(v, c.frame["voltage_v"].to_numpy())
-        fl = fit_model(c.frame, model.config, capacity_ah)
-        report["floors"].append({"record": c.source, "model": "handed_over",
-                                 "rmse_mv": fl.train_rmse_mv,
-                                 "parameters": fl.model.parameters()})  # fmt: skip
+        fl = floor[c.source]["rmse_mv"]
         report["validation"].append({
             "record": c.source, "model": "handed_over", "effects": list(model.config.effects),
             "starts_at_rest": ecm.starts_at_rest(fm.record(c.frame)), "soc0": float(tr[0][0]),
             "ambient_c": None if found is None else found[0], "training_soc_range": None,
-            **err, "floor_rmse_mv": fl.train_rmse_mv,
-            "above_floor_mv": err["rmse_mv"] - fl.train_rmse_mv})  # fmt: skip
+            **err, "floor_rmse_mv": fl, "above_floor_mv": err["rmse_mv"] - fl})  # fmt: skip
 
 
 def _validate_handed_over(ctx, report: dict, ho, final, vframes: dict, floor: dict,
@@ -551,7 +548,7 @@ def _validate_handed_over(ctx, report: dict, ho, final, vframes: dict, floor: di
     its own configuration's floor (the verdict's where the two configurations are one)."""
     chosen = ho.chosen.cand
     if frozenset(chosen.effects) != frozenset(final.effects):
-        floor = selection.floors(ctx, chosen, vframes, capacity_ah)
+        floor = selection.floors(chosen.st.config, vframes, capacity_ah)
         report["floors"] += [{"record": k, "model": "handed_over", **f} for k, f in floor.items()]
     report["validation"] += selection.validation(ctx, {"handed_over": chosen}, vframes, floor)
 
@@ -589,11 +586,10 @@ def _where(ctx: selection.Context, base: selection.Candidate):
     return rec, resid, soc, noise_v, regions, windows
 
 
-def _handed_over_model(ctx, ho, verdict_model: str, ambients_c=None) -> FittedModel:
+def _handed_over_model(ctx, ho, verdict_model: str) -> FittedModel:
     """The model.json: the handed-over model, with its intervals (diagnosis.json carries the
-    same), the error to expect on other profiles, and the verdict's model named beside the
-    rule; ``ambients_c``: the training records' ambients, for the expected error by test
-    temperature."""
+    same), the error to expect on other profiles (by test temperature where the context's
+    records have ambients), and the verdict's model named beside the rule."""
     table = ctx.table
     model = selection.fitted_model(ctx, ho.chosen.cand, provenance={
         "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}",
@@ -603,7 +599,7 @@ def _handed_over_model(ctx, ho, verdict_model: str, ambients_c=None) -> FittedMo
         "package_version": __version__,
     })  # fmt: skip
     model.intervals = ho.chosen.iv.report()
-    model.expected_error = _jsonable(handover.expected_error(ctx, ho, ambients_c))
+    model.expected_error = _jsonable(handover.expected_error(ctx, ho, ctx.ambients_c))
     return model
 
 
