@@ -66,6 +66,16 @@ def model_at_ambient(model, rec, *, model_name, data_name, ambient_c: float | No
     return model.at_ambient(ambient), line
 
 
+def heat_ambient(model, rec, ambient_c: float | None, predict: bool = False) -> float | None:
+    """The ambient the heat block is to predict the cell temperature from (``cell_temperature``'s
+    ``ambient_c``): ``ambient_c``, except for a model of per-temperature sets on a record that
+    measured its temperature and is not asked to predict it: the ambient then chose the set
+    (:func:`model_at_ambient`), and the measured temperature runs. ``model``: as read, before
+    :func:`model_at_ambient`."""
+    measured = "temperature_c" in rec.frame.columns and not predict
+    return None if model.by_temperature is not None and measured else ambient_c
+
+
 def _sidecar(data_name, rec) -> dict:
     """The record's sidecar ({} where it was not read from a canonical CSV or has none)."""
     from .io import read_sidecar

@@ -82,18 +82,16 @@ class Model:
         parameters and the measured temperature still runs, as in ``simulate``."""
         import numpy as np
 
-        from .ambient import cell_temperature, model_at_ambient
+        from .ambient import cell_temperature, heat_ambient, model_at_ambient
         from .errors import UserError
         from .model_inputs import prediction_frame
 
         if soc0 is not None and not (np.isfinite(soc0) and 0.0 <= soc0 <= 1.0):
             raise UserError(f"soc0 must lie in [0, 1], got {soc0}")
         rec = self.record(record)
-        sets = self.fitted.by_temperature is not None
         fitted, _ = model_at_ambient(self.fitted, rec, model_name=self.source,
                                      data_name=rec.source, ambient_c=ambient_c)  # fmt: skip
-        if sets and "temperature_c" in rec.frame.columns:
-            ambient_c = None
+        ambient_c = heat_ambient(self.fitted, rec, ambient_c)  # the API predicts iff ambient_c
         temp_c, where, _ = cell_temperature(
             fitted, rec, model_name=self.source, data_name=rec.source, ambient_c=ambient_c,
             predict=ambient_c is not None, soc0=soc0)  # fmt: skip

@@ -77,7 +77,7 @@ def _warn(args, model, rec, pred, sets: bool = False) -> None:
 def run_simulate(args) -> None:
     import numpy as np
 
-    from ..ambient import cell_temperature, model_at_ambient
+    from ..ambient import cell_temperature, heat_ambient, model_at_ambient
     from ..io import atomic_path, check_output
     from ..model_inputs import prediction_frame, read_model_and_record
 
@@ -86,11 +86,9 @@ def run_simulate(args) -> None:
                                        current_sign=args.current_sign, predicts=True)  # fmt: skip
     frame = rec.frame
     sets = model.by_temperature is not None
+    ambient_c = heat_ambient(model, rec, args.ambient_c, args.predict_temperature)
     model, at_line = model_at_ambient(model, rec, model_name=args.model, data_name=args.data,
                                       ambient_c=args.ambient_c)  # fmt: skip
-    # for per-temperature sets --ambient-c chose the set; a measured temperature still runs
-    measured = "temperature_c" in frame.columns and not args.predict_temperature
-    ambient_c = None if sets and measured else args.ambient_c
     temp_c, source, pred = cell_temperature(
         model, rec, model_name=args.model, data_name=args.data, ambient_c=ambient_c,
         predict=args.predict_temperature, soc0=args.soc0)  # fmt: skip
