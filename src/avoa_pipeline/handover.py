@@ -171,37 +171,70 @@ def _requiring(effects, gone: set[str]) -> set[str]:
         gone |= more
 
 
-def refit(ctx: Context, cand: Candidate, effects) -> Candidate:
-    """``cand``'s structure with only ``effects`` kept, refitted by the selection's one fit from
-    ``cand``'s parameters with the others set back to neutral."""
-    st = ctx.structure(effects, cand.st.knots)
+def refit(ctx: Context, cand: Candidate, effects, pin=()) -> Candidate:
+    """``cand``'s structure with only ``effects`` kept (and ``pin`` held at neutral besides the
+    parameters it held already), refitted by the selection's one fit from ``cand``'s parameters
+    with the others set back to neutral."""
+    pinned = tuple(n for n in (*cand.st.pinned, *pin) if ecm.PARAMS[n].element in effects)
+    st = ctx.structure(effects, cand.st.knots, pinned=pinned)
     start = fitting.neutralise(cand.X, [e for e in cand.effects if e not in effects])
+    start[:, [ecm.IDX[n] for n in pinned]] = fitting.NEUTRAL[[ecm.IDX[n] for n in pinned]]
     return ctx.fit(st, [start], taus=())  # nested in the verdict's checked fit
+
+
+def pinnable(cand: Candidate, effect: str) -> tuple[str, ...]:
+    """The parameters of ``effect`` that ``cand``'s fit pressed to a bound where the element's
+    neutral value lies, where others of it are free and not pressed: held there, the element is
+    its other part (``thermal`` with the RC branches' θ at 0 is R0's Arrhenius factor alone), a
+    model the records may identify. Empty where no part would be left."""
+    z = cand.st.z_of(cand.X)
+    at = fitting.at_bound(z, cand.st.lo, cand.st.hi)
+    own = [k for k, n in enumerate(cand.st.shared) if ecm.PARAMS[n].element == effect]
+    pressed = [k for k in own if at[k]]
+    neutral = [k for k in pressed
+               if min(abs(cand.st.lo[k] - fitting.NEUTRAL[ecm.IDX[cand.st.shared[k]]]),
+                      abs(cand.st.hi[k] - fitting.NEUTRAL[ecm.IDX[cand.st.shared[k]]]))
+               <= fitting.AT_BOUND * (cand.st.hi[k] - cand.st.lo[k])]  # fmt: skip
+    if not neutral or len(neutral) < len(pressed) or len(pressed) == len(own):
+        return ()
+    return tuple(cand.st.shared[k] for k in neutral)
 
 
 def reduce(ctx: Context, verdict: Candidate, accuracy_a: float):
     """The verdict's model with every element removed that fails a hand-over condition (with
-    those that need it), refitted and checked again until every element left passes (at most as
-    many rounds as elements). Returns (the reduced candidate, element → why it was removed, the
-    warnings of the fits checked)."""
+    those that need it), refitted and checked again until every element left passes (at most
+    twice as many rounds as elements). An element that fails only because the fit pressed some
+    of its parameters to the bound where they vanish keeps its other part, those held at
+    neutral (:func:`pinnable`; once: failing again, it is removed). Returns (the reduced
+    candidate, element → why it was removed or what was held, the warnings of the fits
+    checked)."""
     cand, removed, warnings = verdict, {}, []
-    for _ in range(len(verdict.effects) + 1):
+    for _ in range(2 * len(verdict.effects) + 1):
         failed, _, said = failures(ctx, cand, accuracy_a)
         warnings += said
         if not failed:
             break
-        gone = _requiring(cand.effects, set(failed))
+        pin = {e: pinnable(cand, e) for e in failed if e not in removed}
+        pin = {e: p for e, p in pin.items() if p}
+        for e, p in pin.items():
+            removed[e] = [*failed[e], "held at neutral, the element kept without it: "
+                          + ", ".join(ecm.PARAMS[n].report for n in p)]  # fmt: skip
+        gone = _requiring(cand.effects, set(failed) - set(pin))
         for e in gone:
             removed[e] = failed.get(e) or [f"needs {ecm.REQUIRES[e]}, which was removed"]
-        cand = refit(ctx, cand, tuple(e for e in cand.effects if e not in gone))
-        ctx.say(f"hand-over: {', '.join(sorted(gone))} removed from the verdict's model")
+        cand = refit(ctx, cand, tuple(e for e in cand.effects if e not in gone),
+                     [n for p in pin.values() for n in p])  # fmt: skip
+        said_now = [f"{e} kept with {', '.join(p)} held at neutral" for e, p in pin.items()]
+        if gone:
+            said_now.insert(0, f"{', '.join(sorted(gone))} removed from the verdict's model")
+        ctx.say("hand-over: " + "; ".join(said_now))
     return cand, removed, warnings
 
 
 def with_second_rc(ctx: Context, ref: Candidate) -> Candidate:
     """``ref`` plus a second RC branch, by the ladder's own way of adding an element (its starts;
     a nested model that fits worse keeps the reference's optimum)."""
-    st = ctx.structure((*ref.effects, SECOND_RC), ref.st.knots)
+    st = ctx.structure((*ref.effects, SECOND_RC), ref.st.knots, pinned=ref.st.pinned)
     c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, SECOND_RC))
     if c.rss > ref.rss:
         c = ctx.evaluate(st, fitting.neutralise(ref.X, (SECOND_RC,)))
@@ -353,6 +386,7 @@ def report(ho: HandOver) -> dict:
         "candidate": ho.chosen.name,
         "effects": list(ho.chosen.effects),
         "n_params": ho.chosen.cand.k,
+        "held_at_neutral": [ecm.PARAMS[n].report for n in ho.chosen.cand.st.pinned],
         "score": ho.kind,
         "heldout_rmse_mv": _mv(ho.chosen.score),
         "guarantee": guarantee,

@@ -259,10 +259,12 @@ class Context:
         with self._lock:
             self.fits += fits
 
-    def structure(self, effects, knots: Knots, recs=None) -> fitting.Structure:
+    def structure(self, effects, knots: Knots, recs=None, pinned=()) -> fitting.Structure:
+        """``effects``' structure on ``recs`` (default the training records), ``pinned``
+        parameters held where the rows put them (``fitting.Structure.pinned``)."""
         return fitting.structure(self.recs if recs is None else recs,
                                  Config(tuple(effects), self.table), knots, self.fix_q,
-                                 self.fix_s)  # fmt: skip
+                                 self.fix_s, pinned)  # fmt: skip
 
     def simulate(self, st: fitting.Structure, X: np.ndarray) -> np.ndarray:
         return np.concatenate([
@@ -363,7 +365,7 @@ class Context:
         written into ``ho``; the fit's rows returned."""
         keep = [j for j in range(len(self.recs)) if j not in out]
         recs = [self.recs[j] for j in keep]
-        st = self.structure(cand.effects, cand.st.knots, recs)
+        st = self.structure(cand.effects, cand.st.knots, recs, cand.st.pinned)
         if "ocv_shape" in st.effects:  # the correction spans the training data's SOC
             st = replace(st, knots=fitting.knots_for(recs, cand.X[keep]))
         res = fitting.fit_structure(recs, st, cand.X[keep],
@@ -755,7 +757,8 @@ def parameters(ctx: Context, cand: Candidate) -> dict:
 
 
 def fitted_model(ctx: Context, cand: Candidate, provenance=None) -> FittedModel:
-    return model_of(ctx.recs, cand.st.config, cand.X, cand.st.knots, ctx.fix_q, provenance)
+    return model_of(ctx.recs, cand.st.config, cand.X, cand.st.knots, ctx.fix_q, provenance,
+                    cand.st.pinned)  # fmt: skip
 
 
 def training_soc_range(ctx: Context, cand: Candidate) -> tuple[float, float]:

@@ -231,3 +231,40 @@ def test_a_joint_model_worse_than_each_temperatures_own_hands_over_the_per_tempe
     (row,) = [v for v in d.report["validation"] if v["model"] == "handed_over"]
     assert row["ambient_c"] == 40.0
     assert row["rmse_mv"] < 5.0  # the 40 °C set (the 20 °C set misses by 40 mΩ × 2 A = 80 mV)
+
+
+def test_a_law_whose_second_factor_is_pressed_to_zero_keeps_its_first_at_the_hand_over():
+    """R0 rises in the cold (θ0 3000 K), the RC branch does not (its resistance falls, θ1
+    -2000 K, outside the law's searched range θ ≥ 0): the fit presses θ1 to 0, where its factor
+    vanishes. The hand-over keeps R0's law with θ1 held at 0 (not the whole element removed), its
+    model.json entry held, and it says so."""
+    from avoa_pipeline import handover
+
+    truth = {**TRUTH, "thermal_theta_r0_k": 3000.0, "thermal_theta_rc_k": -2000.0}
+    ambients = [5.0, 20.0, 35.0]
+    frames = [at_ambient(a, truth, seed=k, moves=True) for k, a in enumerate(ambients)]
+    ctx = context(frames, ambients)
+    base = selection.fit_base(ctx)
+    law = selection.try_effects(ctx, base, ["thermal"], cv=False)["thermal"]
+    assert handover.pinnable(law, "thermal") == ("th1",)
+    reduced, removed, _ = handover.reduce(ctx, law, 0.003)
+    assert reduced.effects == ("thermal",)
+    assert reduced.st.pinned == ("th1",)
+    assert "th1" not in reduced.st.shared
+    assert reduced.X[0, ecm.IDX["th1"]] == 0.0
+    assert "held at neutral" in removed["thermal"][-1]
+    assert reduced.rss < base.rss
+    # held out by temperature with the pin kept: the held-out fits leave θ1 at 0 too
+    ctx.cross_validate(reduced, TEMPERATURE)
+    assert all(float(x[0, ecm.IDX["th1"]]) == 0.0 for x in reduced.fold_X_t)
+    model = fitted_model(ctx, reduced)
+    assert model.bounds["th1"] == (0.0, 0.0)
+    ho = handover.hand_over(ctx, _ladder(base, law))
+    assert ho.chosen.effects == ("thermal",)
+    assert handover.report(ho)["held_at_neutral"] == ["thermal_theta_rc_k"]
+    # a one-parameter element pressed to its neutral bound is removed, not pinned
+    assert handover.pinnable(selection.Candidate(law.st, law.X, law.v, law.rss), "entropic") == ()
+
+
+def _ladder(base, final) -> selection.Ladder:
+    return selection.Ladder(base, {}, [], [], None, [], [final], [], final)

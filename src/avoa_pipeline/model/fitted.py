@@ -1073,7 +1073,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
 
 
 def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bool,
-             provenance: dict | None = None) -> FittedModel:  # fmt: skip
+             provenance: dict | None = None, pinned=()) -> FittedModel:  # fmt: skip
     """The fitted model of ``config`` fitted as rows ``X`` to ``recs``: the cell's parameters
     (the first row's), the bounds the fit searched (``fitting.bounds_for``; a given capacity
     held at its value), the records' reference temperature and current scale."""
@@ -1083,6 +1083,8 @@ def model_of(recs, config: Config, X: np.ndarray, knots: Knots, fix_capacity: bo
     bounds = {n: b[n] for n in config.names() if not ecm.PARAMS[n].per_record}
     if fix_capacity:
         bounds["lq"] = (X[0, IDX["lq"]],) * 2
+    for n in pinned:  # held at its neutral value by the fit (``fitting.Structure.pinned``)
+        bounds[n] = (X[0, IDX[n]],) * 2
     return FittedModel(config, X[0].copy(), knots, recs[0].tref_k, bounds, provenance or {},
                        training_current_scale(recs))  # fmt: skip
 

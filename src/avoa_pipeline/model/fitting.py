@@ -142,6 +142,8 @@ class Structure:
     prior: np.ndarray  # (nz, 2): mean, sd (inf: none)
     knots: Knots = field(default_factory=lambda: Knots(0.0, 0.2))
     soc0_rule: bool = True  # every record's SOC0 from its opening (ecm.soc0_rows), not given
+    pinned: tuple[str, ...] = ()  # an element's parameters held at their neutral value
+    # (``handover.reduce``: a law's factor the fit pressed to the bound where it vanishes)
 
     @property
     def effects(self) -> tuple[str, ...]:
@@ -167,7 +169,8 @@ class Structure:
 
 
 def structure(recs: list[Record], config: Config, knots: Knots | None = None,
-              fix_capacity: bool = False, fix_soc0: bool = False) -> Structure:  # fmt: skip
+              fix_capacity: bool = False, fix_soc0: bool = False,
+              pinned: tuple[str, ...] = ()) -> Structure:  # fmt: skip
     """The free parameters of ``config`` on ``recs``: the cell's, shared by every record. No
     state of a record is fitted: its initial SOC is given (``fix_soc0``) or comes from the
     library's one rule (``ecm.soc0_rows``: from the record's opening, with the parameters being
@@ -177,13 +180,15 @@ def structure(recs: list[Record], config: Config, knots: Knots | None = None,
     shared = [n for n in names if not ecm.PARAMS[n].per_record]
     if fix_capacity:
         shared.remove("lq")
+    pinned = tuple(n for n in pinned if n in shared)  # held where the rows put them (neutral)
+    shared = [n for n in shared if n not in pinned]
     b = bounds_for(recs, config.table)
     pr = priors_for(recs, config.table)
     lo = np.array([b[n][0] for n in shared])
     hi = np.array([b[n][1] for n in shared])
     prior = np.array([pr.get(n, (0.0, np.inf)) for n in shared])
     return Structure(config, tuple(shared), len(recs), lo, hi, prior,
-                     knots or Knots(0.0, 0.2), not fix_soc0)  # fmt: skip
+                     knots or Knots(0.0, 0.2), not fix_soc0, pinned)  # fmt: skip
 
 
 def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
