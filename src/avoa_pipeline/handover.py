@@ -524,7 +524,8 @@ def correlation_time(ctx: Context, held) -> dict:
 
 PER_TEMPERATURE = "per-temperature models"
 """``handed_over.name`` where the joint model would be worse at a test temperature than that
-temperature's own diagnosis, and the per-temperature models are handed over instead."""
+temperature's own diagnosis: one set per test temperature, the own model there and the joint
+model at the others."""
 
 
 def group_ambient(ambients_c, group: list[int]) -> float:
@@ -601,4 +602,7 @@ def per_temperature_summary(pt: dict) -> str:
              for r in pt["groups"] if r["joint_worse"]]  # fmt: skip
     if not worse:
         return "not worse than the per-temperature models at any test temperature"
-    return f"the joint model is worse at {', '.join(worse)}: {PER_TEMPERATURE} handed over"
+    return (
+        f"the joint model is worse at {', '.join(worse)}: there that temperature's own "
+        "model handed over, the joint model at the others"
+    )

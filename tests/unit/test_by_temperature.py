@@ -453,3 +453,30 @@ def test_the_sets_ambients_are_the_heat_blocks_range():
     d["by_temperature"][0]["ambient_c"] = lo - 1.0
     with pytest.raises(DataError, match=f"outside a cell's ambient .°C. \\[{lo:g}, {hi:g}\\]"):
         FittedModel.from_json(d)
+
+
+def test_where_the_joint_model_is_worse_at_one_temperature_only_that_one_takes_its_own():
+    """docs/temperature-rule.md part 4, as amended: the test finds the joint model worse at
+    0 °C only, so 0 °C gets its own set and 25 and 40 °C the joint model itself; the held-out
+    RMSE handed over is each temperature's under the model it got."""
+    from avoa_pipeline.gap import diagnose as gd
+
+    own = sets()
+    model = cell(("second_rc",), {"r0_ohm": 0.07}, 299.0)
+    rows = [{"ambient_c": a, "own_model": "x", "joint_worse": a == 0.0,
+             "own_heldout_rmse_mv": 5.0, "joint_heldout_rmse_mv": j}
+            for a, j in zip(SETS, (9.0, 4.0, 6.0), strict=True)]  # fmt: skip
+    pt = {"groups": rows, "joint_worse": True}
+    handed = {"name": "second_rc", "effects": ["second_rc"], "n_params": 8,
+              "heldout_rmse_mv": 6.5, "score": "s", "parameters": model.parameters()}  # fmt: skip
+    out, combined = gd._never_worse(None, handed, model, pt, own)
+    got = dict(combined.by_temperature)
+    assert got[0.0].parameters()["r0_ohm"] == pytest.approx(0.12)
+    for a in (25.0, 40.0):
+        assert got[a].parameters()["r0_ohm"] == pytest.approx(0.07)
+    assert [r["handed_over"] for r in out["per_temperature"]["groups"]] == [
+        "x", "the joint model", "the joint model"]  # fmt: skip
+    assert out["heldout_rmse_mv"] == pytest.approx(np.sqrt((25 + 16 + 36) / 3))
+    assert out["joint"]["heldout_rmse_mv"] == 6.5
+    # at 30 °C, between two sets of the joint model: the joint model's values
+    assert combined.at_ambient(30.0).parameters()["r0_ohm"] == pytest.approx(0.07)

@@ -494,13 +494,17 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
 
 def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
     """``handed_over`` with its ``per_temperature`` comparison; where the joint model is worse
-    at a test temperature, the per-temperature models handed over as one model.json
-    (``FittedModel.per_temperature``) and said so, the joint hand-over kept beside them."""
+    at a test temperature, that temperature's own model handed over there and the joint model at
+    every other (docs/temperature-rule.md part 4, as amended), as one model.json
+    (``FittedModel.per_temperature``), said so, the joint hand-over kept beside them."""
     handed = {**handed, "per_temperature": pt}
     if not pt["joint_worse"]:
         return handed, model
+    rows = pt["groups"]
+    sets = [(a, m if r["joint_worse"] else model)
+            for (a, m), r in zip(models, rows, strict=True)]  # fmt: skip
     combined = FittedModel.per_temperature(
-        models,
+        sets,
         provenance={
             **model.provenance,
             "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}; "
@@ -509,15 +513,20 @@ def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
     )
     joint = {k: handed[k] for k in ("name", "effects", "n_params", "heldout_rmse_mv", "score",
                                     "parameters")}  # fmt: skip
-    sq = np.mean([(r["own_heldout_rmse_mv"] or np.inf) ** 2 for r in pt["groups"]])
+    for r in rows:
+        r["handed_over"] = r["own_model"] if r["joint_worse"] else "the joint model"
+    held = [r["own_heldout_rmse_mv"] if r["joint_worse"] else r["joint_heldout_rmse_mv"]
+            for r in rows]  # fmt: skip
+    sq = np.mean([(np.inf if x is None else x) ** 2 for x in held])
     handed.update(
         name=handover.PER_TEMPERATURE, candidate=handover.PER_TEMPERATURE,
         effects=list(combined.config.effects), joint=joint,
-        score="each test temperature's own diagnosis's held-out score, temperatures alike",
+        score="on the samples each test temperature's own diagnosis held out, the model handed "
+              "over there (its own, or the joint one), temperatures alike",
         heldout_rmse_mv=float(np.sqrt(sq)) if np.isfinite(sq) else None,
-        parameters={"by_temperature": [{"ambient_c": a, "name": pt["groups"][k]["own_model"],
+        parameters={"by_temperature": [{"ambient_c": a, "name": r["handed_over"],
                                         "parameters": m.parameters()}
-                                       for k, (a, m) in enumerate(models)]},
+                                       for (a, m), r in zip(sets, rows, strict=True)]},
     )  # fmt: skip
     return handed, combined
 
