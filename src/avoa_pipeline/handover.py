@@ -534,17 +534,20 @@ def group_ambient(ambients_c, group: list[int]) -> float:
     return float(np.mean([ambients_c[r] for r in group]))
 
 
-def joint_on_own(ctx: Context, ho: HandOver, group: list[int], mine: HandOver) -> list:
+def joint_on_own(ctx: Context, ho: HandOver, group: list[int], mine: HandOver,
+                 stretch=None) -> list:  # fmt: skip
     """Part 4: the joint hand-over's held-out errors on the samples a test temperature's own
     diagnosis (``mine``, the records ``group``) scored, the joint model having seen what the own
     one saw and the other temperatures' records besides: its leave-one-record-out errors where
     the own score held out whole records; where the temperature has one record (the own score's
     forward stretches), the joint structure refitted to the record's samples before each cut and
-    every other record (:func:`forward`). One error array per segment of ``mine.chosen.held``."""
+    every other record (:func:`forward`; ``stretch(cut)`` in its place where the joint model is
+    no one structure, ``per_temperature.forward``). One error array per segment of
+    ``mine.chosen.held``."""
     o = ctx.layout.offsets
     if len(group) == 1:
-        return [e for _, _, e in selection.each(
-            lambda cut: forward(ctx, ho.chosen.cand, cut, group[0]), FORWARD_CUTS)]  # fmt: skip
+        fwd = stretch or (lambda cut: forward(ctx, ho.chosen.cand, cut, group[0]))
+        return [e for _, _, e in selection.each(fwd, FORWARD_CUTS)]
     joint = np.empty(ctx.n)
     for r, idx, e in ho.chosen.held:  # leave one record out: every sample of every record
         joint[o[r] + idx] = e

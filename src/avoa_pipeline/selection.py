@@ -249,6 +249,16 @@ class Context:
         self._lock = threading.Lock()  # fits are counted from several threads (:func:`each`)
         self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
 
+    def subset(self, idx: list[int]) -> Context:
+        """The context of the records ``idx`` alone: the same OCV, fixed quantities and reference
+        temperature (the records are the same objects), their ambients; its progress said
+        through this one's, its fits counted apart (add them with :meth:`count`)."""
+        sub = Context([self.recs[r] for r in idx], self.table,
+                      ambients_c=None if self.ambients_c is None
+                      else [self.ambients_c[r] for r in idx])  # fmt: skip
+        sub.fix_q, sub.fix_s = self.fix_q, self.fix_s
+        return sub
+
     def say(self, what: str) -> None:
         if self.progress is not None:
             with self._lock:
@@ -293,7 +303,7 @@ class Context:
         """How a candidate adding ``effect`` is held out (docs/temperature-rule.md part 2): a
         temperature law by test temperature where there are three or more
         (:data:`TEMPERATURE`), everything else by record or block (:data:`RECORD`)."""
-        return TEMPERATURE if _is_law(effect) and len(self.groups) >= 3 else RECORD
+        return TEMPERATURE if is_law(effect) and len(self.groups) >= 3 else RECORD
 
     @property
     def law_rule(self) -> str:
@@ -306,7 +316,7 @@ class Context:
 
     def decided_by(self, effect: str) -> str | None:
         """What admits ``effect`` where it is a temperature law (:attr:`law_rule`), else None."""
-        return self.law_rule if _is_law(effect) else None
+        return self.law_rule if is_law(effect) else None
 
     def n_folds(self, scheme: str = RECORD) -> int:
         return len(self.groups) if scheme == TEMPERATURE else len(self.layout.folds)
@@ -397,7 +407,7 @@ class Context:
 # candidates
 
 
-def _is_law(effect: str) -> bool:
+def is_law(effect: str) -> bool:
     """Whether ``effect`` is a temperature law (``Element.needs_temperature``; a name outside
     the library, e.g. a hand-over's label, is not)."""
     return effect in elements.REGISTRY and elements.get(effect).needs_temperature
@@ -489,21 +499,8 @@ def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dic
             # not cross-validated: its fit already fails the BIC criterion
             row.update(heldout_rmse_mv=None, shrink=None, t=None, p=None, pays=False)
         else:
-            loss_ref = ctx.ho_loss(ref, scheme)
-            ise_ref = float(np.sum(ctx.w * loss_ref))
-            loss = ctx.ho_loss(c, scheme)
-            t, p_mean, _ = loss_test(loss_ref, loss, ctx.layout.batches, ctx.w)
-            wins, p_rank = batch_rank_test(loss_ref, loss, ctx.layout.batches)
-            shrink = 1.0 - float(np.sum(ctx.w * loss)) / ise_ref
-            # two tests, each at ALPHA / (2 m): the mean test sees a gain confined to a few
-            # batches (an effect that acts only in pulses), the rank test a gain spread over
-            # most batches that one unpredictable block hides from the mean
-            p = min(1.0, 2.0 * min(p_mean, p_rank))
-            row.update(
-                heldout_rmse_mv=1e3 * float(np.sqrt(float(np.sum(ctx.w * loss)) / n)),
-                shrink=shrink, t=t, p_mean=p_mean, batches_better=wins, p_rank=p_rank, p=p,
-                pays=bool(p < ALPHA / m and row["delta_bic"] < BIC_MAX and shrink >= MIN_SHRINK),
-            )  # fmt: skip
+            row.update(compare(ctx, ctx.ho_loss(ref, scheme), ctx.ho_loss(c, scheme), m,
+                               row["delta_bic"]))  # fmt: skip
             if decided == IDENTIFICATION_AND_PRIOR and row["pays"]:
                 row.update(law_prior(ctx, c, e))
                 row["pays"] = row["identified"] is None and all(
@@ -511,6 +508,27 @@ def judge(ctx: Context, ref: Candidate, cands: dict[str, Candidate]) -> list[dic
                 )
         out.append(row)
     return out
+
+
+def compare(ctx: Context, loss_ref: np.ndarray, loss: np.ndarray, m: int,
+            delta_bic: float) -> dict:  # fmt: skip
+    """Whether a candidate with held-out losses ``loss`` pays against a reference with
+    ``loss_ref`` (per sample, the training records' samples), one of ``m`` candidates, its fit to
+    all training data ``delta_bic`` from the reference's: the held-out RMSE, the shrink, both
+    tests and the verdict (the module's point 3)."""
+    ise_ref = float(np.sum(ctx.w * loss_ref))
+    t, p_mean, _ = loss_test(loss_ref, loss, ctx.layout.batches, ctx.w)
+    wins, p_rank = batch_rank_test(loss_ref, loss, ctx.layout.batches)
+    shrink = 1.0 - float(np.sum(ctx.w * loss)) / ise_ref
+    # two tests, each at ALPHA / (2 m): the mean test sees a gain confined to a few batches (an
+    # effect that acts only in pulses), the rank test a gain spread over most batches that one
+    # unpredictable block hides from the mean
+    p = min(1.0, 2.0 * min(p_mean, p_rank))
+    return {
+        "heldout_rmse_mv": 1e3 * float(np.sqrt(float(np.sum(ctx.w * loss)) / ctx.n)),
+        "shrink": shrink, "t": t, "p_mean": p_mean, "batches_better": wins, "p_rank": p_rank,
+        "p": p, "pays": bool(p < ALPHA / m and delta_bic < BIC_MAX and shrink >= MIN_SHRINK),
+    }  # fmt: skip
 
 
 def law_prior(ctx: Context, cand: Candidate, effect: str) -> dict:

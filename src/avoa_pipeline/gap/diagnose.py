@@ -40,13 +40,14 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 from threadpoolctl import threadpool_limits
 
-from .. import __version__, handover, records, selection
+from .. import __version__, handover, per_temperature, records, selection
 from ..errors import DataError, UserError
 from ..model import ecm, elements, fitting, heat, intervals, ocv
 from ..model.ecm import Record
@@ -445,7 +446,7 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         floor = selection.floors(final.st.config, vframes, capacity_ah)
         report["validation"] = selection.validation(ctx, rungs, vframes, floor)
         report["floors"] = [{"record": k, "model": selected["name"], **f} for k, f in floor.items()]
-        if handed["name"] == handover.PER_TEMPERATURE:
+        if model.by_temperature is not None:
             _validate_per_temperature(report, model, validate, vframes, capacity_ah)
         else:
             _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
@@ -461,13 +462,48 @@ def _hand_over(ctx: selection.Context, lad, selected: dict, capacity_ah, soc0,
     ho = handover.hand_over(ctx, lad, current_accuracy_a)
     handed = {**handover.report(ho), "parameters": selection.parameters(ctx, ho.chosen.cand)}
     model = _handed_over_model(ctx, ho, selected["name"])
-    per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a)
+    table = None
+    if len(ctx.groups) >= 2:
+        ho, handed, model, table = _table(ctx, ho, handed, model)
+    per_t = _per_temperature(ctx, ho, capacity_ah, soc0, current_accuracy_a, table)
     if per_t is not None:
         handed, model = _never_worse(ctx, handed, model, *per_t)
     return ho, handed, model
 
 
-def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accuracy_a):
+def _table(ctx: selection.Context, ho, handed: dict, model: FittedModel):
+    """Part 2: the hand-over's circuit with per-temperature parameters (``per_temperature``),
+    judged against the model handed over; where it wins, the rule's result, ``handed_over``
+    and model.json are the table's (the laws' model kept in ``handed_over.laws``). Returns
+    (result, handed_over, model, the table where it won, else None)."""
+    table = per_temperature.fit(ctx, ho.chosen.cand)
+    verdict = per_temperature.judge(ctx, ho.chosen.cand, table, ho.accuracy_a)
+    handed = {**handed, "per_temperature_parameters": verdict}
+    ctx.say(f"{per_temperature.NAME}: {verdict['kept']} kept")
+    if verdict["kept"] != per_temperature.NAME:
+        return ho, handed, model, None
+    entry = handover.Entry(per_temperature.NAME, table.cand)
+    handover.score(ctx, entry)  # its record hold-out, made by the judgement
+    ho = replace(ho, chosen=entry)
+    combined = per_temperature.combined(table, provenance={
+        **model.provenance, "selected_by": f"avoa_pipeline gap diagnosis: {handover.RULE}; "
+        "per-temperature parameters against the temperature laws (docs/temperature-rule.md "
+        "part 2)"})  # fmt: skip
+    combined.expected_error = _jsonable(handover.expected_error(ctx, ho, ctx.ambients_c))
+    laws = {k: handed[k] for k in ("name", "effects", "n_params", "heldout_rmse_mv", "score",
+                                   "parameters")}  # fmt: skip
+    handed.update(
+        name=per_temperature.NAME, candidate=per_temperature.NAME, laws=laws,
+        effects=list(table.circuit.effects), n_params=table.k,
+        heldout_rmse_mv=1e3 * float(np.sqrt(entry.score)), held_at_neutral=[],
+        parameters={"by_temperature": [{"ambient_c": a, "parameters": m.parameters()}
+                                       for a, m in combined.by_temperature]},
+    )  # fmt: skip
+    return ho, handed, combined, table
+
+
+def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accuracy_a,
+                     table=None):  # fmt: skip
     """With two test temperatures or more: each one's own diagnosis (its records alone, the
     same options and the same reference temperature, so that the sets interpolate: the base
     fit, the ladder and the hand-over; what the joint diagnosis reports beside them is not
@@ -487,8 +523,9 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
         own.append(mine)
         models.append((ambient, _handed_over_model(g, mine, handover.model_name(
             lad.selected.effects))))  # fmt: skip
-    joint = [handover.joint_on_own(ctx, ho, group, mine)
-             for group, mine in zip(ctx.groups, own, strict=True)]  # fmt: skip
+    joint = [handover.joint_on_own(ctx, ho, group, mine, None if table is None else
+                                   lambda cut, g=g: per_temperature.forward(table, g, cut))
+             for g, (group, mine) in enumerate(zip(ctx.groups, own, strict=True))]  # fmt: skip
     return handover.against_own(ctx, joint, own), models
 
 
@@ -501,7 +538,7 @@ def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
     if not pt["joint_worse"]:
         return handed, model
     rows = pt["groups"]
-    sets = [(a, m if r["joint_worse"] else model)
+    sets = [(a, m if r["joint_worse"] else model.at_ambient(a))  # a table: its set there
             for (a, m), r in zip(models, rows, strict=True)]  # fmt: skip
     combined = FittedModel.per_temperature(
         sets,
