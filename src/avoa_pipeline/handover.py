@@ -422,6 +422,10 @@ def summary_line(handed: dict) -> str:
     left = [f"{v['effect']} ({v['why']})" for v in handed["verdict_elements"]
             if not v["handed_over"]]  # fmt: skip
     line += "; left out of the verdict's model: " + "; ".join(left) if left else ""
+    if (table := handed.get("per_temperature_parameters")) is not None:
+        line += (f"; per-temperature parameters ({table['held_out']}): "
+                 f"{_shown(table['heldout_rmse_mv'])} mV against the laws' model's "
+                 f"{_shown(table['laws_heldout_rmse_mv'])}, {table['kept']} kept")  # fmt: skip
     if handed.get("per_temperature"):
         line += "; " + per_temperature_summary(handed["per_temperature"])
     return line
