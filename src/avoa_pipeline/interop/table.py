@@ -34,6 +34,7 @@ from .. import __version__, records
 from ..errors import UserError
 from ..model import ecm, elements
 from ..model.elements.element import TableLaw
+from ..model.elements.entropic import DUDT_SHAPE
 from ..model.fitted import FittedModel
 
 FORMAT = "avoa-pipeline-table"
@@ -79,6 +80,9 @@ def _laws(model: FittedModel):
     knots = model.knots.grid()
     p = dict(phys.scalars) | {e: (lambda s, v=v: np.interp(s, knots, v))
                               for e, v in phys.at_knots.items()}  # fmt: skip
+    table = model.config.table
+    if table is not None and table.dudt_shape().size > 0:  # the slow tests' ∂U/∂T profile
+        p[DUDT_SHAPE] = table.entropic_shape
     return p, [elements.get(e).table for e in elements.NAMES if e in model.config.effects]
 
 
