@@ -290,8 +290,12 @@ def scalars(model: FittedModel) -> dict:
         out["thermal_theta_tau_k"] = entry(P[ecm.THTAU], "K", "Arrhenius θτ of the RC time "
                                            "constants (in the tau columns)")  # fmt: skip
     if "entropic" in effects:
+        table = model.config.table
+        profile = table is not None and table.dudt_shape().size > 0
         out["entropic_dudt_v_per_k"] = entry(P[ecm.DUDT], "V/K", "∂U/∂T of the OCV (in the "
-                                             "ocv_v column)")  # fmt: skip
+                                             "ocv_v column)" + (
+            "; where the slow tests' profile peaks: the profile's scale is this over "
+            f"{table.dudt_peak():.4g} V/K" if profile else ""))  # fmt: skip
     if "capacity_temperature" in effects:
         out["capacity_temp_coeff_per_k"] = entry(P[ecm.KQ], "1/K", "κQ: the capacity is "
                                                  "Q·(1 + κQ·(T − tref_k)) (in the capacity_ah "
