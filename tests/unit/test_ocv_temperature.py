@@ -95,6 +95,14 @@ def slow_files(tmp_path_factory):
     return [_write(slow_test(a, k), root / f"slow_{a:g}C.csv") for k, a in enumerate(AMBIENTS_C)]
 
 
+@pytest.fixture(scope="module")
+def profile_model(slow_files) -> FittedModel:
+    """entropic scaling the slow tests' profile, fitted to drives at 25 and 40 °C."""
+    table = inputs.read_ocv(slow_files)
+    return fit_model([drive(25.0, 11), drive(40.0, 12)], ecm.Config(("entropic",), table),
+                     Q_AH).model  # fmt: skip
+
+
 def test_the_profile_is_recovered_within_its_noise(slow_files):
     """∂U/∂T at each SOC within its noise: each point's OCV carries about 0.6 mV (1 mV of noise,
     the branches averaged), so its slope over 10, 25 and 40 °C about 0.6/√450 = 0.028 mV/K; the
@@ -235,12 +243,10 @@ def test_a_slow_test_without_temperature_is_refused_where_ocv_is_repeated(slow_f
     assert "'soc', 'ocv_v'" in err
 
 
-def test_the_profile_goes_through_model_json(slow_files, tmp_path):
+def test_the_profile_goes_through_model_json(profile_model, tmp_path):
     """model.json holds the profile and reads it back: the same voltages; a profile of another
     length is refused naming the field."""
-    table = inputs.read_ocv(slow_files)
-    model = fit_model([drive(25.0, 11), drive(40.0, 12)], ecm.Config(("entropic",), table),
-                      Q_AH).model  # fmt: skip
+    model, table = profile_model, profile_model.config.table
     path = tmp_path / "model.json"
     model.save(path)
     back = FittedModel.load(path)
@@ -254,16 +260,30 @@ def test_the_profile_goes_through_model_json(slow_files, tmp_path):
         FittedModel.load(path)
 
 
-def test_the_table_export_reads_the_profile_and_pybamm_refuses_it(slow_files):
+def test_the_filters_open_loop_reads_the_profile(profile_model):
+    """estimate's state-space step and the simulator are one statement with the profile too
+    (to rounding, 1e-9 V, as tests/unit/test_estimate.py holds every element); the model with
+    the profile dropped is millivolts away on the 5 °C drive, so the check can fail."""
+    from avoa_pipeline import estimate as E
+
+    frame = drive(5.0, 13)
+    want = profile_model.simulate(frame, soc0=0.95)
+    got = E.open_loop(E.filter_model(profile_model), E.Inputs.of(profile_model.record(frame)),
+                      0.95)  # fmt: skip
+    assert np.max(np.abs(got - want)) <= 1e-9
+    flat = dataclasses.replace(profile_model.config.table, dudt_v_per_k=None)
+    other = dataclasses.replace(profile_model, config=ecm.Config(("entropic",), flat))
+    assert np.max(np.abs(other.simulate(frame, soc0=0.95) - want)) > 1e-3
+
+
+def test_the_table_export_reads_the_profile_and_pybamm_refuses_it(profile_model):
     """export --to table: ocv_v over temperature moves by dudt·shape(SOC)·(T − Tref) at each
     SOC; export --to pybamm refuses the profile in one line naming the field."""
     from avoa_pipeline.errors import UserError
     from avoa_pipeline.interop import pybamm as to_pybamm
     from avoa_pipeline.interop import table as to_table
 
-    table = inputs.read_ocv(slow_files)
-    model = fit_model([drive(25.0, 11), drive(40.0, 12)], ecm.Config(("entropic",), table),
-                      Q_AH).model  # fmt: skip
+    model, table = profile_model, profile_model.config.table
     soc = np.linspace(0.1, 0.9, 9)
     tref_c = model.tref_k - 273.15
     grid = to_table.grid_values(model, soc, [tref_c, tref_c + 10.0])
