@@ -259,10 +259,10 @@ def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | No
 def _entropic_scale(report: dict, model) -> None:
     """Where the handed-over model's entropic term scales the slow tests' ∂U/∂T profile, its
     scale beside the profile in diagnosis.json's ``ocv.dudt_profile`` (1: as measured)."""
-    table = model.config.table
     profile = (report.get("ocv") or {}).get("dudt_profile")
-    if profile is None or table is None or "entropic" not in model.config.effects:
+    if profile is None or "entropic" not in model.config.effects:
         return
+    table = model.config.table
     profile["scale_handed_over"] = model.parameters()["entropic_dudt_v_per_k"] / table.dudt_peak()
 
 
