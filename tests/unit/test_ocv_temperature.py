@@ -303,7 +303,7 @@ def test_diagnose_with_three_slow_tests_end_to_end(slow_files, tmp_path, capsys)
     (held out by record, admitted by identification and prior: G = 2); model.json carries the
     profile; simulate predicts the unseen 5 °C drive within 2 mV RMS and estimate's SOC ends
     within 2 % of the truth; export --to table writes it and --to pybamm refuses in one line.
-    The diagnosis alone 46 s on 2 cores; the test 175 s beside two other jobs."""
+    51 s on 2 cores (175 s beside two other jobs)."""
     paths = [_write(drive(a, s), tmp_path / f"drive_{a:g}C.csv")
              for a, s in ((25.0, 11), (40.0, 12), (5.0, 13))]  # fmt: skip
     out = tmp_path / "out"
