@@ -55,18 +55,35 @@ def _read_given(data, validate, ocv, cycler, current_sign):
     its ``attrs["source"]`` (else ``frame <k>``)."""
     from . import inputs
 
-    if all(map(_is_path, (*data, *validate))) and (ocv is None or _is_path(ocv)):
+    if all(map(_is_path, (*data, *validate))) and (ocv is None or _ocv_is_paths(ocv)):
         return inputs.read_inputs([str(p) for p in data], [str(p) for p in validate],
-                                  None if ocv is None else str(ocv), cycler=cycler,
+                                  None if ocv is None else _ocv_arg(ocv), cycler=cycler,
                                   current_sign=current_sign)  # fmt: skip
     train = [_one(x, k, cycler, current_sign) for k, x in enumerate(data)]
     held = [_one(x, len(data) + k, cycler, current_sign) for k, x in enumerate(validate)]
     table = ocv
-    if _is_path(ocv):
-        table = inputs.read_ocv(str(ocv), cycler=cycler, current_sign=current_sign)
+    if ocv is not None and _ocv_is_paths(ocv):
+        if not _is_path(ocv) and len(ocv) > 1:  # the slow tests' table at the records' Tref
+            paths = inputs.ocv_paths(ocv)  # a test given twice: one temperature, refused
+            reads = [inputs.read_record(p, cycler=cycler, current_sign=current_sign)
+                     for p in paths]  # fmt: skip
+            table = inputs.over_temperature(reads, paths, train)
+        else:
+            table = inputs.read_ocv(_ocv_arg(ocv), cycler=cycler, current_sign=current_sign)
     notes = [w for c in (*train, *held) for w in c.warnings]
     notes += list(getattr(table, "notes", ()))
     return inputs.Inputs(train, held, table, tuple(notes))
+
+
+def _ocv_is_paths(ocv) -> bool:
+    """``ocv`` is a path, or a list of paths (``--ocv`` once per temperature)."""
+    return _is_path(ocv) or (isinstance(ocv, list | tuple) and all(map(_is_path, ocv)))
+
+
+def _ocv_arg(ocv):
+    """One path as a string (as before), several as a list of strings."""
+    paths = [str(p) for p in ([ocv] if _is_path(ocv) else ocv)]
+    return paths[0] if len(paths) == 1 else paths
 
 
 def _one(item, k: int, cycler, current_sign):
@@ -203,13 +220,14 @@ def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | No
     """The diagnosis of one cell's training records ``data`` (paths, checked records or frames;
     one or a list), fitted together; ``validate``: records never used for any choice; ``ocv``:
     the cell's OCV (a table ``soc, ocv_v`` or a slow test, as a path, or an ``OcvTable``; None:
-    the rational curve). The options are the ``diagnose`` command's (``--capacity-ah``,
-    ``--soc0``, ``--current-accuracy-a``, ``--cycler``, ``--current-sign``); ``progress`` as
-    ``gap.diagnose.diagnose_records``. One-line DataError or UserError on bad input, before any
-    fit. ``skip_refused_validation`` (the workflow's experiments, which predict many unseen
-    records): a validation record the checks refuse is left out and its one-line refusal kept
-    in diagnosis.json's ``refused_validation`` and the warnings, instead of stopping; nothing
-    is loosened (the command, given a file, refuses it)."""
+    the rational curve), or a list of slow tests' paths, one per temperature (their ∂U/∂T
+    profile, docs/temperature-rule.md part 5). The options are the ``diagnose`` command's
+    (``--capacity-ah``, ``--soc0``, ``--current-accuracy-a``, ``--cycler``,
+    ``--current-sign``); ``progress`` as ``gap.diagnose.diagnose_records``. One-line DataError
+    or UserError on bad input, before any fit. ``skip_refused_validation`` (the workflow's
+    experiments, which predict many unseen records): a validation record the checks refuse is
+    left out and its one-line refusal kept in diagnosis.json's ``refused_validation`` and the
+    warnings, instead of stopping; nothing is loosened (the command, given a file, refuses it)."""
     from .gap import diagnose as gap_diagnose
     from .model import heat
 
@@ -226,15 +244,26 @@ def diagnose(data, validate: Sequence = (), ocv=None, *, capacity_ah: float | No
         current_accuracy_a=current_accuracy_a)  # fmt: skip
     if refused:  # absent otherwise: a diagnosis.json without refusals is as before
         report["refused_validation"] = refused
+    _entropic_scale(report, model)
     heat_line = heat.attach(model, read.train)  # the thermal state, where the records allow
     report["heat"] = heat.block_summary(model, heat_line)  # and whether the voltage reads it
     # the files read, never to be written over: paths, and checked records read from a file
-    given = [str(p) for p in (*data, *validate, *([ocv] if ocv is not None else ()))
-             if _is_path(p)]  # fmt: skip
+    ocvs = [] if ocv is None else [ocv] if _is_path(ocv) or not _ocv_is_paths(ocv) else ocv
+    given = [str(p) for p in (*data, *validate, *ocvs) if _is_path(p)]
     given += [c.source for c in (*read.train, *read.validate) if c.origin.get("read_as") != "frame"]
     names = tuple(str(x) if _is_path(x) else c.source
                   for x, c in zip(data, read.train, strict=True))  # fmt: skip
     return Diagnosis(report, model, arrays, read, names, heat_line, tuple(dict.fromkeys(given)))
+
+
+def _entropic_scale(report: dict, model) -> None:
+    """Where the handed-over model's entropic term scales the slow tests' ∂U/∂T profile, its
+    scale beside the profile in diagnosis.json's ``ocv.dudt_profile`` (1: as measured)."""
+    profile = (report.get("ocv") or {}).get("dudt_profile")
+    if profile is None or "entropic" not in model.config.effects:
+        return
+    table = model.config.table
+    profile["scale_handed_over"] = model.parameters()["entropic_dudt_v_per_k"] / table.dudt_peak()
 
 
 def flag_lines(source, at_bounds, intervals: dict | None) -> list[str]:

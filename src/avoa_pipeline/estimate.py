@@ -263,6 +263,7 @@ class Model:
         out = np.empty(m)
         ecm.COMPILED.step(np.ascontiguousarray(P), _NO_TABLE if tab is None else tab.values,
                         0.0 if tab is None else tab.lo, 1.0 if tab is None else tab.step,
+                        _NO_TABLE if tab is None else tab.dudt_shape(),
                         N_KNOTS, self.knots.lo, self.knots.step, grid, float(i_read), float(dt),
                         float(dinv), float(rtf), full, np.ascontiguousarray(X[:, L["bias"]]),
                         need_v, update, self._ends(), out)  # fmt: skip

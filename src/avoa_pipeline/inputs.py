@@ -151,27 +151,75 @@ class Inputs:
         return [r.source for r in (*self.train, *self.validate)]
 
 
+def ocv_paths(ocv) -> list[str]:
+    """``--ocv`` as a list of paths: none, one, or one per temperature."""
+    if ocv is None:
+        return []
+    return [str(ocv)] if isinstance(ocv, str | Path) else [str(p) for p in ocv]
+
+
 def read_inputs(
     train, validate=(), ocv=None, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]
 ) -> Inputs:
     """The diagnosis's inputs, each read and checked once, judged together (module docstring).
-    ``ocv``: a table ``soc, ocv_v``, or a slow test (canonical or raw, as the records)."""
-    _no_duplicates([*train, *validate, *([ocv] if ocv else [])])
+    ``ocv``: a table ``soc, ocv_v``, or a slow test (canonical or raw, as the records); or
+    several slow tests, one per temperature (:func:`over_temperature`)."""
+    ocvs = ocv_paths(ocv)
+    _no_duplicates([*train, *validate, *ocvs])
     reads = [_read(p, cycler, current_sign) for p in (*train, *validate)]
-    table, ocv_read = None, None
-    if ocv is not None:
-        table, ocv_read = _read_ocv(ocv, cycler, current_sign)
-    checked = _judge(reads + ([ocv_read] if ocv_read else []), current_sign)
-    n_train = len(train)
+    table, ocv_reads = None, []
+    for path in ocvs:
+        table, ocv_read = _read_ocv(path, cycler, current_sign)
+        if table is not None and len(ocvs) > 1:
+            raise DataError(f"{path}: columns 'soc', 'ocv_v': a table has no temperature; where "
+                            "--ocv is given more than once, each is a slow test (time_s, "
+                            "current_a, voltage_v) at its own temperature")  # fmt: skip
+        ocv_reads += [ocv_read] if ocv_read is not None else []
+    checked = _judge(reads + ocv_reads, current_sign)
+    n_train, n_read = len(train), len(reads)
     notes = [w for c in checked for w in c.warnings]
-    if ocv_read is not None:
+    slow, checked = checked[n_read:], checked[:n_read]
+    if len(slow) == 1:
         from .model import ocv as ocv_mod
 
-        table = ocv_mod.from_slow_test(checked[-1].frame, str(ocv))
-        checked = checked[:-1]
+        table = ocv_mod.from_slow_test(slow[0].frame, str(ocvs[0]))
+    elif len(slow) > 1:
+        table = over_temperature(slow, ocvs, checked[:n_train])
     if table is not None:
         notes += list(table.notes)
     return Inputs(checked[:n_train], checked[n_train:], table, tuple(notes))
+
+
+def over_temperature(slow: list[records.Checked], paths, train: list[records.Checked]):
+    """The OCV table of slow tests at several temperatures (docs/temperature-rule.md part 5):
+    each test's ambient read as a record's (``heat.ambient_of``: its sidecar's
+    ``ambient_temperature_c``, else its first temperature sample), one test per test
+    temperature (``heat.ambient_groups``: two within 2 K are refused, naming both), each turned
+    into an OCV as one ``--ocv`` is (``ocv.from_slow_test``), then ∂U/∂T over their ambients and
+    the table at the training records' reference temperature (``ocv.over_temperature``)."""
+    from .model import heat
+    from .model import ocv as ocv_mod
+    from .model.fitted import reference_temperature
+    from .model.record import T_DEFAULT_K
+
+    ambients = []
+    for c in slow:
+        try:
+            ambients.append(heat.ambient_of(c)[0])
+        except DataError as e:
+            raise DataError(f"{e}; --ocv is given more than once, and each slow test's "
+                            "temperature is needed for ∂U/∂T") from None  # fmt: skip
+    for group in heat.ambient_groups(ambients):
+        if len(group) > 1:
+            at = ", ".join(f"{paths[k]} at {ambients[k]:.4g} °C" for k in group)
+            raise DataError(f"{at}: slow tests within {heat.AMBIENT_GROUP_K:g} K of each other "
+                            "are one test temperature; give one slow test per temperature "
+                            "(--ocv once each)")  # fmt: skip
+    tables = [ocv_mod.from_slow_test(c.frame, str(p)) for c, p in zip(slow, paths, strict=True)]
+    tref = reference_temperature([c.frame for c in train])
+    tref_c = (T_DEFAULT_K if tref is None else tref) - 273.15  # no temperature: run at 25 °C
+    table = ocv_mod.over_temperature(tables, ambients, tref_c)
+    return replace(table, notes=tuple(n for t in tables for n in t.notes))
 
 
 def _read_ocv(path, cycler, current_sign):
@@ -201,14 +249,19 @@ def _read_ocv(path, cycler, current_sign):
 
 
 def read_ocv(path, *, cycler: str | None = None, current_sign: str = CURRENT_SIGNS[0]):
-    """``--ocv`` alone: an OCV table of a table or a slow test (its record checked)."""
-    table, read = _read_ocv(path, cycler, current_sign)
+    """``--ocv`` alone: an OCV table of a table or a slow test (its record checked); several
+    paths: slow tests at several temperatures (:func:`over_temperature`, the table at 25 °C,
+    where a record without a temperature runs)."""
+    paths = ocv_paths(path)
+    if len(paths) > 1:
+        return read_inputs([], (), paths, cycler=cycler, current_sign=current_sign).ocv
+    table, read = _read_ocv(paths[0], cycler, current_sign)
     if table is not None:
         return table
     from .model import ocv as ocv_mod
 
     (checked,) = _judge([read], current_sign)
-    table = ocv_mod.from_slow_test(checked.frame, str(path))
+    table = ocv_mod.from_slow_test(checked.frame, str(paths[0]))
     return replace(table, notes=(*checked.warnings, *table.notes))
 
 

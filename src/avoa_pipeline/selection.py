@@ -458,7 +458,7 @@ def try_effects(ctx: Context, ref: Candidate, remaining, cv: bool,
         # every time constant restarted, the reference's too: an element that changes how the
         # others act (thermal's Arrhenius factors) can move their best time constants (fit back,
         # thermal seed 0: 4.26 mV against 0.99 mV of noise with only the element's own)
-        c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e))
+        c = ctx.fit(st, fitting.effect_starts(ctx.recs, ref.X, e, st.config.table))
         if c.rss > ref.rss:  # a nested model cannot fit worse: fit again from the reference's
             # optimum, the element neutral (as fitted.fit_model); if still worse, keep that
             neutral = fitting.neutralise(ref.X, (e,))

@@ -41,7 +41,7 @@ def test_a_snippets_position_orders_the_slot():
     src = loopgen.source().split("def simulate_extras")[1]
     assert (
         src.index("e += voff[c]")
-        < src.index("e += dudt[c] * dtemp")
+        < src.index("e += dudt[c] * pf * dtemp")
         < src.index("e += hm[c] * h[c]")
     )
     hyst = elements.get("hysteresis").kernel

@@ -20,8 +20,11 @@ def arguments(d) -> None:
     )
     d.add_argument(
         "--ocv",
+        action="append",
         default=None,
-        help="the cell's OCV: a slow test (≤ C/10, canonical columns) or a table soc,ocv_v",
+        help="the cell's OCV: a slow test (≤ C/10, canonical columns) or a table soc,ocv_v; "
+        "given once per temperature (slow tests, each with its ambient), also its ∂U/∂T "
+        "over SOC, which the entropic term then scales (docs/temperature-rule.md part 5)",
     )
     d.add_argument(
         "--validate",
@@ -52,10 +55,13 @@ def arguments(d) -> None:
 def cmd_diagnose(args) -> None:
     from .. import diagnosis, inputs
 
-    given = [*args.data, *args.validate, *([args.ocv] if args.ocv else [])]
+    ocvs = args.ocv or []
+    given = [*args.data, *args.validate, *ocvs]
     # every input and output is checked before any fit, so bad input costs no time
     diagnosis.check_outputs(args.out, given)
-    d = diagnosis.diagnose(args.data, args.validate, args.ocv, capacity_ah=args.capacity_ah,
+    # one --ocv is passed as one path, as before; several as the list (one per temperature)
+    ocv = None if not ocvs else ocvs[0] if len(ocvs) == 1 else ocvs
+    d = diagnosis.diagnose(args.data, args.validate, ocv, capacity_ah=args.capacity_ah,
                            soc0=args.soc0, current_accuracy_a=args.current_accuracy_a,
                            cycler=args.cycler, current_sign=args.current_sign)  # fmt: skip
     d.write(args.out)

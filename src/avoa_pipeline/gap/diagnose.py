@@ -748,8 +748,16 @@ def _records(recs: list[Record], train: list[Checked]) -> list[dict]:
 def _ocv(table) -> dict:
     if table is None:
         return {"kind": "rational (eq. 5), Vnom and beta free"}
-    return {"kind": "measured table + fitted offset", "source": table.source, "how": table.how,
-            "capacity_ah": table.capacity_ah}  # fmt: skip
+    out = {"kind": "measured table + fitted offset", "source": table.source, "how": table.how,
+           "capacity_ah": table.capacity_ah}  # fmt: skip
+    if table.dudt_shape().size:  # slow tests at several temperatures (temperature-rule part 5)
+        out["dudt_profile"] = {
+            "how": table.dudt_how,
+            "peak_v_per_k": table.dudt_peak(),
+            "entropic": "a candidate scaling this profile: entropic_dudt_v_per_k is ∂U/∂T where "
+            "the profile peaks, its scale entropic_dudt_v_per_k / peak_v_per_k (1 as measured)",
+        }
+    return out
 
 
 def _base(ctx, base: selection.Candidate, n: int, noise_v: float, capacity_ah, soc0) -> dict:

@@ -122,10 +122,28 @@ def check_one_set(model: FittedModel, source: str) -> None:
                         "temperature")  # fmt: skip
 
 
+def check_no_profile(model: FittedModel, source: str) -> None:
+    """An ``entropic`` element that scales the slow tests' ∂U/∂T profile over SOC
+    (docs/temperature-rule.md part 5) is refused in one line: PyBaMM's "Entropic change [V/K]"
+    is a function of the OCV and the cell temperature (``EcmParameters.dUdT``), not of SOC, and
+    the model's OCV (table, offset, ocv_shape) maps to SOC only through the whole model; a
+    model without the element exports as before (its table is the OCV at its reference
+    temperature)."""
+    table = model.config.table
+    if "entropic" in model.config.effects and table is not None and table.dudt_shape().size:
+        raise UserError(f"{source}: field 'ocv_table.dudt_v_per_k': the entropic term scales "
+                        "the slow tests' ∂U/∂T profile over SOC, and PyBaMM's Thevenin model "
+                        "reads its entropic change as a function of the OCV and temperature, "
+                        "not of SOC; export --to table writes it over SOC and "
+                        "temperature")  # fmt: skip
+
+
 def check_exportable(model: FittedModel, source: str, drop_unsupported: bool) -> list[str]:
     """The elements to drop (with ``drop_unsupported``), or a one-line UserError naming them (or
-    the model's per-temperature sets, :func:`check_one_set`)."""
+    the model's per-temperature sets, :func:`check_one_set`, or its ∂U/∂T profile,
+    :func:`check_no_profile`)."""
     check_one_set(model, source)
+    check_no_profile(model, source)
     if model.config.load_ohm is not None:
         raise UserError(f"{source}: field 'load_ohm': the paper's load resistor is part of its "
                         "test rig, not of the cell; PyBaMM's Thevenin model has none")  # fmt: skip

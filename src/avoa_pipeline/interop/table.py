@@ -34,6 +34,7 @@ from .. import __version__, records
 from ..errors import UserError
 from ..model import ecm, elements
 from ..model.elements.element import TableLaw
+from ..model.elements.entropic import DUDT_SHAPE
 from ..model.fitted import FittedModel
 
 FORMAT = "avoa-pipeline-table"
@@ -79,6 +80,9 @@ def _laws(model: FittedModel):
     knots = model.knots.grid()
     p = dict(phys.scalars) | {e: (lambda s, v=v: np.interp(s, knots, v))
                               for e, v in phys.at_knots.items()}  # fmt: skip
+    table = model.config.table
+    if table is not None and table.dudt_shape().size > 0:  # the slow tests' ∂U/∂T profile
+        p[DUDT_SHAPE] = table.entropic_shape
     return p, [elements.get(e).table for e in elements.NAMES if e in model.config.effects]
 
 
@@ -286,8 +290,12 @@ def scalars(model: FittedModel) -> dict:
         out["thermal_theta_tau_k"] = entry(P[ecm.THTAU], "K", "Arrhenius θτ of the RC time "
                                            "constants (in the tau columns)")  # fmt: skip
     if "entropic" in effects:
+        table = model.config.table
+        profile = table is not None and table.dudt_shape().size > 0
         out["entropic_dudt_v_per_k"] = entry(P[ecm.DUDT], "V/K", "∂U/∂T of the OCV (in the "
-                                             "ocv_v column)")  # fmt: skip
+                                             "ocv_v column)" + (
+            "; where the slow tests' profile peaks: the profile's scale is this over "
+            f"{table.dudt_peak():.4g} V/K" if profile else ""))  # fmt: skip
     if "capacity_temperature" in effects:
         out["capacity_temp_coeff_per_k"] = entry(P[ecm.KQ], "1/K", "κQ: the capacity is "
                                                  "Q·(1 + κQ·(T − tref_k)) (in the capacity_ah "

@@ -15,10 +15,12 @@ N_KNOTS = 6  # the vector elements' knots
 
 
 @nb.njit(cache=True, nogil=True)
-def simulate_core(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, g_load, sel, out, tr):  # noqa: C901
+def simulate_core(P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, g_load, sel, out, tr):  # noqa: C901
     """Terminal voltage of every physical row of ``P`` at the selected samples (simulate_core: the elements compiled in the core).
 
-    ``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
+    ``table``: the OCV table on a uniform grid (empty: the rational OCV); ``dudt_shape``: the
+    shape of its ∂U/∂T over SOC on the same grid, which the entropic coefficient multiplies (empty:
+    none, the coefficient alone). ``sel[k]``: the row of
     ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
     voltages, the thermal R0 factor and the battery current of row 0 when non-empty (zeros where
     no element writes them). An element whose parameter is neutral in every row is skipped (the
@@ -247,10 +249,12 @@ def simulate_core(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform
         k += 1
 
 @nb.njit(cache=True, nogil=True)
-def simulate_extras(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, g_load, sel, out, tr):  # noqa: C901
+def simulate_extras(P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, g_load, sel, out, tr):  # noqa: C901
     """Terminal voltage of every physical row of ``P`` at the selected samples (simulate_extras: the elements compiled in the core).
 
-    ``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
+    ``table``: the OCV table on a uniform grid (empty: the rational OCV); ``dudt_shape``: the
+    shape of its ∂U/∂T over SOC on the same grid, which the entropic coefficient multiplies (empty:
+    none, the coefficient alone). ``sel[k]``: the row of
     ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
     voltages, the thermal R0 factor and the battery current of row 0 when non-empty (zeros where
     no element writes them). An element whose parameter is neutral in every row is skipped (the
@@ -470,7 +474,17 @@ def simulate_extras(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, unifo
                         e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
                 e += voff[c]
                 if entr:
-                    e += dudt[c] * dtemp
+                    pf = 1.0  # the profile's shape at the SOC the OCV was read at; 1 without a profile
+                    if dudt_shape.shape[0] > 0:
+                        xp = (sc - tab_lo) / tab_step
+                        if xp <= 0.0:
+                            pf = dudt_shape[0]
+                        elif xp >= dudt_shape.shape[0] - 1:
+                            pf = dudt_shape[dudt_shape.shape[0] - 1]
+                        else:
+                            jp = int(xp)
+                            pf = (1.0 - (xp - jp)) * dudt_shape[jp] + (xp - jp) * dudt_shape[jp + 1]
+                    e += dudt[c] * pf * dtemp
                 if hyst:
                     e += hm[c] * h[c]
                 f0 = 1.0
@@ -524,7 +538,7 @@ def simulate_extras(P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, unifo
         k += 1
 
 @nb.njit(cache=True, nogil=True)
-def step(P, table, tab_lo, tab_step, nk, k_lo, k_step, grid, i_read, dtk, dinv, rtf, X, bias, need_v, update, ext, out):  # noqa: C901
+def step(P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, grid, i_read, dtk, dinv, rtf, X, bias, need_v, update, ext, out):  # noqa: C901
     """One sample of the SOC filter's state-space model for every row (``estimate.Model``).
 
     ``X`` (m, states): the states of ``loopgen.states``, in that order (:data:`STATES`), stepped
@@ -656,7 +670,17 @@ def step(P, table, tab_lo, tab_step, nk, k_lo, k_step, grid, i_read, dtk, dinv, 
                     e += (1.0 - w) * d[c, j] + w * d[c, j + 1]
             e += voff[c]
             if entr:
-                e += dudt[c] * dtemp
+                pf = 1.0  # the profile's shape at the SOC the OCV was read at; 1 without a profile
+                if dudt_shape.shape[0] > 0:
+                    xp = (sc - tab_lo) / tab_step
+                    if xp <= 0.0:
+                        pf = dudt_shape[0]
+                    elif xp >= dudt_shape.shape[0] - 1:
+                        pf = dudt_shape[dudt_shape.shape[0] - 1]
+                    else:
+                        jp = int(xp)
+                        pf = (1.0 - (xp - jp)) * dudt_shape[jp] + (xp - jp) * dudt_shape[jp + 1]
+                e += dudt[c] * pf * dtemp
             if hyst:
                 e += hm[c] * h[c]
             f0 = 1.0

@@ -193,9 +193,10 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     tr = np.zeros((5, rec.n)) if traces else np.empty((0, 0))  # an absent element's trace: 0
     tab = _NO_TABLE if table is None else table.values
     t_lo, t_step = (0.0, 1.0) if table is None else (table.lo, table.step)
+    shape = _NO_TABLE if table is None else table.dudt_shape()
     g = 0.0 if load_ohm is None else 1.0 / load_ohm
     extras = bool(np.any(P[:, EXTRAS_COLUMNS] != 0.0))
-    _SIMULATE[extras](P, tab, t_lo, t_step, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
+    _SIMULATE[extras](P, tab, t_lo, t_step, shape, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
                       rec.uniform, dinv_t, two_rt_f, g, sel, out, tr)  # fmt: skip
     return (out, tr) if traces else out
 
@@ -275,7 +276,8 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
     i0 = rec.i_open + P[:, IOFF]
     f0 = np.exp(P[:, TH0] * rec.dinv_t[0]) * np.where(i0 < 0.0, np.exp(P[:, RHO]), 1.0)
     dtemp0 = rec.two_rt_f[0] * KELVIN_PER_TWO_RT_F - rec.tref_k  # entropic's T − Tref
-    v0 = v_open - P[:, HM] * P[:, H0] - P[:, DUDT] * dtemp0
+    profile = table is not None and table.dudt_shape().size > 0  # entropic's term moves with s
+    v0 = v_open - P[:, HM] * P[:, H0] - (0.0 if profile else P[:, DUDT] * dtemp0)
     shaped = np.any(P[:, D0 : D0 + N_KNOTS] != 0.0, axis=1)
     socr0 = np.any(P[:, L0 : L0 + N_KNOTS] != 0.0, axis=1)
     if table is None and not np.any(P[:, KLOW] != 0) and not (shaped | socr0).any():
@@ -298,6 +300,8 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
             e = table(sc)
         if shaped.any():
             e = e + at_knots(sc, D0)
+        if profile:
+            e = e + P[:, DUDT] * table.entropic_shape(sc) * dtemp0
         if socr0.any():
             g = g * np.exp(at_knots(s, L0))
         return e + P[:, VOFF] - (v0 + P[:, R0] * g * f0 * i0)

@@ -809,6 +809,10 @@ def _table(d: dict, source: str) -> ecm.OcvTable:
     if len(d["soc"]) != v.size:
         raise DataError(f"{source}: field 'ocv_table.soc': a list of {len(d['soc'])}, need "
                         f"{v.size} (one per ocv_v entry)")  # fmt: skip
+    profile = d.get("dudt_v_per_k")
+    if profile is not None and len(profile) != v.size:
+        raise DataError(f"{source}: field 'ocv_table.dudt_v_per_k': a list of {len(profile)}, "
+                        f"need {v.size} (∂U/∂T at each ocv_v entry)")  # fmt: skip
     grid = lo + step * np.arange(v.size)
     for j, (got, want) in enumerate(zip(d["soc"], grid, strict=True)):
         if not math.isclose(got, want, rel_tol=DERIVED_RTOL, abs_tol=DERIVED_RTOL):
@@ -930,6 +934,7 @@ def interpolable(a: FittedModel, b: FittedModel) -> str:
     same_table = (ta is None and tb is None) or (
         ta is not None and tb is not None and ta.lo == tb.lo and ta.step == tb.step
         and np.array_equal(ta.values, tb.values)
+        and np.array_equal(ta.dudt_shape(), tb.dudt_shape())
     )  # fmt: skip
     if not same_table:
         return "their OCV"
@@ -1056,7 +1061,7 @@ def fit_model(frames, config: Config, capacity_ah: float | None = None,
     for e in config.effects:
         now = now.with_effect(e)
         st = fitting.structure(recs, now, knots, fix_q, fix_s)
-        ref, res = res, fitting.best_of(recs, st, fitting.effect_starts(recs, X, e))
+        ref, res = res, fitting.best_of(recs, st, fitting.effect_starts(recs, X, e, config.table))
         if res.cost_fit > ref.cost_fit:  # a nested model cannot fit worse (as the selection's
             # try_effects): fit again from the reference's optimum with the element neutral
             nfev += res.nfev

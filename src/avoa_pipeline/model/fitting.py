@@ -24,6 +24,7 @@ from scipy.optimize import least_squares
 
 from . import ecm, elements, ocv
 from .ecm import IDX, N_KNOTS, NEUTRAL, Config, Knots, Record
+from .elements.entropic import TABLE_DUDT_PEAK
 
 MAX_FIT_POINTS = 20000
 """Residuals fitted per least-squares problem at most (all records together); longer data are
@@ -627,11 +628,14 @@ def _ocv_start(recs, X, cap, r0, b):
     return r.x[0], r.x[1]
 
 
-def effect_starts(recs, X_base: np.ndarray, effect: str) -> list[np.ndarray]:
+def effect_starts(recs, X_base: np.ndarray, effect: str, table=None) -> list[np.ndarray]:
     """Starts for one added element from fitted rows (their other parameters kept): the
-    element's own starts (``Element.starts``), clipped to the records' bounds."""
+    element's own starts (``Element.starts``), clipped to the records' bounds. ``table``: the
+    configuration's OCV table, whose ∂U/∂T profile's peak the starts may read (entropic)."""
     b = bounds_for(recs)
     row = dict(zip(ecm.NAMES, X_base[0], strict=True))
+    if table is not None and table.dudt_peak() > 0.0:
+        row[TABLE_DUDT_PEAK] = table.dudt_peak()
     out = []
     for start in elements.get(effect).starts(row, _stats(recs)["imax"]):
         X = np.array(X_base, dtype=float)

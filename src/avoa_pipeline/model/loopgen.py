@@ -75,8 +75,8 @@ SLOTS = ("setup", "hold_setup", "held", "uneven", "sample", "row", "hold_row", "
          "hold_increment", "hold_increment_charge", "hold_step", "update", "update_charge",
          "trace")  # fmt: skip
 
-ARGS = ("P, table, tab_lo, tab_step, nk, k_lo, k_step, cur, dt, uniform, dinv_t, two_rt_f, "
-        "g_load, sel, out, tr")  # fmt: skip
+ARGS = ("P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, cur, dt, uniform, dinv_t, "
+        "two_rt_f, g_load, sel, out, tr")  # fmt: skip
 
 UPDATE = """\
         gi = f1 * g * i
@@ -226,8 +226,8 @@ the held-current shortcut and the thinned voltage (issue 25); every element's co
 slots. Every state update is the same operations in the same order in the hold and in the full
 pass, so a thinned call returns the full pass's voltages bit for bit."""
 
-STEP_ARGS = ("P, table, tab_lo, tab_step, nk, k_lo, k_step, grid, i_read, dtk, dinv, rtf, X, bias, "
-             "need_v, update, ext, out")  # fmt: skip
+STEP_ARGS = ("P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, grid, i_read, dtk, dinv, "
+             "rtf, X, bias, need_v, update, ext, out")  # fmt: skip
 
 STEP = """\
 m = P.shape[0]
@@ -305,7 +305,9 @@ Written by ``model/loopgen.py`` from the elements' statements, the same as the s
 DOC = """\
 Terminal voltage of every physical row of ``P`` at the selected samples ({version}: {which}).
 
-``table``: the OCV table on a uniform grid (empty: the rational OCV). ``sel[k]``: the row of
+``table``: the OCV table on a uniform grid (empty: the rational OCV); ``dudt_shape``: the
+shape of its ∂U/∂T over SOC on the same grid, which the entropic coefficient multiplies (empty:
+none, the coefficient alone). ``sel[k]``: the row of
 ``out`` (n_selected, m) that sample k goes to, or −1. ``tr`` (5, n) records SOC, h, the RC
 voltages, the thermal R0 factor and the battery current of row 0 when non-empty (zeros where
 no element writes them). An element whose parameter is neutral in every row is skipped (the

@@ -269,8 +269,45 @@ def from_table(frame: pd.DataFrame, source: str) -> OcvTable:
     return OcvTable.from_points(soc, v, source=str(source), how="table as given")
 
 
+def over_temperature(tables, ambients_c, tref_c: float) -> OcvTable:
+    """The OCV table of slow tests at two temperatures or more (docs/temperature-rule.md part 5):
+    ∂U/∂T at each point of the grid, the least-squares slope over the tests' ambients (°C) of
+    their OCVs at that SOC (numpy's polyfit, each point's line on its own), and the table the
+    OCV at ``tref_c`` (the training records' reference temperature, where the ``entropic``
+    term's T − Tref vanishes): the test nearest it, moved along its profile by
+    ∂U/∂T·(tref − its ambient) and made strictly increasing again as :meth:`OcvTable.from_points`
+    does. Its capacity, offset and capacity priors and notes are that test's. ``tables``: each
+    test's table (``from_slow_test``: every one on the same grid, SOC 0-1 of its own charge)."""
+    temps = np.asarray(ambients_c, dtype=float)
+    U = np.vstack([t(tables[0].grid()) for t in tables])
+    slope, _ = np.polyfit(temps, U, 1)
+    near = int(np.argmin(np.abs(temps - tref_c)))
+    base = tables[near]
+    shift = slope * (tref_c - temps[near])
+    vals = np.maximum.accumulate(base.values + shift) + np.linspace(0.0, 1e-6, base.values.size)
+    spread = ""
+    if temps.size > 2:  # a slope's standard error where the line has residual degrees of freedom
+        resid = U - (U.mean(axis=0) + np.outer(temps - temps.mean(), slope))
+        sxx = float(np.sum((temps - temps.mean()) ** 2))
+        se = np.sqrt(np.sum(resid**2, axis=0) / (temps.size - 2) / sxx)
+        spread = f", its standard error {1e6 * float(np.median(se)):.3g} µV/K (median over SOC)"
+    order = np.argsort(temps)
+    how = (
+        "∂U/∂T: least-squares slope over the slow tests' ambients of their OCVs at each SOC ("
+        + ", ".join(f"{tables[k].source} at {temps[k]:.4g} °C" for k in order)
+        + f"); |∂U/∂T| up to {1e3 * float(np.max(np.abs(slope))):.3g} mV/K{spread}"
+    )
+    moved = (
+        f"; the table: {base.source} (the slow test nearest the records' reference "
+        f"temperature {tref_c:.4g} °C) moved by ∂U/∂T·({tref_c:.4g} − {temps[near]:.4g}) K"
+    )
+    return dataclasses.replace(base, values=np.ascontiguousarray(vals),
+                               how=base.how + moved, dudt_v_per_k=np.ascontiguousarray(slope),
+                               dudt_how=how)  # fmt: skip
+
+
 def to_json(table: OcvTable) -> dict:
-    return {
+    out = {
         "soc_lo": table.lo,
         "soc_step": table.step,
         "soc": table.grid().tolist(),
@@ -282,6 +319,9 @@ def to_json(table: OcvTable) -> dict:
         "offset_why": table.offset_why,
         "capacity_sd_ah": table.capacity_sd_ah,
     }
+    if table.dudt_v_per_k is not None:  # absent: one slow test, as before (file unchanged)
+        out |= {"dudt_v_per_k": table.dudt_v_per_k.tolist(), "dudt_how": table.dudt_how}
+    return out
 
 
 def from_json(d: dict) -> OcvTable:
@@ -295,4 +335,7 @@ def from_json(d: dict) -> OcvTable:
         offset_sd_v=d.get("offset_sd_v"),  # absent from files written before issue 37
         offset_why=d.get("offset_why", ""),
         capacity_sd_ah=d.get("capacity_sd_ah"),
-    )
+        dudt_v_per_k=None if d.get("dudt_v_per_k") is None
+        else np.ascontiguousarray(d["dudt_v_per_k"], dtype=float),
+        dudt_how=d.get("dudt_how", ""),
+    )  # fmt: skip

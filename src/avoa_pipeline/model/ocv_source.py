@@ -6,6 +6,7 @@ re-exports every name here."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -22,6 +23,9 @@ cell's slope, not the OCV's. Along the flat offset-capacity-initial-SOC valley t
 passed for information: on issue 37's clean record with its true OCV given at 201 points the
 offset's standard deviation came out 7.3 mV; with the monotone cubic at 4001 points 71 mV, near
 the smooth limit (84 mV at 100,001 points). 4001 doubles are 32 kB, inside a core's L2 cache."""
+
+
+_NO_SHAPE = np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,33 @@ class OcvTable:
     offset_sd_v: float | None = None
     offset_why: str = ""
     capacity_sd_ah: float | None = None  # the slow test's capacity's uncertainty (ocv.py)
+    # ∂U/∂T (V/K) at each point of the grid, from slow tests at several temperatures
+    # (``ocv.over_temperature``); None: one temperature, no profile
+    dudt_v_per_k: np.ndarray | None = None
+    dudt_how: str = ""  # which slow tests, at which ambients, and how the table was chosen
+
+    def dudt_peak(self) -> float:
+        """The profile's largest |∂U/∂T| (V/K; 0 without a profile)."""
+        return 0.0 if self.dudt_v_per_k is None else float(np.max(np.abs(self.dudt_v_per_k)))
+
+    def dudt_shape(self) -> np.ndarray:
+        """The profile over its peak (|shape| ≤ 1, 1 where |∂U/∂T| peaks; empty without a
+        profile): what the ``entropic`` element's coefficient multiplies (elements/entropic.py).
+        A profile of zeros has no shape: empty, so the coefficient stands alone."""
+        return self._shape
+
+    @cached_property
+    def _shape(self) -> np.ndarray:  # once per table: every simulation passes it
+        peak = self.dudt_peak()
+        if peak == 0.0:
+            return _NO_SHAPE
+        return np.ascontiguousarray(self.dudt_v_per_k / peak)
+
+    def entropic_shape(self, soc) -> np.ndarray | float:
+        """The shape at ``soc`` (flat beyond the table's ends, as the simulator reads it), or 1
+        without a profile."""
+        shape = self.dudt_shape()
+        return 1.0 if shape.size == 0 else np.interp(soc, self.grid(), shape)
 
     @classmethod
     def from_points(cls, soc, ocv_v, capacity_ah=None, source="", how="") -> OcvTable:
