@@ -98,3 +98,28 @@ def test_a_parameter_at_its_bound_gets_no_interval_and_a_flag():
     assert rep["parameters"]["r1_ohm"]["at_bound"]
     assert rep["parameters"]["r1_ohm"]["low95"] is None
     assert "r1_ohm at a bound of its fit" in rep["flags"]
+
+
+def test_two_parameters_the_records_cannot_separate_have_a_correlation_within_one():
+    """A second RC branch with the first one's time constant: R1 and R2 trade one for one, their
+    correlation rounds to about -1, and is written within ±1 (model.json's schema refuses more;
+    an LFP HPPC record's fit gave -1.0000003 before the clip)."""
+    frame = profile_frame(temperature=False)
+    truth = {**TRUTH, "r2_ohm": 0.01, "tau2_s": TRUTH["tau1_s"]}
+    cfg = Config(("second_rc",), _table())
+    frame = frame.assign(voltage_v=simulate(frame, truth, cfg)
+                         + 1e-4 * np.random.default_rng(1).standard_normal(len(frame)))  # fmt: skip
+    recs = [Record.from_frame(frame)]
+    st = fitting.structure(recs, cfg, ecm.Knots(0.0, 0.2))
+    iv = intervals.of_fit(recs, st, fitting.complete(st, recs, np.array([ecm.vector(truth)])))
+    off = iv.corr[~np.eye(len(iv.names), dtype=bool)]
+    off = off[np.isfinite(off)]
+    assert np.max(np.abs(off)) <= 1.0
+    assert np.max(np.abs(off)) > 0.999
+    # the covariance's rounding past ±1, as that record's: clipped
+    sd = np.array([2e-3, 3e-4, 1.0])
+    cov = np.outer(sd, sd) * np.array([[1, -1 - 3e-7, 0], [-1 - 3e-7, 1, 0], [0, 0, 1]])
+    sd[2] = np.inf  # a parameter at a bound: no interval
+    rho = intervals.correlation(cov, sd)
+    assert rho[0, 1] == -1.0
+    assert np.isnan(rho[2, 0])

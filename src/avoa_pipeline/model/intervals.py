@@ -47,6 +47,16 @@ UNIDENTIFIED_SHARE = 0.5
 parameter (the fit's answer there is its start or its prior)."""
 
 
+def correlation(cov: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """The correlation matrix of a covariance ``cov`` with standard deviations ``sd`` (nan where
+    one is not finite), clipped to ±1: a pair the records do not separate rounds to |ρ| a few
+    1e-7 above 1 (the covariance's own rounding), which no reader of a correlation accepts
+    (model.json's schema: within ±1; an LFP HPPC record's fit gave -1.0000003)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(np.isfinite(sd)[:, None] & np.isfinite(sd),
+                        np.clip(cov / np.outer(sd, sd), -1.0, 1.0), np.nan)  # fmt: skip
+
+
 def autocorrelation(e: np.ndarray) -> np.ndarray:
     """The residuals' autocorrelation ρ_0..ρ_M (ρ_0 = 1) up to Sokal's automatic window M (the
     smallest with M ≥ 5·τ(M), as emcee does): beyond it the estimate is noise."""
@@ -238,9 +248,7 @@ def of_fit(recs, st: fitting.Structure, X: np.ndarray, masks=None) -> Intervals:
         cov[:, touched] = np.inf
         d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         sd[free] = d
-        with np.errstate(invalid="ignore", divide="ignore"):
-            corr[np.ix_(free, free)] = np.where(np.isfinite(d)[:, None] & np.isfinite(d),
-                                                cov / np.outer(d, d), np.nan)  # fmt: skip
+        corr[np.ix_(free, free)] = correlation(cov, d)
     s_v = float(np.sqrt(ss / max(n, 1)))  # weighted: records alike, as the fit counts them
     held = tuple((m, float(X[0, IDX[m]])) for m in st.config.names()
                  if not ecm.PARAMS[m].per_record and m not in st.shared)  # fmt: skip
