@@ -558,14 +558,31 @@ def joint_on_own(ctx: Context, ho: HandOver, group: list[int], mine: HandOver,
     return [joint[o[group[r_local]] + idx] for r_local, idx, _ in mine.chosen.held]
 
 
+def cell_unidentified(entry: Entry) -> list[str]:
+    """The base parameters (the capacity, R0, R1, τ1, and the OCV's own where no table is
+    given: every cell parameter that is no element's) that ``entry``'s fit does not identify
+    (its intervals' ``identified``, a held one aside): where any is, the model is not handed
+    over in another's place (docs/temperature-rule.md part 4, amended)."""
+    params = entry.iv.report()["parameters"]
+    out = []
+    for n in entry.iv.names:
+        if ecm.PARAMS[n].element in entry.effects:
+            continue
+        e = params[ecm.PARAMS[n].report]
+        if not (e["identified"] or e["held"]):
+            out.append(ecm.PARAMS[n].report)
+    return out
+
+
 def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
     """Part 4: at each test temperature (``ctx.groups``, with ``own[g]`` that temperature's own
     hand-over, its records alone, and ``joint[g]`` the joint model's errors on the same samples,
     :func:`joint_on_own`), the two sets of held-out errors compared by the selection's paired
     loss test (batch means, one-sided: is the own model's loss lower), each temperature at
-    ALPHA / G (Bonferroni over the temperatures), every held-out segment weighing alike. Returns
-    diagnosis.json's ``handed_over.per_temperature``; its ``joint_worse`` says whether any
-    temperature is worse."""
+    ALPHA / G (Bonferroni over the temperatures), every held-out segment weighing alike; an own
+    model whose records do not identify its cell (:func:`cell_unidentified`) is not handed over
+    where the joint model is worse. Returns diagnosis.json's ``handed_over.per_temperature``;
+    its ``joint_worse`` says whether any temperature takes its own model."""
     level = selection.ALPHA / len(ctx.groups)
     rows = []
     for group, mine, theirs in zip(ctx.groups, own, joint, strict=True):
@@ -580,6 +597,7 @@ def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
             n += idx.size
         la, lb, wt = np.concatenate(a) ** 2, np.concatenate(b) ** 2, np.concatenate(w)
         t, p, _ = selection.loss_test(la, lb, batches, wt)
+        loose = cell_unidentified(mine.chosen)
         rows.append({
             "ambient_c": group_ambient(ctx.ambients_c, group),
             "records": [ctx.recs[r].source for r in group],
@@ -589,8 +607,10 @@ def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
             "own_heldout_rmse_mv": _mv(float(np.sum(wt * lb) / wt.sum())),
             "t": t, "p": p,
             "joint_worse": bool(p < level),
+            "own_not_identified": loose,
+            "own_handed_over": bool(p < level) and not loose,
         })  # fmt: skip
-    worse = any(r["joint_worse"] for r in rows)
+    worse = any(r["own_handed_over"] for r in rows)
     return {
         "test": "the selection's paired loss test (batch means, one-sided), on the samples each "
                 "temperature's own diagnosis held out, every held-out segment alike; the joint "
@@ -604,12 +624,19 @@ def against_own(ctx: Context, joint: list[list], own: list[HandOver]) -> dict:
 
 def per_temperature_summary(pt: dict) -> str:
     """The summary line's words for ``handed_over.per_temperature``."""
-    worse = [f"{r['ambient_c']:g} °C ({_shown(r['joint_heldout_rmse_mv'])} mV against "
-             f"{_shown(r['own_heldout_rmse_mv'])})"
-             for r in pt["groups"] if r["joint_worse"]]  # fmt: skip
-    if not worse:
+    said = []
+    for r in pt["groups"]:
+        if r["joint_worse"]:
+            said.append(f"{r['ambient_c']:g} °C ({_shown(r['joint_heldout_rmse_mv'])} mV against "
+                        f"{_shown(r['own_heldout_rmse_mv'])}"
+                        + ("" if r["own_handed_over"] else
+                           f"; its own model not handed over: {', '.join(r['own_not_identified'])}"
+                           " not identified") + ")")  # fmt: skip
+    if not said:
         return "not worse than the per-temperature models at any test temperature"
-    return (
-        f"the joint model is worse at {', '.join(worse)}: there that temperature's own "
-        "model handed over, the joint model at the others"
-    )
+    line = f"the joint model is worse at {', '.join(said)}"
+    if pt["joint_worse"]:
+        return (
+            line + ": there that temperature's own model handed over, the joint model at the others"
+        )
+    return line + ": the joint model kept"

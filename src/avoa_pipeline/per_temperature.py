@@ -25,7 +25,7 @@ Judged (:func:`judge`): the table pays against the laws' model by ``selection.co
 held-out tests at ALPHA, ``MIN_SHRINK``, ΔBIC < ``BIC_MAX`` counting every set's parameters);
 where neither pays against the other the one with fewer parameters stays (the laws' model,
 whenever the table has more). Each set must pass the hand-over conditions on its records
-(``handover.failures``).
+(``handover.failures``) and identify its cell's parameters (``handover.cell_unidentified``).
 
 Hand-written: the candidate and its hold-outs are this project's rule; the fits, tests,
 interpolation and conditions are the selection's, the model layer's and the hand-over's.
@@ -175,7 +175,9 @@ def judge(ctx: Context, ref: Candidate, table: Table, accuracy_a: float) -> dict
     back = selection.compare(ctx, loss, loss_ref, 1, -dbic)
     failed = {}
     for g, (sub, c) in enumerate(zip(table.subs, table.sets, strict=True)):
-        why, _, _ = handover.failures(sub, c, accuracy_a)
+        why, iv, _ = handover.failures(sub, c, accuracy_a)
+        if loose := handover.cell_unidentified(handover.Entry(NAME, c, iv=iv)):
+            why["cell"] = [f"not identified: {', '.join(loose)}"]
         if why:
             failed[f"{table.ambients[g]:g} °C"] = why
     # the better of the two by the tests; where neither pays against the other, the one with

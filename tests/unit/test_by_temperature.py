@@ -463,7 +463,7 @@ def test_where_the_joint_model_is_worse_at_one_temperature_only_that_one_takes_i
 
     own = sets()
     model = cell(("second_rc",), {"r0_ohm": 0.07}, 299.0)
-    rows = [{"ambient_c": a, "own_model": "x", "joint_worse": a == 0.0,
+    rows = [{"ambient_c": a, "own_model": "x", "joint_worse": a == 0.0, "own_handed_over": a == 0.0,
              "own_heldout_rmse_mv": 5.0, "joint_heldout_rmse_mv": j}
             for a, j in zip(SETS, (9.0, 4.0, 6.0), strict=True)]  # fmt: skip
     pt = {"groups": rows, "joint_worse": True}

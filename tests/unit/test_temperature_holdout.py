@@ -119,13 +119,16 @@ def test_on_two_temperatures_a_law_must_sit_inside_its_prior(theta_r0_k, admitte
     assert row["pays"] is admitted
 
 
-def _held(errors, idx=None):
-    """A hand-over's chosen entry holding the given held-out error segments."""
+def _held(errors, idx=None, capacity_identified=True):
+    """A hand-over's chosen entry holding the given held-out error segments (a base model whose
+    intervals identify its capacity, or not)."""
     from types import SimpleNamespace
 
     idx = idx or [np.arange(e.size) for e in errors]
     held = [(r, i, e) for r, (i, e) in enumerate(zip(idx, errors, strict=True))]
-    return SimpleNamespace(chosen=SimpleNamespace(held=held), name="base",
+    entry = {"identified": capacity_identified, "held": False}
+    iv = SimpleNamespace(names=("lq",), report=lambda: {"parameters": {"capacity_ah": entry}})
+    return SimpleNamespace(chosen=SimpleNamespace(held=held, iv=iv, effects=()), name="base",
                            kind="leave one record out")  # fmt: skip
 
 
@@ -167,6 +170,18 @@ def test_the_joint_model_is_compared_with_each_temperatures_own_on_the_samples_i
                                 [_held([joint[0][cut]], [cut]), warm])  # fmt: skip
     assert not same["joint_worse"]
     assert same["decision"] == "the joint model"
+    # better, but its records do not identify its capacity: not handed over in the joint's place
+    loose = _held([0.004 * rng.standard_normal(cut.size)], [cut], capacity_identified=False)
+    pt = handover.against_own(ctx, [[joint[0][cut]], [joint[1], joint[2]]], [loose, warm])
+    c = pt["groups"][0]
+    assert c["joint_worse"]
+    assert c["own_not_identified"] == ["capacity_ah"]
+    assert not c["own_handed_over"]
+    assert not pt["joint_worse"]
+    assert pt["decision"] == "the joint model"
+    assert "its own model not handed over: capacity_ah not identified" in (
+        handover.per_temperature_summary(pt)
+    )
 
 
 def test_the_joint_model_sees_what_each_temperatures_own_model_saw_and_more():
@@ -226,10 +241,10 @@ def test_a_joint_model_worse_than_each_temperatures_own_hands_over_the_per_tempe
     d.write(tmp_path, figure=False)
     model = FittedModel.load(tmp_path / "model.json")
     assert [a for a, _ in model.by_temperature] == [0.0, 20.0, 40.0]
-    assert pt["groups"][2]["joint_worse"]  # 40 °C: R0 up again, no law follows it
+    assert pt["groups"][2]["own_handed_over"]  # 40 °C: R0 up again, no law follows it
     for (a, m), want, g in zip(model.by_temperature, r0.values(), pt["groups"], strict=True):
         # its own set where the joint model is worse there, else the joint model (amended rule)
-        if not g["joint_worse"]:
+        if not g["own_handed_over"]:
             want = handed["joint"]["parameters"]["r0_ohm"]
         assert m.parameters()["r0_ohm"] == pytest.approx(want, rel=0.1), a
     (row,) = [v for v in d.report["validation"] if v["model"] == "handed_over"]

@@ -538,7 +538,7 @@ def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
     if not pt["joint_worse"]:
         return handed, model
     rows = pt["groups"]
-    sets = [(a, m if r["joint_worse"] else model.at_ambient(a))  # a table: its set there
+    sets = [(a, m if r["own_handed_over"] else model.at_ambient(a))  # a table: its set there
             for (a, m), r in zip(models, rows, strict=True)]  # fmt: skip
     combined = FittedModel.per_temperature(
         sets,
@@ -551,8 +551,8 @@ def _never_worse(ctx, handed: dict, model: FittedModel, pt: dict, models: list):
     joint = {k: handed[k] for k in ("name", "effects", "n_params", "heldout_rmse_mv", "score",
                                     "parameters")}  # fmt: skip
     for r in rows:
-        r["handed_over"] = r["own_model"] if r["joint_worse"] else "the joint model"
-    held = [r["own_heldout_rmse_mv"] if r["joint_worse"] else r["joint_heldout_rmse_mv"]
+        r["handed_over"] = r["own_model"] if r["own_handed_over"] else "the joint model"
+    held = [r["own_heldout_rmse_mv"] if r["own_handed_over"] else r["joint_heldout_rmse_mv"]
             for r in rows]  # fmt: skip
     sq = np.mean([(np.inf if x is None else x) ** 2 for x in held])
     handed.update(
