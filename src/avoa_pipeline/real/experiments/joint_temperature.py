@@ -88,12 +88,15 @@ def heat_rows(model, tests: dict) -> tuple[pd.DataFrame, pd.DataFrame]:
     for k, rec in tests.items():
         frame = rec.frame
         ambient, _ = heat.ambient_of(rec)
-        pred = heat.predict(model, model.heat, frame, ambient)
+        # a model of per-temperature sets (docs/temperature-rule.md parts 2-4): its set at the
+        # cycle's ambient, with that set's heat block where it has one
+        run = model.at_ambient(ambient)
+        pred = heat.predict(run, run.heat or model.heat, frame, ambient)
         measured = frame["temperature_c"].to_numpy(dtype=float)
         predicted = pred.temp_k - heat.KELVIN
         e = predicted - measured
         on_pred = prediction_errors(pred.voltage_v, frame["voltage_v"])
-        on_meas = prediction_errors(model.simulate(frame), frame["voltage_v"])
+        on_meas = prediction_errors(run.simulate(frame), frame["voltage_v"])
         rows.append({"key": k, "temperature_rmse_k": float(np.sqrt(np.mean(e**2))),
                      "temperature_max_err_k": float(np.max(np.abs(e))),
                      "joint_rmse_predicted_t_mv": on_pred["rmse_mv"],
