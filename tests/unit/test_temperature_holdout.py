@@ -222,16 +222,25 @@ def test_a_joint_model_worse_than_each_temperatures_own_hands_over_the_per_tempe
     tmp_path,
 ):
     """Part 4 end to end: an R0 that rises at both ends of 0-40 °C (no Arrhenius law follows
-    it), one record per chamber. The joint model is worse than the chambers' own models, so
-    model.json holds their sets, each set's R0 its chamber's, and a validation record at 40 °C
-    is predicted by the 40 °C set."""
+    it), one record per chamber, the cell's OCV table and capacity given (so each chamber's own
+    model identifies its cell, as part 4's amendment requires). The joint model is worse than
+    the chambers' own models, so model.json holds their sets, each set's R0 its chamber's, and a
+    validation record at 40 °C is predicted by the 40 °C set."""
+    import pandas as pd
+
     from avoa_pipeline import diagnosis, handover
     from avoa_pipeline.model.fitted import FittedModel
 
     r0 = {0.0: 0.060, 20.0: 0.030, 40.0: 0.070}
     frames = [at_ambient(a, {**TRUTH, "r0_ohm": r}, seed=k) for k, (a, r) in enumerate(r0.items())]
     held = at_ambient(40.0, {**TRUTH, "r0_ohm": r0[40.0], "soc0": 0.8}, seed=9)
-    d = diagnosis.diagnose(frames, validate=[held], progress=False)
+    soc = np.linspace(0.05, 1.0, 191)
+    P = ecm.to_physical(ecm.vector(TRUTH))[0]
+    table = tmp_path / "ocv.csv"
+    pd.DataFrame({"soc": soc, "ocv_v": ecm.ocv_values(P, soc, ecm.Knots(0.0, 0.2), None)}).to_csv(
+        table, index=False)  # fmt: skip
+    d = diagnosis.diagnose(frames, validate=[held], ocv=str(table),
+                           capacity_ah=TRUTH["capacity_ah"], progress=False)  # fmt: skip
     handed = d.report["handed_over"]
     pt = handed["per_temperature"]
     assert [g["ambient_c"] for g in pt["groups"]] == [0.0, 20.0, 40.0]
