@@ -247,7 +247,9 @@ def diagnosis_record(temp: str, report: dict, prefix: str, cycle_of: dict | None
         for name in _names(row["model"], prefix, verdict, handed is not None):
             m = out["models"].setdefault(name, {"effects": row["effects"], "cycles": {},
                                                 "train_rmse_mv": None})  # fmt: skip
-            m["cycles"][cycle] = {k: row[k] for k in VALIDATION_ERRORS}
+            # a model of per-temperature sets has no one training SOC range: its rows carry
+            # no in-range error (None here)
+            m["cycles"][cycle] = {k: row.get(k) for k in VALIDATION_ERRORS}
     return out
 
 
