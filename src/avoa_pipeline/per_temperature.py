@@ -64,11 +64,7 @@ class Table:
     ambients: list[float]
     cand: Candidate
     k: int
-    models: list[FittedModel] = field(default_factory=list)
-
-    def model(self, g: int) -> FittedModel:
-        """Test temperature ``g``'s set as a model of its records."""
-        return selection.fitted_model(self.subs[g], self.sets[g])
+    models: list[FittedModel] = field(default_factory=list)  # each set as a model of its records
 
 
 def circuit_of(ctx: Context, cand: Candidate) -> Candidate:
@@ -102,7 +98,7 @@ def fit(ctx: Context, cand: Candidate) -> Table:
     ambients = [handover.group_ambient(ctx.ambients_c, g) for g in ctx.groups]
     table = Table(ctx, circuit, subs, sets, ambients, Candidate(circuit.st, X, v, ctx.sse(v)),
                   len(ctx.groups) * free + len(held))  # fmt: skip
-    table.models = [table.model(g) for g in range(len(sets))]
+    table.models = [selection.fitted_model(s, c) for s, c in zip(subs, sets, strict=True)]
     ctx.say(f"{NAME}: {len(sets)} sets fitted")
     return table
 

@@ -514,8 +514,7 @@ def _per_temperature(ctx: selection.Context, ho, capacity_ah, soc0, current_accu
     own, models = [], []
     for group in ctx.groups:
         ambient = handover.group_ambient(ctx.ambients_c, group)
-        g = selection.Context([ctx.recs[r] for r in group], ctx.table, capacity_ah, soc0,
-                              [ctx.ambients_c[r] for r in group])  # fmt: skip
+        g = ctx.subset(group)
         g.progress = lambda what, a=ambient: ctx.say(f"{a:g} °C alone: {what}")
         lad = selection.ladder(g, selection.fit_base(g, capacity_ah, soc0))
         mine = handover.hand_over(g, lad, current_accuracy_a)
