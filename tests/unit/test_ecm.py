@@ -463,3 +463,23 @@ def test_fit_recovers_the_new_elements(effect, keys):
     got = ecm.report(res.X[0], ecm.Config((effect,)).names())
     for k in keys:
         assert got[k] == pytest.approx(truth[k], abs=1e-3), k
+
+
+def test_a_selection_is_made_once_per_index_array_and_goes_with_it():
+    """simulate_physical's per-sample selection (ecm._selection) is reused for the same index
+    array, made anew for an equal but other one, and forgotten when its array is freed."""
+    import gc
+
+    idx = np.array([2, 5, 7])
+    first = ecm._selection(10, idx)
+    assert ecm._selection(10, idx) is first
+    expected = np.full(10, -1)
+    expected[idx] = np.arange(3)
+    np.testing.assert_array_equal(first, expected)
+    other = idx.copy()
+    assert ecm._selection(10, other) is not first
+    assert ecm._selection(12, idx) is not first  # another record's length
+    key = id(other)
+    del other
+    gc.collect()
+    assert key not in ecm._SELECTIONS

@@ -55,6 +55,8 @@ paper's population kernel (``kernel.py``) stays as a specialised fast path for t
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pandas as pd
 
@@ -184,11 +186,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     at_rest = load_ohm is None and not traces and not np.any(P[:, IOFF] != 0.0)
     if at_rest and not temperature_acts_at_rest(P):
         dinv_t, two_rt_f = rec.rest_held
-    if idx is None:
-        sel = np.arange(rec.n)
-    else:
-        sel = np.full(rec.n, -1)
-        sel[idx] = np.arange(idx.size)
+    sel = _selection(rec.n, idx)
     out = np.empty((rec.n if idx is None else idx.size, P.shape[0]))
     tr = np.zeros((5, rec.n)) if traces else np.empty((0, 0))  # an absent element's trace: 0
     tab = _NO_TABLE if table is None else table.values
@@ -199,6 +197,31 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     _SIMULATE[extras](P, tab, t_lo, t_step, shape, N_KNOTS, knots.lo, knots.step, rec.i, rec.dt,
                       rec.uniform, dinv_t, two_rt_f, g, sel, out, tr)  # fmt: skip
     return (out, tr) if traces else out
+
+
+_SELECTIONS: dict[int, tuple] = {}
+
+
+def _selection(n: int, idx: np.ndarray | None) -> np.ndarray:
+    """Per sample, its place among the returned samples ``idx`` (−1: not returned); all of them
+    without ``idx``. A fit simulates its records hundreds of times with the same ``idx``, and on
+    a record of 10⁵ samples making the array took a tenth of a short simulation: made once per
+    ``idx`` array (held while that array lives; never written to: left writeable because numba
+    types a read-only array apart and would compile the simulator again for it)."""
+    if idx is None:
+        return np.arange(n)
+    key = id(idx)
+    hit = _SELECTIONS.get(key)
+    if hit is not None and hit[0]() is idx and hit[1] == n:
+        return hit[2]
+    sel = np.full(n, -1)
+    sel[idx] = np.arange(idx.size)
+    try:  # the entry goes with its array (an id is reused only after that)
+        ref = weakref.ref(idx, lambda _, k=key: _SELECTIONS.pop(k, None))
+    except TypeError:  # not an ndarray (a list): no cache
+        return sel
+    _SELECTIONS[key] = (ref, n, sel)
+    return sel
 
 
 def simulate_rows(rec: Record, X: np.ndarray, knots: Knots, table: OcvTable | None = None,
@@ -283,6 +306,13 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
     if table is None and not np.any(P[:, KLOW] != 0) and not (shaped | socr0).any():
         return rational_soc0(P[:, VNOM], P[:, OMB], v0 + P[:, R0] * f0 * i0 - P[:, VOFF])
     rows = np.arange(P.shape[0])
+    # the parts of the gap that do not move with the SOC, computed once; each the same
+    # operations in the same order as where they move, so that the roots are the same bit for
+    # bit (a soc_resistance factor of 0 leaves g at exactly 1: its exponential is finite, σ
+    # being at least 0.005 and the SOC at least −0.5)
+    klow, shaped, socr0 = bool(np.any(P[:, KLOW] != 0.0)), bool(shaped.any()), bool(socr0.any())
+    voff, r0 = P[:, VOFF], P[:, R0]
+    drop = None if klow or socr0 else v0 + r0 * f0 * i0
 
     def at_knots(x, col):  # per row, its knot values at its own SOC (flat beyond the knots)
         u = np.clip((x - knots.lo) / knots.step, 0.0, N_KNOTS - 1.0)
@@ -291,20 +321,22 @@ def soc0_rows(P: np.ndarray, rec: Record, knots: Knots, table: OcvTable | None =
         return (1.0 - w) * P[rows, col + j] + w * P[rows, col + j + 1]
 
     def gap(s):  # OCV − (V0 + ohmic drop), one SOC per row
-        g = 1.0 + P[:, KLOW] * np.exp(-np.clip(s, -0.5, 2.0) / P[:, SIG])
         if table is None:
             sc = np.clip(s, 0.0, 1.2)
             e = P[:, VNOM] * sc / (P[:, OMB] + (1.0 - P[:, OMB]) * sc)
         else:
             sc = s
             e = table(sc)
-        if shaped.any():
+        if shaped:
             e = e + at_knots(sc, D0)
         if profile:
             e = e + P[:, DUDT] * table.entropic_shape(sc) * dtemp0
-        if socr0.any():
-            g = g * np.exp(at_knots(s, L0))
-        return e + P[:, VOFF] - (v0 + P[:, R0] * g * f0 * i0)
+        if drop is not None:
+            return e + voff - drop
+        g = 1.0 + P[:, KLOW] * np.exp(-np.clip(s, -0.5, 2.0) / P[:, SIG]) if klow else None
+        if socr0:
+            g = np.exp(at_knots(s, L0)) if g is None else g * np.exp(at_knots(s, L0))
+        return e + voff - (v0 + r0 * g * f0 * i0)
 
     return _illinois(gap, P.shape[0], lo_s, hi_s, iterations)
 
@@ -375,13 +407,17 @@ def _illinois(gap, m: int, lo_s: float, hi_s: float, iterations: int, tol: float
     a0, b0 = a, b
     fa, fb = g_lo.copy(), g_hi.copy()
     inside = (g_lo < 0) & (g_hi > 0)
+    every = bool(inside.all())  # the usual case: no row to bisect, no mask to apply
     side = np.zeros(m)
     c = c_last = 0.5 * (a + b)
     for _ in range(iterations):
-        c = (a * fb - b * fa) / np.where(inside, fb - fa, 1.0)
-        c = np.where(inside, c, 0.5 * (a + b))
+        if every:
+            c = (a * fb - b * fa) / (fb - fa)
+        else:
+            c = (a * fb - b * fa) / np.where(inside, fb - fa, 1.0)
+            c = np.where(inside, c, 0.5 * (a + b))
         fc = gap(c)
-        if np.all(np.abs(fc[inside]) < tol) or np.array_equal(c, c_last):
+        if np.all(np.abs(fc if every else fc[inside]) < tol) or np.array_equal(c, c_last):
             break
         c_last = c
         left = fc < 0  # the root lies above c

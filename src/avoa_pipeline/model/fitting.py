@@ -192,6 +192,19 @@ def structure(recs: list[Record], config: Config, knots: Knots | None = None,
                      knots or Knots(0.0, 0.2), not fix_soc0, pinned)  # fmt: skip
 
 
+def _soc0(st: Structure, rec, P: np.ndarray) -> np.ndarray:
+    return ecm.soc0_rows(P, rec, st.knots, st.config.table, load_ohm=st.config.load_ohm)
+
+
+def complete_physical(st: Structure, rec, X: np.ndarray) -> np.ndarray:
+    """The physical rows of :func:`complete`'s rows ``X`` of one record, converted once (the
+    initial SOC is a plain column, the same in both; the rule reads the rows' other columns)."""
+    P = ecm.to_physical(X)
+    if st.soc0_rule:
+        P[:, ecm.SOC0] = _soc0(st, rec, P)
+    return P
+
+
 def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
     """Rows ``X`` (one record each, or several rows of one record when ``recs`` has one) with
     the initial SOC set by the rule when the structure takes it from the rule."""
@@ -199,12 +212,10 @@ def complete(st: Structure, recs, X: np.ndarray) -> np.ndarray:
     if not st.soc0_rule:
         return X
     if len(recs) == 1 and X.ndim == 2:
-        X[:, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X), recs[0], st.knots, st.config.table,
-                                          load_ohm=st.config.load_ohm)  # fmt: skip
+        X[:, IDX["soc0"]] = _soc0(st, recs[0], ecm.to_physical(X))
         return X
     for r, rec in enumerate(recs):
-        X[r, IDX["soc0"]] = ecm.soc0_rows(ecm.to_physical(X[r]), rec, st.knots, st.config.table,
-                                          load_ohm=st.config.load_ohm)[0]  # fmt: skip
+        X[r, IDX["soc0"]] = _soc0(st, rec, ecm.to_physical(X[r]))[0]
     return X
 
 
@@ -269,9 +280,9 @@ class Problem:
 
     def _sim(self, r: int, X: np.ndarray) -> np.ndarray:
         c = self.st.config
-        X = complete(self.st, [self.recs[r]], X)
-        return ecm.simulate_rows(self.recs[r], X, self.st.knots, c.table, c.load_ohm,
-                                 idx=self.idxs[r])  # fmt: skip
+        P = complete_physical(self.st, self.recs[r], X)
+        return ecm.simulate_physical(self.recs[r], P, self.st.knots, c.table, c.load_ohm,
+                                     idx=self.idxs[r])  # fmt: skip
 
     def _penalty(self, x: np.ndarray) -> np.ndarray:
         # monotone OCV: a falling step between grid points costs as much as w_mono volts

@@ -100,10 +100,18 @@ class OcvTable:
         return cls(float(soc[0]), float(step), np.ascontiguousarray(vals), capacity_ah, source, how)
 
     def grid(self) -> np.ndarray:
+        """The table's SOC points, made once per table (the initial-SOC rule reads the table at
+        every iteration of every fit's simulations). Shared: never write to it (it stays
+        writeable because numba types a read-only array apart, and the SOC filter's compiled
+        step would be compiled again for it)."""
+        return self._grid
+
+    @cached_property
+    def _grid(self) -> np.ndarray:
         return self.lo + self.step * np.arange(self.values.size)
 
     def __call__(self, soc) -> np.ndarray:
-        return np.interp(soc, self.grid(), self.values)
+        return np.interp(soc, self._grid, self.values)
 
 
 def ocv_values(P_row: np.ndarray, soc, knots: Knots, table: OcvTable | None) -> np.ndarray:
