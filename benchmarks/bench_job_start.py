@@ -138,7 +138,8 @@ def main() -> None:
     nb.write_text(json.dumps(NOTEBOOK))
     fit_cmd = [PY, "-c", FIT_CHILD, str(data)]
     diag_cmd = [PY, "-c", DIAG_CHILD, str(data), str(tmp / "diag.json")]
-    nb_cmd = [PY, "-m", "papermill", "--no-progress-bar", "-k", "avoa-pipeline", str(nb),
+    # the workflow's notebook command
+    nb_cmd = [PY, "-m", "avoa_pipeline.notebook", "-k", "avoa-pipeline", str(nb),
               str(tmp / "out.ipynb")]  # fmt: skip
     nb_free_cmd = [PY, "-c", NO_KERNEL, str(nb), str(tmp / "out_free.ipynb")]
     imports_cmd = [PY, "-c", NOTEBOOK["cells"][0]["source"][0]]

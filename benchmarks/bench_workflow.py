@@ -104,7 +104,7 @@ def job_kind(proc: psutil.Process) -> str | None:
     except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
         return None
     text = " ".join(cmd)
-    if "papermill" in text or "ipykernel" in text:
+    if "avoa_pipeline.notebook" in text or "papermill" in text or "ipykernel" in text:
         return "notebook"
     if not cmd or Path(cmd[0]).name in ("bash", "sh"):
         return None

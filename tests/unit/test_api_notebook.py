@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 import avoa_pipeline
+from avoa_pipeline.notebook import PrivateSocketKernelManager
 
 NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "api_quickstart.ipynb"
 
@@ -24,7 +25,8 @@ def test_the_api_notebook_runs_on_its_own(tmp_path, monkeypatch):
     executed = tmp_path / "api_quickstart.ipynb"
     papermill.execute_notebook(str(NOTEBOOK), str(executed), parameters={"out_dir": str(out)},
                                kernel_name="avoa-pipeline", progress_bar=False,
-                               cwd=str(tmp_path))  # fmt: skip
+                               cwd=str(tmp_path),
+                               kernel_manager_class=PrivateSocketKernelManager)  # fmt: skip
     report = json.loads((out / "diagnosis" / "diagnosis.json").read_text())
     assert report["verdict"]["effect"] == "second_rc"  # the synthetic cell's known physics
     assert {p.name for p in (out / "diagnosis").iterdir()} == {

@@ -277,7 +277,7 @@ def _kill_twice(tmp_path: Path) -> Path:
 
     wd = fresh_copy(tmp_path / "killed")
     env = {**os.environ, "XDG_CACHE_HOME": str(wd / ".cache")}
-    for marker in ("fit.py", "papermill"):
+    for marker in ("fit.py", "avoa_pipeline.notebook"):
         proc = subprocess.Popen(
             [sys.executable, "-m", "snakemake", "-j2", KILLED_TARGET,
              "--configfile", "config/tiny.yaml"],

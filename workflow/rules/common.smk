@@ -100,12 +100,13 @@ def budget_figures():
 
 
 def papermill(notebook, executed, log, **params):
-    """Shell command executing ``notebook`` with papermill (kernel of this venv)."""
+    """Shell command executing ``notebook`` with papermill (kernel of this venv, on sockets of
+    its own: avoa_pipeline.notebook says why not papermill's command line)."""
     args = " ".join(f"-p {k} {v!r}" if isinstance(v, str) else f"-p {k} {v}" for k, v in params.items())
     # under the job guard: papermill and its kernel stop if Snakemake dies (kill safety); one
     # simple command, the log written by the guard, so that bash execs it and the kernel ties
     # the guard to Snakemake (avoa_pipeline.jobguard)
-    return (f"{PY} -m avoa_pipeline.jobguard --log {log} {PY} -m papermill --no-progress-bar "
+    return (f"{PY} -m avoa_pipeline.jobguard --log {log} {PY} -m avoa_pipeline.notebook "
             f"-k avoa-pipeline {notebook} {executed} {args}")
 
 
