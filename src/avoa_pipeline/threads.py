@@ -1,0 +1,69 @@
+"""How many threads the package uses, decided in one place (issue 42, "A thread policy").
+
+Two kinds of threads run the package's work:
+
+- the paper's population kernel splits one call's rows into blocks on numba's threads
+  (``kernel.ise_population``, through ``battery.ise``);
+- a diagnosis fits independent models on Python threads (``selection.each``).
+
+Both stay within what the process was given: :func:`use` sets it (a workflow job's ``threads:``,
+by ``jobs.start``; the CLI's ``--threads``), ``NUMBA_NUM_THREADS`` caps numba's threads, and
+the cores the process may run on (its CPU affinity: ``taskset``, a cluster's allocation) cap
+both. The kernel's threads are used only where one call's work pays for them
+(:data:`PARALLEL_MIN_WORK`): on a machine whose other cores are busy, a call split over threads
+waits for the slowest, so a small call on two threads took 5-7× as long as on one.
+
+Hand-written because numba's own setting is per Python thread (``numba.set_num_threads`` holds
+for the thread that calls it; a diagnosis's worker threads would start again from
+``NUMBA_NUM_THREADS``) and knows nothing of the affinity or of the work of a call.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numba
+
+PARALLEL_MIN_WORK = 1_000_000
+"""Candidate-samples (rows × samples) of one kernel call below which it runs on the calling
+thread: placeholder, measured by ``benchmarks/bench_threads.py``."""
+MIN_BLOCK_ROWS = 4
+"""Rows of a block at least: smaller blocks lose the interleaving of candidates in SIMD lanes
+that makes the population kernel fast."""
+
+_given: int | None = None  # set by use(); None: every core this process may run on
+
+
+def cores() -> int:
+    """The cores this process may run on: its CPU affinity (``taskset``, a cluster's allocation),
+    or the CPU count where the platform has no affinity."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+def given() -> int:
+    """The threads this process may use: what :func:`use` gave it, never more than its cores."""
+    return min(_given or cores(), cores())
+
+
+def use(n: int | None) -> int:
+    """Give this process ``n`` threads (``None``: all its cores): the diagnosis's fits and the
+    kernel's blocks then use at most that many, numba's threads of the calling thread too
+    (within ``NUMBA_NUM_THREADS``). Returns the threads given (capped at the cores)."""
+    global _given
+    if n is not None and n < 1:
+        raise ValueError(f"threads must be positive, got {n}")
+    _given = None if n is None else int(n)
+    numba.set_num_threads(min(given(), numba.config.NUMBA_NUM_THREADS))
+    return given()
+
+
+def kernel_blocks(rows: int, samples: int) -> int:
+    """Blocks, one per numba thread, for one population-kernel call of ``rows`` candidates on
+    ``samples`` samples; 1: the calling thread alone, no thread pool (cheaper, and safe to run
+    from several Python threads). Threads only where the call's work pays for them
+    (:data:`PARALLEL_MIN_WORK`), never more than numba's threads nor :func:`given`."""
+    if rows * samples < PARALLEL_MIN_WORK:
+        return 1
+    return max(1, min(numba.get_num_threads(), given(), rows // MIN_BLOCK_ROWS))
