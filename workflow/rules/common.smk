@@ -28,6 +28,16 @@ for _lock in snakemake_compat.clear_stale_locks_of(workflow):
 avoa_config.check(config, "snakemake config")
 
 
+# Threads of a job (`threads:`): the job uses exactly these (avoa_pipeline.jobs.start gives them to
+# numba and to a diagnosis's independent fits, avoa_pipeline.threads), and Snakemake lowers them to
+# --cores. Most jobs take 1: many run side by side, which keeps every core busy. A long diagnosis
+# that runs nearly alone (the Panasonic joint fit, the Samsung diagnoses) takes 2 for its
+# independent fits (selection.each); the many short diagnoses (withheld effects, per temperature)
+# take 1 each: on a loaded 2-core machine a withheld-effect diagnosis took 22-28 s on one thread and
+# on two alike (docs/benchmarks.md, "A thread policy").
+LONG_DIAGNOSIS_THREADS = 2
+
+
 def config_part(*paths):
     """The parts of the config at ``paths`` (avoa_pipeline.config.part): what a rule passes to
     its job as a ``params`` entry, and all of the config the job sees."""
