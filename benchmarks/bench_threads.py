@@ -2,14 +2,21 @@
 and one AVOA run with the thread policy against one thread (``--avoa``), quiet or under load.
 
     .venv/bin/python benchmarks/bench_threads.py                      # rows 20 ... 600 x 5,701
-    .venv/bin/python benchmarks/bench_threads.py --samples 1000 5701 20000
+    .venv/bin/python benchmarks/bench_threads.py --rows 20 24 32 40 80 --samples 500 2000 20000
+    chrt -f 1 .venv/bin/python benchmarks/bench_threads.py  # the cores free of other work
     .venv/bin/python benchmarks/bench_threads.py --avoa --busy 1      # another core held busy
+
+On a machine shared with other work, ``chrt -f 1`` (real-time priority, root) gives the
+measurement the cores as a quiet machine would: nothing else runs while it does (the kernel
+keeps 5 % of each second for the rest, ``sched_rt_runtime_us``); keep such runs short.
 
 The table: per rows × samples, the kernel's ns per candidate-sample on the calling thread
 (``kernel.ise_serial``) and in two blocks on two numba threads (``kernel.ise_population``), the
 minimum and median over ``--repeat`` interleaved timings, and the median of the per-repeat ratios
-two ÷ one. The break-even is the smallest work (rows × samples per call) from which two threads
-are faster in every larger cell; ``threads.PARALLEL_MIN_WORK`` carries the value chosen from it.
+two ÷ one. The break-even: among the cells whose blocks hold ``threads.MIN_BLOCK_ROWS`` rows or
+more, the smallest work (rows × samples per call) from which two threads are faster in every
+larger cell (``threads.PARALLEL_MIN_WORK`` carries the value chosen from it); and how the cells
+with smaller blocks fared (their SIMD lanes half empty: ``MIN_BLOCK_ROWS``).
 
 ``--avoa``: one AVOA run on scenario 4 case 4 (the paper's 20 × 500 budget) timed three ways,
 interleaved: the policy (``threads.kernel_blocks``, numba's default threads), one numba thread,
@@ -96,6 +103,25 @@ def break_even(cells: list[dict]) -> tuple[int | None, int | None]:
     return last_lost, (min(won) if won else None)
 
 
+def summary(cells: list[dict]) -> str:
+    """The break-even in work among the cells whose two blocks hold ``MIN_BLOCK_ROWS`` rows or
+    more, and how the cells with smaller blocks fared."""
+    small = [c for c in cells if c["rows"] // 2 < threads.MIN_BLOCK_ROWS]
+    big = [c for c in cells if c["rows"] // 2 >= threads.MIN_BLOCK_ROWS]
+    out = []
+    if small:
+        r = [c["ratio"] for c in small]
+        out.append(f"blocks under {threads.MIN_BLOCK_ROWS} rows: two threads slower in "
+                   f"{sum(x >= 1 for x in r)} of {len(r)} cells "
+                   f"(2/1 {min(r):.2f}-{max(r):.2f})")  # fmt: skip
+    if big:
+        lost, won = break_even(big)
+        out.append(f"blocks of {threads.MIN_BLOCK_ROWS} rows or more: one thread won up to "
+                   f"{lost or 0:.3g} candidate-samples per call, two won from "
+                   f"{won or float('nan'):.3g} on")  # fmt: skip
+    return "; ".join(out)
+
+
 def table(args) -> None:
     numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
     prob = problem.build(config.load(), 4, 4)
@@ -114,11 +140,9 @@ def table(args) -> None:
                       f"{np.median(n1):6.3f} {n2.min():9.3f} {np.median(n2):6.3f} "
                       f"{c['ratio']:8.3f}", flush=True)  # fmt: skip
         end = load()
-    lost, won = break_even(cells)
-    print(f"break-even: one thread won up to {lost or 0:.3e} candidate-samples per call, "
-          f"two won from {won or float('nan'):.3e} on; the policy's PARALLEL_MIN_WORK "
-          f"{threads.PARALLEL_MIN_WORK:.3e}; threading layer {numba.threading_layer()}; "
-          f"{end}")  # fmt: skip
+    print(f"break-even: {summary(cells)}; the policy: PARALLEL_MIN_WORK "
+          f"{threads.PARALLEL_MIN_WORK:.3g}, MIN_BLOCK_ROWS {threads.MIN_BLOCK_ROWS}; threading "
+          f"layer {numba.threading_layer()}; {end}")  # fmt: skip
 
 
 def _old_rule(rows: int, samples: int) -> int:  # the rule before the policy

@@ -24,12 +24,20 @@ import os
 
 import numba
 
-PARALLEL_MIN_WORK = 1_000_000
+PARALLEL_MIN_WORK = 20_000
 """Candidate-samples (rows × samples) of one kernel call below which it runs on the calling
-thread: placeholder, measured by ``benchmarks/bench_threads.py``."""
-MIN_BLOCK_ROWS = 4
-"""Rows of a block at least: smaller blocks lose the interleaving of candidates in SIMD lanes
-that makes the population kernel fast."""
+thread. Measured (``benchmarks/bench_threads.py`` under ``chrt -f 1``, the two cores free of
+other work, docs/benchmarks.md "A thread policy"): in blocks of 16 rows or more, two threads
+were as fast as one at 6,400 candidate-samples (32 rows × 200 samples, 1.01) and faster from
+12,800 on (0.75; 0.45-0.57 from 2·10⁵ on); 20,000 keeps a margin. On a machine whose cores are
+busy, two threads lost at every size measured (2.2× at 600 rows × 5,701 samples): a job's
+threads should be cores it holds (``jobs.start``, Snakemake's ``threads:``)."""
+MIN_BLOCK_ROWS = 16
+"""Rows of a block at least. The kernel runs a block's candidates in SIMD lanes (8 doubles with
+AVX-512) and the rows past the last full vector one at a time, so blocks of 10-12 rows cost more
+than their half: 20 and 24 rows on two threads took 1.5-1.8× as long as on one, at every record
+length from 500 to 20,000 samples, while 32 rows (two blocks of 16) took 0.56-0.78× (same
+measurement). Earlier 4, which split a population of 20 in two."""
 
 _given: int | None = None  # set by use(); None: every core this process may run on
 

@@ -21,12 +21,12 @@ def _all_cores_after():
 def test_a_call_below_the_break_even_runs_on_the_calling_thread(monkeypatch):
     monkeypatch.setattr(threads, "cores", lambda: 8)
     threads.use(8)
-    work = threads.PARALLEL_MIN_WORK
-    assert threads.kernel_blocks(20, work // 20 - 1) == 1
-    rows = 40
-    expected = min(numba.get_num_threads(), rows // threads.MIN_BLOCK_ROWS)
+    work, rows = threads.PARALLEL_MIN_WORK, 4 * threads.MIN_BLOCK_ROWS
+    assert threads.kernel_blocks(rows, work // rows - 1) == 1
+    expected = min(numba.get_num_threads(), 4)
     assert threads.kernel_blocks(rows, -(-work // rows)) == expected
-    assert threads.kernel_blocks(7, 10 * work) == 1  # blocks of at least MIN_BLOCK_ROWS rows
+    # a population of 20 (the paper's) is never split: blocks of at least MIN_BLOCK_ROWS rows
+    assert threads.kernel_blocks(20, 100 * work) == 1
 
 
 def test_never_more_threads_than_given_nor_than_the_cores(monkeypatch):
