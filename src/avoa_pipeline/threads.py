@@ -9,9 +9,11 @@ Two kinds of threads run the package's work:
 Both stay within what the process was given: :func:`use` sets it (a workflow job's ``threads:``,
 by ``jobs.start``; the CLI's ``--threads``), ``NUMBA_NUM_THREADS`` caps numba's threads, and
 the cores the process may run on (its CPU affinity: ``taskset``, a cluster's allocation) cap
-both. The kernel's threads are used only where one call's work pays for them
-(:data:`PARALLEL_MIN_WORK`): on a machine whose other cores are busy, a call split over threads
-waits for the slowest, so a small call on two threads took 5-7× as long as on one.
+both. The kernel's threads are used only where one call pays for them on free cores
+(:data:`PARALLEL_MIN_WORK`, :data:`MIN_BLOCK_ROWS`, both measured). On cores that other work
+holds, a call split over threads waits for the thread it holds (a population of 20 on two
+threads took 24-49× as long as on one, 600 rows 2.2×), which no threshold avoids: a job's
+threads must be cores it holds (Snakemake's ``threads:``).
 
 Hand-written because numba's own setting is per Python thread (``numba.set_num_threads`` holds
 for the thread that calls it; a diagnosis's worker threads would start again from
