@@ -64,7 +64,8 @@ def main() -> None:
         data_jobs.dataset(cfg, s, c, str(data))
         prob = problem.build(cfg, s, c, data=data)
         rows = len(seeds) * cfg["budget"]["pop_size"]
-        ns = ns_per_candidate_sample(prob, rows)  # on one thread
+        ns = ns_per_candidate_sample(prob, rows)  # on one numba thread
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)  # the fits: as --threads says
         given = threads.use(args.threads)
         print(f"scenario {s} case {c}, {len(seeds)} seeds, budget {cfg['budget']}, "
               f"{given} threads given (kernel blocks at {rows} rows: "

@@ -17,14 +17,14 @@ threads must be cores it holds (Snakemake's ``threads:``).
 
 Hand-written because numba's own setting is per Python thread (``numba.set_num_threads`` holds
 for the thread that calls it; a diagnosis's worker threads would start again from
-``NUMBA_NUM_THREADS``) and knows nothing of the affinity or of the work of a call.
+``NUMBA_NUM_THREADS``) and knows nothing of the affinity or of the work of a call. It imports
+numba only where a kernel call asks (``jobs.start`` calls :func:`use` in every job, and a table
+or an import job would pay numba's import, about 0.5 s, for nothing).
 """
 
 from __future__ import annotations
 
 import os
-
-import numba
 
 PARALLEL_MIN_WORK = 20_000
 """Candidate-samples (rows × samples) of one kernel call below which it runs on the calling
@@ -59,13 +59,12 @@ def given() -> int:
 
 def use(n: int | None) -> int:
     """Give this process ``n`` threads (``None``: all its cores): the diagnosis's fits and the
-    kernel's blocks then use at most that many, numba's threads of the calling thread too
-    (within ``NUMBA_NUM_THREADS``). Returns the threads given (capped at the cores)."""
+    kernel's blocks then use at most that many. Returns the threads given (capped at the
+    cores)."""
     global _given
     if n is not None and n < 1:
         raise ValueError(f"threads must be positive, got {n}")
     _given = None if n is None else int(n)
-    numba.set_num_threads(min(given(), numba.config.NUMBA_NUM_THREADS))
     return given()
 
 
@@ -73,7 +72,10 @@ def kernel_blocks(rows: int, samples: int) -> int:
     """Blocks, one per numba thread, for one population-kernel call of ``rows`` candidates on
     ``samples`` samples; 1: the calling thread alone, no thread pool (cheaper, and safe to run
     from several Python threads). Threads only where the call's work pays for them
-    (:data:`PARALLEL_MIN_WORK`), never more than numba's threads nor :func:`given`."""
-    if rows * samples < PARALLEL_MIN_WORK:
+    (:data:`PARALLEL_MIN_WORK`, :data:`MIN_BLOCK_ROWS`), never more than :func:`given` nor
+    numba's threads (``NUMBA_NUM_THREADS``, ``numba.set_num_threads`` in the calling thread)."""
+    if rows * samples < PARALLEL_MIN_WORK or rows < 2 * MIN_BLOCK_ROWS:
         return 1
+    import numba  # loaded already: the caller runs the kernel
+
     return max(1, min(numba.get_num_threads(), given(), rows // MIN_BLOCK_ROWS))
