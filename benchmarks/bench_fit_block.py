@@ -5,6 +5,7 @@ algorithm) against its kernel bound, single-threaded as in a workflow job (numba
     .venv/bin/python benchmarks/bench_fit_block.py --algorithms avoa gto --seeds 10
     .venv/bin/python benchmarks/bench_fit_block.py --out DIR        # keep the records
     .venv/bin/python benchmarks/bench_fit_block.py --compare DIR    # and check them against DIR's
+    .venv/bin/python benchmarks/bench_fit_block.py --threads 2      # the job given two threads
 
 First measures the population kernel's ns per candidate-sample on the block's rows (seeds ×
 pop_size, all seeds' candidates in one call; ``bench_kernel.ns_per_candidate_sample``), then runs
@@ -13,7 +14,9 @@ per algorithm and in total: wall time, process CPU, candidate-samples (evaluatio
 the records), the kernel bound (candidate-samples × ns) and the ratio wall ÷ kernel bound.
 ``--compare`` checks each record's numbers (best parameters, best ISE, evaluations, iterations,
 history of best ISE and evaluations) against the record of the same seed in another directory,
-bit for bit (timings excepted). Nothing is asserted.
+bit for bit (timings excepted). ``--threads``: the threads the job is given (``threads.use``, as
+``jobs.start`` gives a rule's ``threads:``; default 1, as the fit rules declare); the kernel
+measurement stays single-threaded. Nothing is asserted.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from pathlib import Path  # noqa: E402
 import numba  # noqa: E402
 from bench_kernel import ns_per_candidate_sample  # noqa: E402
 
-from avoa_pipeline import config, problem  # noqa: E402
+from avoa_pipeline import config, problem, threads  # noqa: E402
 from avoa_pipeline.fit import same_record  # noqa: E402
 from avoa_pipeline.jobs import data as data_jobs  # noqa: E402
 from avoa_pipeline.jobs import identify  # noqa: E402
@@ -49,6 +52,7 @@ def main() -> None:
     ap.add_argument("--config", default=None, help="default: config/config.yaml")
     ap.add_argument("--out", type=Path, default=None, help="keep the records here")
     ap.add_argument("--compare", type=Path, default=None, help="records to compare with")
+    ap.add_argument("--threads", type=int, default=1, help="threads the fit job is given")
     args = ap.parse_args()
 
     numba.set_num_threads(1)
@@ -60,8 +64,12 @@ def main() -> None:
         data_jobs.dataset(cfg, s, c, str(data))
         prob = problem.build(cfg, s, c, data=data)
         rows = len(seeds) * cfg["budget"]["pop_size"]
-        ns = ns_per_candidate_sample(prob, rows)
-        print(f"scenario {s} case {c}, {len(seeds)} seeds, budget {cfg['budget']}")
+        ns = ns_per_candidate_sample(prob, rows)  # on one numba thread
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)  # the fits: as --threads says
+        given = threads.use(args.threads)
+        print(f"scenario {s} case {c}, {len(seeds)} seeds, budget {cfg['budget']}, "
+              f"{given} threads given (kernel blocks at {rows} rows: "
+              f"{threads.kernel_blocks(rows, prob.time_s.size)})")  # fmt: skip
         print(f"population kernel: {ns:.2f} ns per candidate-sample at {rows} rows")
         print(f"{'algorithm':14s} {'wall s':>8s} {'CPU s':>8s} {'cand-samples':>13s} "
               f"{'bound s':>8s} {'ratio':>6s}")  # fmt: skip

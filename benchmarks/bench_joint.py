@@ -16,9 +16,9 @@ The records are the canonical CSVs ``snakemake -j2 real`` writes (results/real/c
 ``--until`` runs the diagnosis in this process (no figure, no files) and stops when its progress
 line starts with the phrase: a part of the run, to compare code versions under the same load
 (``PYTHONPATH=<a checkout of commit ce0cda2>/src`` runs the code before the speed-ups; its
-``--threads`` does nothing there).
+``--threads`` needs the thread policy's code).
 
-Also printed: the cores this process may use (the selection's threads, ``selection.THREADS``).
+Also printed: the cores this process may use (the selection's threads: ``threads.given``).
 Measured: docs/real-data.md, "Time of the joint fit" (before the speed-ups, commit ce0cda2,
 1,802 s wall).
 """
@@ -68,7 +68,7 @@ def part(train: list[Path], ocv: Path, args) -> None:
     import pstats
     import resource
 
-    from avoa_pipeline import inputs, selection
+    from avoa_pipeline import inputs
     from avoa_pipeline.gap import diagnose
 
     def cpu() -> float:
@@ -87,8 +87,10 @@ def part(train: list[Path], ocv: Path, args) -> None:
 
     read = inputs.read_inputs([str(p) for p in train], [], str(ocv))
     diagnose.Progress = Progress
-    if args.threads:
-        selection.THREADS = args.threads
+    if args.threads:  # code from before the thread policy has no threads module
+        from avoa_pipeline import threads
+
+        threads.use(args.threads)
     load0 = os.getloadavg()[0]
     prof = cProfile.Profile() if args.profile else None
     if prof:
@@ -109,7 +111,7 @@ def main() -> None:
     ap.add_argument("--keep", help="a folder to copy diagnosis.json and model.json into")
     ap.add_argument("--until", help="in this process, stop at this progress phrase")
     ap.add_argument("--profile", action="store_true", help="with --until: under cProfile")
-    ap.add_argument("--threads", type=int, help="with --until: selection.THREADS")
+    ap.add_argument("--threads", type=int, help="with --until: the threads given (threads.use)")
     ap.add_argument("--temperatures", help="comma-separated, e.g. 25degC,0degC (default: all)")
     args = ap.parse_args()
 

@@ -26,7 +26,7 @@ it: :func:`fit_base`, then :func:`ladder` returns the whole ladder.
 Only training records enter: a record passed for validation is never seen here.
 
 Time (issue 28: all four Panasonic temperatures, 8 records, 393,711 samples, ≤ 5 min on 2
-cores): the fits that do not depend on each other run on ``THREADS`` threads (:func:`each`):
+cores): the fits that do not depend on each other run on the process's threads (:func:`each`):
 the candidates of a rung (each one's fit and, where it can pay, its held-out fits), the
 first rung's held-out fits, the held-out parts of a model held out alone, and the pruning's trials
 (each element of the final model removed in turn, all tried at once; the first in the sequential
@@ -46,7 +46,6 @@ HPPC record a diagnosis took twice the CPU time with the same selection (docs/ga
 from __future__ import annotations
 
 import copy
-import os
 import pickle
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -55,6 +54,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from . import threads
 from .model import ecm, elements, fitting, heat, intervals
 from .model.ecm import Config, Knots, Record
 from .model.fitted import FittedModel, fit_model, model_of, prediction_errors
@@ -89,22 +89,21 @@ A true effect whose base residual is r (in noise RMS units) can remove up to r²
 only below r ≈ 0.23, far under the 1.5 the validation targets."""
 
 
-THREADS = max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-               else (os.cpu_count() or 1))  # fmt: skip
-"""Threads for independent fits: the cores this process may use. The heavy parts of a fit (the
-compiled simulator, ``nogil``; LAPACK's SVD, one BLAS thread each, ``diagnose.BLAS_THREADS``)
-release the GIL, so fits on two cores take about half as long; more threads than cores would only
-take turns. Any value gives the same results."""
-
 _WORKER = threading.local()
 
 
 def each(fn, items) -> list:
-    """``[fn(x) for x in items]``, on up to ``THREADS`` threads, in the items' order. Inside a
-    task it runs them one by one (the tasks are as coarse as the caller could make them; a
-    pool inside a pool could wait for itself). An exception in a task is raised here."""
+    """``[fn(x) for x in items]``, on up to the threads this process was given
+    (:func:`..threads.given`: its cores, or a job's ``threads:``, the CLI's ``--threads``), in
+    the items' order. The heavy parts of a fit (the compiled simulator, ``nogil``; LAPACK's
+    SVD, one BLAS thread each, ``diagnose.BLAS_THREADS``) release the GIL, so fits on two cores
+    take about half as long; more threads than cores would only take turns. Any number gives
+    the same results. Inside a task it runs them one by one (the tasks are as coarse as the
+    caller could make them; a pool inside a pool could wait for itself). An exception in a task
+    is raised here."""
     items = list(items)
-    if THREADS <= 1 or len(items) <= 1 or getattr(_WORKER, "busy", False):
+    n = threads.given()
+    if n <= 1 or len(items) <= 1 or getattr(_WORKER, "busy", False):
         return [fn(x) for x in items]
 
     def task(x):
@@ -114,7 +113,7 @@ def each(fn, items) -> list:
         finally:
             _WORKER.busy = False
 
-    with ThreadPoolExecutor(min(THREADS, len(items))) as pool:
+    with ThreadPoolExecutor(min(n, len(items))) as pool:
         return list(pool.map(task, items))
 
 

@@ -358,7 +358,8 @@ def _subparsers(parser):
 def test_shared_options_are_defined_once_and_listed_where_they_were():
     """The options several commands take come from one parent parser each (the same argparse
     action in every command), and each --help still lists them in the order it did: the
-    scenario and case first, the current sign and the cycler last."""
+    scenario and case first, the current sign and the cycler last (then the threads, where a
+    command takes them)."""
     from avoa_pipeline import cli
 
     sub = _subparsers(cli.build_parser())
@@ -371,9 +372,11 @@ def test_shared_options_are_defined_once_and_listed_where_they_were():
     assert len({id(action(c, "--current-sign")) for c in readers[1:]}) == 1
     grid = ("fit", "generate", "recovery")
     assert len({id(action(c, "--scenario")) for c in grid}) == 1
+    assert len({id(action(c, "--threads")) for c in ("fit", "diagnose")}) == 1
     for c in readers:
-        assert sub[c]._actions[-1].option_strings == ["--cycler"]
-        assert sub[c]._actions[-2].option_strings == ["--current-sign"]
+        options = [a.option_strings for a in sub[c]._actions if a.option_strings != ["--threads"]]
+        assert options[-1] == ["--cycler"]
+        assert options[-2] == ["--current-sign"]
     for c in grid:
         assert [a.option_strings for a in sub[c]._actions[1:3]] == [["--scenario"], ["--case"]]
 

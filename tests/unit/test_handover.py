@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from test_ecm import TRUTH, profile_frame, with_voltage
 
-from avoa_pipeline import handover, selection
+from avoa_pipeline import handover, selection, threads
 from avoa_pipeline.cli import main
 from avoa_pipeline.errors import DataError
 from avoa_pipeline.model.ecm import IDX, Record
@@ -219,9 +219,9 @@ def test_the_rule_gives_the_same_on_one_thread_and_two(one, monkeypatch):
     the same to the bit whatever the number of threads, and so are the fits counted."""
     ctx, base = one
     got = {}
-    for threads in (1, 2):
-        monkeypatch.setattr(selection, "THREADS", threads)
+    for n in (1, 2):
+        monkeypatch.setattr(threads, "given", lambda k=n: k)
         fits = ctx.fits
         ho = handover.hand_over(ctx, _ladder(base, base))
-        got[threads] = ([e.score for e in ho.entries], ho.name, ctx.fits - fits)
+        got[n] = ([e.score for e in ho.entries], ho.name, ctx.fits - fits)
     assert got[1] == got[2]

@@ -196,6 +196,7 @@ def test_a_rule_passes_only_what_its_job_reads(cfg):
 
 def _run_script(name: str, **job) -> None:
     job.setdefault("log", [])
+    job.setdefault("threads", 1)  # Snakemake always gives it
     runpy.run_path(str(REPO / "workflow/scripts" / name), init_globals={
         "snakemake": SimpleNamespace(**job)})  # fmt: skip
 

@@ -9,13 +9,13 @@ import pytest
 from test_ecm import TRUTH, profile_frame, with_voltage
 from threadpoolctl import threadpool_info
 
-from avoa_pipeline import selection
+from avoa_pipeline import selection, threads
 from avoa_pipeline.gap import diagnose
 from avoa_pipeline.model import ecm
 
 
 def test_each_keeps_the_order_and_runs_a_task_inside_a_task_in_its_thread(monkeypatch):
-    monkeypatch.setattr(selection, "THREADS", 2)
+    monkeypatch.setattr(threads, "given", lambda: 2)
     main = threading.get_ident()
 
     def task(x):
@@ -28,12 +28,12 @@ def test_each_keeps_the_order_and_runs_a_task_inside_a_task_in_its_thread(monkey
     out = selection.each(task, range(6))
     assert [v for v, _ in out] == [x * x for x in range(6)]
     assert all(t != main for _, t in out)  # on the pool's threads
-    monkeypatch.setattr(selection, "THREADS", 1)
+    monkeypatch.setattr(threads, "given", lambda: 1)
     assert {t for _, t in selection.each(task, range(3))} == {main}
 
 
 def test_each_raises_a_tasks_error(monkeypatch):
-    monkeypatch.setattr(selection, "THREADS", 2)
+    monkeypatch.setattr(threads, "given", lambda: 2)
 
     def task(x):
         if x == 3:
@@ -61,11 +61,11 @@ def test_a_ladder_is_the_same_on_one_thread_and_on_two(monkeypatch):
     fits and the pruning's trials run side by side, and the ladder is the same to the bit."""
     recs = [ecm.Record.from_frame(f, tref_k=298.15) for f in _two_records().values()]
     out = {}
-    for threads in (1, 2):
-        monkeypatch.setattr(selection, "THREADS", threads)
+    for n in (1, 2):
+        monkeypatch.setattr(threads, "given", lambda k=n: k)
         ctx = selection.Context(recs)
         lad = selection.ladder(ctx, selection.fit_base(ctx), EFFECTS)
-        out[threads] = ctx.fits, lad
+        out[n] = ctx.fits, lad
     (fits1, one), (fits2, two) = out[1], out[2]
     assert one.rungs  # the climb and the pruning ran
     assert one.final is not None
@@ -83,11 +83,11 @@ def test_held_out_parts_of_one_record_are_the_same_on_one_thread_and_on_two(monk
     ctx = selection.Context([ecm.Record.from_frame(frame)])
     base = selection.fit_base(ctx)
     out = {}
-    for threads in (1, 2):
-        monkeypatch.setattr(selection, "THREADS", threads)
+    for n in (1, 2):
+        monkeypatch.setattr(threads, "given", lambda k=n: k)
         fits = ctx.fits
         c = ctx.cross_validate(selection.Candidate(base.st, base.X, base.v, base.rss))
-        out[threads] = c
+        out[n] = c
         assert ctx.fits - fits == len(ctx.layout.folds)
     assert (out[1].ho == out[2].ho).all()
     assert all((x == y).all() for x, y in zip(out[1].fold_X, out[2].fold_X, strict=True))
@@ -97,7 +97,7 @@ def test_pruning_counts_only_the_trials_the_one_at_a_time_rule_makes(monkeypatch
     """All of a round's trials run at once; the first that does not pay (in the sequential
     order, the latest element first) is dropped, and the fits of the trials after it are not
     counted."""
-    monkeypatch.setattr(selection, "THREADS", 2)
+    monkeypatch.setattr(threads, "given", lambda: 2)
     ctx = SimpleNamespace(fits=0, layout=SimpleNamespace(folds=[0, 1, 2]), said=[], held=[])
     ctx.count = lambda n: setattr(ctx, "fits", ctx.fits + n)
     ctx.say = ctx.said.append

@@ -28,6 +28,17 @@ for _lock in snakemake_compat.clear_stale_locks_of(workflow):
 avoa_config.check(config, "snakemake config")
 
 
+# Threads of a job (`threads:`): the job uses exactly these (avoa_pipeline.jobs.start gives them to
+# numba and to a diagnosis's independent fits, avoa_pipeline.threads), and Snakemake lowers them to
+# --cores. Most jobs take 1: many run side by side, which keeps every core busy. The long
+# diagnoses that run nearly alone (the Panasonic joint fit, the Samsung diagnoses) take 2 for
+# their independent fits (selection.each; the joint fit's first rung 38.8 s on two threads against
+# 48.2 s on one, at load 5-6, docs/real-data.md). The many short ones (withheld effects, per
+# temperature) take 1: a withheld-effect diagnosis took 21.2 s on two free cores against 22.5 s
+# on one, for 1.5x the CPU time (docs/benchmarks.md, "A thread policy").
+LONG_DIAGNOSIS_THREADS = 2
+
+
 def config_part(*paths):
     """The parts of the config at ``paths`` (avoa_pipeline.config.part): what a rule passes to
     its job as a ``params`` entry, and all of the config the job sees."""

@@ -246,7 +246,7 @@ if PAN_JOINT_ON:
             "logs/real/joint/diagnosis.benchmark.tsv"
         params:
             tests=PAN_JOINT_TESTS,
-        threads: 1
+        threads: LONG_DIAGNOSIS_THREADS
         script:
             "../scripts/panasonic_joint.py"
 
@@ -352,7 +352,7 @@ if SAMSUNG_FITS:
             "logs/real/samsung/diagnosis_{sfit}.benchmark.tsv"
         params:
             tests=lambda w: {SAMSUNG_JOINT["unseen"]: samsung_canon(SAMSUNG_JOINT["unseen"])},
-        threads: 1
+        threads: LONG_DIAGNOSIS_THREADS
         script:
             "../scripts/real_samsung_diagnose.py"
 

@@ -4,7 +4,7 @@ through the one diagnose pipeline (``diagnosis.diagnose``, ``Diagnosis.write``).
 from __future__ import annotations
 
 from ..names import CURRENT_SIGNS
-from .options import CYCLER, number
+from .options import CYCLER, THREADS, number, use_threads
 from .registry import register
 
 
@@ -59,6 +59,7 @@ def cmd_diagnose(args) -> None:
     given = [*args.data, *args.validate, *ocvs]
     # every input and output is checked before any fit, so bad input costs no time
     diagnosis.check_outputs(args.out, given)
+    use_threads(args)
     # one --ocv is passed as one path, as before; several as the list (one per temperature)
     ocv = None if not ocvs else ocvs[0] if len(ocvs) == 1 else ocvs
     d = diagnosis.diagnose(args.data, args.validate, ocv, capacity_ah=args.capacity_ah,
@@ -74,4 +75,4 @@ def _folder(args) -> tuple[str, bool]:
 
 
 register("diagnose", "sim-to-real gap diagnosis of a cell's measured records", arguments=arguments,
-         parents_after=(CYCLER,), output=_folder)(cmd_diagnose)  # fmt: skip
+         parents_after=(CYCLER, THREADS), output=_folder)(cmd_diagnose)  # fmt: skip

@@ -7,7 +7,7 @@ import sys
 
 from ..errors import UserError
 from ..names import ALGORITHMS
-from .options import SCENARIO_CASE, config_path, int_in
+from .options import SCENARIO_CASE, THREADS, config_path, int_in, use_threads
 from .registry import register
 
 
@@ -29,14 +29,11 @@ def arguments(f) -> None:
     f.add_argument("--iterations", type=int_in("iterations"), default=None)
     f.add_argument("--max-nfe", type=int_in("max-nfe"), default=None)
     f.add_argument("--noise-free", action="store_true", help="generated data without noise")
-    f.add_argument("--threads", type=int_in("threads"), default=None)
 
 
 @register("fit", "identify the parameters of one scenario × case", arguments=arguments,
-          parents=(SCENARIO_CASE,))  # fmt: skip
+          parents=(SCENARIO_CASE,), parents_after=(THREADS,))  # fmt: skip
 def run_fit(args) -> None:
-    import numba
-
     from .. import config, fit, problem
     from ..io import check_output, write_json
 
@@ -45,10 +42,7 @@ def run_fit(args) -> None:
     check_output(args.out, inputs=[args.data, config_path(args)])
     cfg = config.load(args.config)
     budget = fit.budget_from(cfg, args.pop_size, args.iterations, args.max_nfe)
-    if args.threads is not None:
-        if args.threads < 1:
-            raise UserError(f"--threads must be positive, got {args.threads}")
-        numba.set_num_threads(min(args.threads, numba.config.NUMBA_NUM_THREADS))
+    use_threads(args)
     prob = problem.build(cfg, args.scenario, args.case, args.data, noise=not args.noise_free)
     record = fit.run(cfg, prob, args.algorithm, args.seed, budget)
     write_json(record, args.out)

@@ -74,6 +74,22 @@ CURRENT_SIGN = _parent()
 says more in its own help)."""
 CURRENT_SIGN.add_argument("--current-sign", choices=CURRENT_SIGNS, default=CURRENT_SIGNS[0])
 
+THREADS = _parent()
+"""The commands whose work runs on threads (``fit``: the kernel's blocks; ``diagnose``: the
+independent fits): the threads they may use (``threads.use``)."""
+THREADS.add_argument("--threads", type=int_in("threads"), default=None,
+                     help="threads to use (default: the cores this process may use)")  # fmt: skip
+
+
+def use_threads(args) -> int:
+    """Give the process ``--threads`` (``threads.use``; None: its cores), refused below 1."""
+    from .. import threads
+
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be positive, got {args.threads}")
+    return threads.use(args.threads)
+
+
 CYCLER = _parent()
 """Every command that reads a measured record reads a cycler's raw export too."""
 CYCLER.add_argument("--cycler", choices=CYCLERS, default=None, help=CYCLER_HELP)

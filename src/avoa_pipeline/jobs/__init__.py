@@ -29,8 +29,11 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 def start(job) -> str | None:
     """Start a job: the kill-safety watch (:mod:`..jobguard`: the job stops if the Snakemake that
-    started it dies). Returns the job's log file (``None`` without one)."""
-    from .. import jobguard
+    started it dies) and the threads its rule declares (``threads:``, which Snakemake lowers to
+    ``--cores``; :func:`..threads.use`: numba's and a diagnosis's threads stay within them).
+    Returns the job's log file (``None`` without one)."""
+    from .. import jobguard, threads
 
     jobguard.watch()
+    threads.use(job.threads)
     return job.log[0] if len(job.log) else None

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numba
 from threadpoolctl import threadpool_limits
 
 from .. import fit, problem
@@ -73,8 +72,9 @@ def fit_algorithms(cfg, data_csv: str, scenario, case, algorithms, seeds, out_js
     paid once for all algorithms, not once per algorithm). ``out_jsons`` is algorithm-major:
     the records of ``seeds`` for ``algorithms[0]``, then for ``algorithms[1]``, ... Each
     algorithm's seeds are stepped together as in :func:`fit_batch`; the records are the same.
-    Returns the counts over all algorithms."""
-    numba.set_num_threads(1)
+    Returns the counts over all algorithms. The kernel's threads: those the process was given
+    (``jobs.start``: the rule's ``threads: 1``), where a call's work pays for them
+    (``threads.kernel_blocks``); the records are the same with any number."""
     seeds, out_jsons = [int(s) for s in seeds], [str(p) for p in out_jsons]
     algorithms = [str(a) for a in algorithms]
     if len(seeds) * len(algorithms) != len(out_jsons):

@@ -78,12 +78,9 @@ def read_ocv(ocv_csv):
 def paper_fit_one(exp, base_seed, temp, model, algorithm, train_csv, tests, out_json,
                   log=None) -> None:  # fmt: skip
     """``exp``: ``drive_cycles.fit_settings(cfg, temp)``."""
-    import numba
-
     from ..io import write_json
     from ..real.experiments import drive_cycles
 
-    numba.set_num_threads(1)
     train = _frames({"train": train_csv})["train"]
     rec = drive_cycles.paper_fit(exp, base_seed, temp, model, algorithm, train,
                                  _frames(tests))  # fmt: skip

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from .. import threads
 from . import kernel
 
 PARAM_NAMES = ("vnom", "q", "vdis", "r0", "rtr", "tau")
@@ -128,16 +128,12 @@ class ModelSpec:
         )
 
 
-def _n_blocks(n_candidates: int) -> int:
-    # a block per numba thread, but blocks of at least 4 candidates (smaller ones lose the
-    # interleaving that makes the population kernel fast)
-    return max(1, min(numba.get_num_threads(), n_candidates // 4))
-
-
-def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float, spec: ModelSpec):
-    """ISE (eq. 13) of each row of fresh-cell parameters ``P_full`` (columns = PARAM_NAMES)."""
+def kernel_args(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
+                spec: ModelSpec) -> tuple:  # fmt: skip
+    """The population kernel's arguments (``kernel.ise_serial``; ``kernel.ise_population`` takes
+    the number of blocks after them) for rows of fresh-cell parameters ``P_full``."""
     P = np.ascontiguousarray(np.atleast_2d(P_full) * spec.fade_factors, dtype=float)
-    args = (
+    return (
         P,
         np.ascontiguousarray(current, dtype=float),
         np.ascontiguousarray(voltage, dtype=float),
@@ -147,8 +143,13 @@ def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float,
         spec.g_load,
         spec.dynamics,
     )
-    n_blocks = _n_blocks(P.shape[0])
-    if n_blocks == 1:  # no thread pool: cheaper, and safe to run from several Python threads
+
+
+def ise(P_full: np.ndarray, current: np.ndarray, voltage: np.ndarray, ts: float, spec: ModelSpec):
+    """ISE (eq. 13) of each row of fresh-cell parameters ``P_full`` (columns = PARAM_NAMES)."""
+    args = kernel_args(P_full, current, voltage, ts, spec)
+    n_blocks = threads.kernel_blocks(args[0].shape[0], args[1].size)  # the thread policy
+    if n_blocks == 1:
         return kernel.ise_serial(*args)
     return kernel.ise_population(*args, n_blocks)
 
