@@ -7,6 +7,9 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
   .venv/bin/python -m pip install -q --upgrade pip
 fi
+# The stamp covers environment.txt and pyproject.toml only: the cluster extra
+# (environment-slurm.txt, installed by scripts/slurm-local.sh start or by hand) is neither
+# installed nor removed here (pip install -r leaves a package it does not list alone).
 stamp=.venv/.environment.sha256
 want=$(sha256sum environment.txt pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
