@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # A single-node SLURM on this Debian machine, for tests/slurm and trying the workflow on a cluster
 # executor (docs/cluster.md). Root, no systemd: the daemons are started by hand.
-#   scripts/slurm-local.sh start    install the packages if missing, write slurm.conf, start
-#                                   munged, slurmctld, slurmd; wait until the node is idle
+#   scripts/slurm-local.sh start    install the packages if missing, and the cluster extra
+#                                   (environment-slurm.txt: Snakemake's SLURM executor) into
+#                                   .venv if missing; write slurm.conf, start munged, slurmctld,
+#                                   slurmd; wait until the node is idle
 #   scripts/slurm-local.sh status   daemons and sinfo; exit 0 only if the node takes jobs
 #   scripts/slurm-local.sh stop     cancel jobs, stop the daemons it starts, remove their pid files
 # Idempotent. No accounting (no slurmdbd): the workflow uses snakemake-executor-plugin-slurm 2.8,
@@ -21,6 +23,9 @@ SLURMD_PID=/run/slurmd.pid
 MUNGE_PID=/run/munge/munged.pid
 PACKAGES=(slurmctld slurmd slurm-client munge)
 WAIT_S=${SLURM_LOCAL_WAIT_S:-60}
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+VENV_PY=$ROOT/.venv/bin/python
+EXTRA=$ROOT/environment-slurm.txt
 
 die() {
   echo "slurm-local: $*" >&2
@@ -58,6 +63,36 @@ install_packages() {
     ok=$?
   [ -n "$policy" ] && rm -f "$policy"
   [ "$ok" -eq 0 ] || die "apt-get install ${missing[*]} failed (exit $ok); see $APT_LOG"
+}
+
+plugin_pinned() { # every pin of the cluster extra installed in .venv at its version
+  "$VENV_PY" - "$EXTRA" <<'EOF'
+import sys
+from importlib import metadata
+
+for line in open(sys.argv[1], encoding="utf-8"):
+    req = line.split("#")[0].strip()
+    if req:
+        name, pin = req.split("==")
+        try:
+            ok = metadata.version(name) == pin
+        except metadata.PackageNotFoundError:
+            ok = False
+        if not ok:
+            sys.exit(1)
+EOF
+}
+
+install_plugin() {
+  # the executor plugin is not in environment.txt: installed, it costs every Snakemake start
+  # (environment-slurm.txt says why); scripts/setup.sh neither installs nor removes it
+  if [ ! -x "$VENV_PY" ]; then
+    echo "slurm-local: no .venv yet (bash scripts/setup.sh); the SLURM executor plugin is not installed"
+    return
+  fi
+  plugin_pinned && return
+  echo "slurm-local: installing the SLURM executor plugin into .venv (environment-slurm.txt)"
+  "$VENV_PY" -m pip install -q -r "$EXTRA" || die "pip install -r $EXTRA failed"
 }
 
 conf_is_ours() {
@@ -129,6 +164,7 @@ start_munge() {
 start() {
   [ "$(id -u)" -eq 0 ] || die "must run as root (installs packages, starts daemons)"
   install_packages
+  install_plugin
   if alive "$CTLD_PID" && alive "$SLURMD_PID"; then
     case $(node_state) in
       idle | mix | alloc)

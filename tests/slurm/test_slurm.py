@@ -1,11 +1,13 @@
 """The tiny config on a real SLURM through Snakemake's SLURM executor, checked against a local run.
 
-Needs a SLURM whose node takes jobs: `scripts/slurm-local.sh start` sets one up on a Debian machine
-(docs/cluster.md). Skipped, with the reason, where `sinfo` is missing or no node is idle.
+Needs a SLURM whose node takes jobs and the cluster extra (`environment-slurm.txt`, Snakemake's
+SLURM executor): `scripts/slurm-local.sh start` sets up both on a Debian machine (docs/cluster.md).
+Skipped, with the reason, where `sinfo` is missing, the plugin is not installed or no node is idle.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import pwd
 import shutil
@@ -32,6 +34,11 @@ def _slurm_ready() -> str | None:
     """Why SLURM cannot take the test's jobs here, or None if it can."""
     if shutil.which("sinfo") is None:
         return "sinfo not found: no SLURM here (scripts/slurm-local.sh start sets one up)"
+    if importlib.util.find_spec("snakemake_executor_plugin_slurm") is None:
+        return (
+            "snakemake-executor-plugin-slurm not installed (the cluster extra: pip install -r "
+            "environment-slurm.txt; scripts/slurm-local.sh start installs it)"
+        )
     proc = subprocess.run(
         ["sinfo", "-h", "-N", "-o", "%N %t"],
         capture_output=True,

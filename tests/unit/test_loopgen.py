@@ -5,6 +5,7 @@ what it cannot place."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 
@@ -48,3 +49,16 @@ def test_a_snippets_position_orders_the_slot():
     code = dict(hyst.code) | {"ocv": hyst.code["ocv"][1]}  # position 0: registry order
     src = loopgen.source(_with("hysteresis", dataclasses.replace(hyst, code=code)))
     assert src.index("e += hm[c] * h[c]") < src.index("e += voff[c]")
+
+
+def test_a_registrys_own_loop_is_written_into_the_environment(monkeypatch, tmp_path):
+    """$NUMBA_CACHE_DIR when set, else the environment's folder, else (read-only environment)
+    the temporary folder (issue 42: per environment, not per machine)."""
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert loopgen.generated_folder() == tmp_path / "avoa-simulators"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setattr(loopgen.sys, "prefix", str(tmp_path / "venv"))
+    monkeypatch.setattr(loopgen.os, "access", lambda path, mode: True)
+    assert loopgen.generated_folder() == tmp_path / "venv" / "var" / "avoa-pipeline" / "simulators"
+    monkeypatch.setattr(loopgen.os, "access", lambda path, mode: False)
+    assert loopgen.generated_folder().parent == Path(loopgen.tempfile.gettempdir())

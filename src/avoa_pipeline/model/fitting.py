@@ -598,7 +598,7 @@ def base_starts(recs, config: Config, capacity_ah=None, soc0=None) -> list[np.nd
                 X[r, IDX["soc0"]] = (
                     soc0
                     if soc0 is not None
-                    else ecm.soc0_from_voltage(P, rec, Knots(0, 0.2), config.table)
+                    else ecm.soc0_from_voltage(P, rec, Knots(0.0, 0.2), config.table)
                 )
             starts.append(X)
             continue

@@ -435,13 +435,28 @@ def source(registry=None) -> str:
             + f"STATES = ({names},)  # the columns of step's X\n")  # fmt: skip
 
 
+def generated_folder() -> Path:
+    """Where a registry's own simulator is written (:func:`compiled`): under ``$NUMBA_CACHE_DIR``
+    when it is set, else in the environment (``<sys.prefix>/var/avoa-pipeline/simulators``), else,
+    where the environment is read-only, in the temporary folder. Not the temporary folder first:
+    it is one per machine, not per environment (numba's caches beside the module were compiled
+    by one environment's numba; another user's folder there is not writable), and it is emptied
+    at reboot, which compiles the loop again."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / "avoa-simulators"
+    if os.access(sys.prefix, os.W_OK):
+        return Path(sys.prefix) / "var" / "avoa-pipeline" / "simulators"
+    return Path(tempfile.gettempdir()) / "avoa-simulators"
+
+
 def compiled():
     """The compiled simulator's module for the registry as it is now: ``model/_simulator.py``
-    when that is what :func:`source` writes, else the source written once to a cache folder
-    (``$NUMBA_CACHE_DIR``, or the temporary folder) under its hash and imported from there: a
-    registry with an element added at run time (``elements.register``: a plug-in, a test's toy
-    element) gets its own loop, still one compiled function per version, cached by numba beside
-    it."""
+    when that is what :func:`source` writes, else the source written once to
+    :func:`generated_folder` under its hash and imported from there: a registry with an element
+    added at run time (``elements.register``: a plug-in, a test's toy element) gets its own loop,
+    still one compiled function per version, cached by numba beside it. The workflow's registry
+    is the package's, so its jobs run ``_simulator.py`` (compiled at set-up,
+    ``avoa_pipeline.warmup``); a plug-in's loop is compiled at its first use."""
     text = source()
     if TARGET.read_text(encoding="utf-8") == text:
         from . import _simulator
@@ -450,7 +465,7 @@ def compiled():
     name = "avoa_simulator_" + hashlib.sha256(text.encode()).hexdigest()[:16]
     if name in sys.modules:
         return sys.modules[name]
-    folder = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir()) / "avoa-simulators"
+    folder = generated_folder()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.py"
     if not path.exists():  # written whole, then renamed: another process may import it meanwhile

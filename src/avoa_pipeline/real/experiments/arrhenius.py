@@ -96,7 +96,7 @@ def rc_voltage(params, current_a: np.ndarray, ocv_slope: float, ts: float) -> np
     x = ecm.vector({"capacity_ah": 1.0, "soc0": 1.0, "r0_ohm": r0, "r1_ohm": rtr,
                     "tau1_s": tau})  # fmt: skip
     cfg = pulse_config(e, ocv_slope)
-    return ecm.simulate_rows(ecm.Record.from_frame(frame), x, ecm.Knots(0, 0.2), cfg.table)[:, 0]
+    return ecm.simulate_rows(ecm.Record.from_frame(frame), x, ecm.Knots(0.0, 0.2), cfg.table)[:, 0]
 
 
 def fit_pulse(current_a, voltage_v, ts: float, ocv_slope: float, r0_guess: float) -> dict:
