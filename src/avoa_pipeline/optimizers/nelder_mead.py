@@ -138,6 +138,14 @@ def _clip(x, lo, hi):
 
 
 @nb.njit(cache=True, inline="always")
+def _copy(src, dst):
+    """``dst[:] = src`` of two vectors element by element (numba's slice assignment checks for
+    overlap and may copy through a temporary: a few times this step's arithmetic)."""
+    for j in range(dst.size):
+        dst[j] = src[j]
+
+
+@nb.njit(cache=True, inline="always")
 def _centroid_of(sim, out):
     """scipy's centroid ``np.add.reduce(sim[:-1], 0) / N`` of one simplex (``sim``: (N + 1) ×
     N, sorted) into ``out``: the vertices added one after the other, x_0 + x_1 first, as numpy
@@ -161,7 +169,7 @@ def centroid(sim: np.ndarray) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _sort_distinct(sim, fsim, order, fbuf, xbuf) -> bool:
     """Sort one seed's simplex ``sim`` by its values ``fsim`` if they are pairwise distinct:
     then every sort gives the one order, numpy's unstable argsort included. On a tie it leaves
@@ -179,13 +187,14 @@ def _sort_distinct(sim, fsim, order, fbuf, xbuf) -> bool:
             return False
     for i in range(n):
         fbuf[i] = fsim[order[i]]
-        xbuf[i] = sim[order[i]]
-    fsim[:] = fbuf
-    sim[:] = xbuf
+        _copy(sim[order[i]], xbuf[i])
+    for i in range(n):
+        fsim[i] = fbuf[i]
+        _copy(xbuf[i], sim[i])
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _next_point(s, phase, sim, xbar, xr, point, coef, lb, ub):
     """Seed ``s``'s next point in its branch ``phase``: scipy's xr, xe, xc or xcc, a xbar + b x_N
     (the coefficients of ``coef[phase]``), clipped."""
@@ -197,7 +206,7 @@ def _next_point(s, phase, sim, xbar, xr, point, coef, lb, ub):
             xr[s, j] = point[s, j]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _begin(s, sim, fsim, xbar, xr, point, phase, fcalls, iterations, limits, coef, lb, ub):
     """The head of scipy's loop for seed ``s``, its simplex sorted: the loop's condition, the
     convergence test, then the centroid and the reflected point. Returns False if the search
@@ -221,7 +230,7 @@ def _begin(s, sim, fsim, xbar, xr, point, phase, fcalls, iterations, limits, coe
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _told_vertex(s, fs, sim, fsim, point, phase, idx, iterations) -> int:
     """The value ``fs`` of a vertex of seed ``s``'s initial simplex or shrink: returns 0 if a
     vertex is left (now its ``point``), else 2 (the simplex was initial) or 1 (a shrink: its
@@ -232,7 +241,7 @@ def _told_vertex(s, fs, sim, fsim, point, phase, idx, iterations) -> int:
     k += 1
     idx[s] = k
     if k <= N:
-        point[s] = sim[s, k]
+        _copy(sim[s, k], point[s])
         return 0
     if phase[s] == INIT:
         return 2
@@ -240,7 +249,7 @@ def _told_vertex(s, fs, sim, fsim, point, phase, idx, iterations) -> int:
     return 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _told_move(s, fs, sim, fsim, xr, fxr, point, phase, idx, iterations, sigma, lb, ub):
     """The value ``fs`` of seed ``s``'s reflected, expanded or contracted point: returns 1 if
     its worst vertex was replaced (the iteration ended), 0 if a second point follows (expansion,
@@ -266,7 +275,7 @@ def _told_move(s, fs, sim, fsim, xr, fxr, point, phase, idx, iterations, sigma, 
         take = fs <= fxr[s] if ph == CONTRACT_OUT else fs < fsim[s, N]
         x = point[s]
     if take:
-        sim[s, N] = x
+        _copy(x, sim[s, N])
         fsim[s, N] = fs
         iterations[s] += 1
         return 1
@@ -276,7 +285,7 @@ def _told_move(s, fs, sim, fsim, xr, fxr, point, phase, idx, iterations, sigma, 
             sim[s, i, j] = _clip(best + sigma * (sim[s, i, j] - best), lb[j], ub[j])
     phase[s] = SHRINK
     idx[s] = 1
-    point[s] = sim[s, 1]
+    _copy(sim[s, 1], point[s])
     return 0
 
 
