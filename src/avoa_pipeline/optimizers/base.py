@@ -221,12 +221,12 @@ class Runs:
     @property
     def done(self) -> np.ndarray:
         """Per run: the budget is spent."""
-        out = np.zeros(self.n, dtype=bool)
-        if self.budget.max_nfe is not None:
-            out |= self.nfe >= self.budget.max_nfe
-        if self.budget.iterations is not None:
-            out |= self.iteration >= self.budget.iterations
-        return out
+        max_nfe, iterations = self.budget.max_nfe, self.budget.iterations
+        if max_nfe is None:
+            return self.iteration >= iterations
+        if iterations is None:
+            return self.nfe >= max_nfe
+        return (self.nfe >= max_nfe) | (self.iteration >= iterations)
 
     def planned_iterations(self, evals_per_iteration: float) -> int:
         """Iteration horizon ``T`` over which an algorithm stretches its ``t/T`` schedules.
@@ -264,7 +264,7 @@ class Runs:
         may close two)."""
         while True:
             closing = self.nfe >= (self._closed + 1) * pop_size
-            if not closing.any():
+            if not np.count_nonzero(closing):  # .any() costs 4 times as much on a few dozen
                 return
             self.end_iteration(closing)
 
@@ -373,14 +373,15 @@ class Runs:
     # --- clocks and results -------------------------------------------------------------------
     def charge_moves(self, seconds: float, runs: np.ndarray) -> None:
         """Split the algorithm's time of one step equally over the runs it moved."""
-        if runs.any():
-            self.elapsed[runs] += seconds / runs.sum()
+        k = np.count_nonzero(runs)
+        if k:
+            np.add(self.elapsed, seconds / k, out=self.elapsed, where=runs)
 
     def charge_rows(self, seconds: float) -> None:
         """Split an evaluation's time over the runs in proportion to the rows each asked."""
         total = self._rows.sum()
         if total:
-            self.elapsed += seconds * self._rows / total
+            self.elapsed += self._rows * (seconds / total)
 
     def result(self, s: int) -> OptimResult:
         """Run ``s``'s result; evaluations after its last closed iteration (a partial one at
