@@ -137,7 +137,8 @@ def _budget_rows(X, take):
     r = 0
     for s in range(X.shape[0]):
         for i in range(take[s]):
-            out[r] = X[s, i]
+            for j in range(X.shape[2]):  # element by element: no slice assignment to compile
+                out[r, j] = X[s, i, j]
             r += 1
     return out
 
@@ -163,7 +164,8 @@ def _told(fk, take, X, nfe, best_f, best_x):
                 best = i
         if f[s, best] < best_f[s]:
             best_f[s] = f[s, best]
-            best_x[s] = X[s, best]
+            for j in range(X.shape[2]):
+                best_x[s, j] = X[s, best, j]
     return f
 
 
