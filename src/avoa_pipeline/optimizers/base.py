@@ -130,17 +130,22 @@ def uniform_in_box(rng: np.random.Generator, lb: np.ndarray, ub: np.ndarray, k: 
 
 
 @nb.njit(cache=True)
-def _budget_rows(X, take):
-    """The rows of ``X`` (run × row × dimension) that fit each run's budget, its first
-    ``take[s]``, run after run."""
-    out = np.empty((take.sum(), X.shape[2]))
+def _budget_rows(X, live, nfe, max_nfe):
+    """Per run the rows of ``X`` (run × row × dimension) it asks that fit its budget (``take``:
+    its first ``min(k, max_nfe - nfe)``, none if not ``live``; ``max_nfe`` < 0: no evaluation
+    budget), and those rows, run after run."""
+    n, k, D = X.shape
+    take = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        take[s] = 0 if not live[s] else (k if max_nfe < 0 else min(k, max_nfe - nfe[s]))
+    out = np.empty((take.sum(), D))
     r = 0
-    for s in range(X.shape[0]):
+    for s in range(n):
         for i in range(take[s]):
-            for j in range(X.shape[2]):  # element by element: no slice assignment to compile
+            for j in range(D):  # element by element: no slice assignment to compile
                 out[r, j] = X[s, i, j]
             r += 1
-    return out
+    return take, out
 
 
 @nb.njit(cache=True)
@@ -167,6 +172,19 @@ def _told(fk, take, X, nfe, best_f, best_x):
             for j in range(X.shape[2]):
                 best_x[s, j] = X[s, best, j]
     return f
+
+
+@nb.njit(cache=True)
+def _charge(elapsed, done, move_s, rows, eval_s):
+    """:meth:`Runs.charge` in one compiled call (as numpy operations, six a step)."""
+    moved, total = 0, rows.sum()
+    for s in range(done.size):
+        moved += not done[s]
+    for s in range(elapsed.size):
+        if not done[s]:
+            elapsed[s] += move_s / moved
+        if total:
+            elapsed[s] += rows[s] * (eval_s / total)
 
 
 class Runs:
@@ -207,6 +225,7 @@ class Runs:
         self._hist_time: list[list[float]] = [[] for _ in range(n)]
         self.elapsed = np.zeros(n)
         self._rows = np.zeros(n, dtype=np.int64)  # rows each run asked in the pending ask
+        self._everyone = np.ones(n, dtype=bool)  # the mask of an ask without one
         self._closed = np.zeros(n, dtype=np.int64)  # iterations closed, iteration 0 included
         # completed iterations, max(_closed - 1, 0), kept as an array: the algorithms and `done`
         # read it at every step (derived there, quasi-Newton's block ran ~8 % slower)
@@ -313,17 +332,12 @@ class Runs:
         ``+inf``. The best point is the first row of the smallest value, if strictly better
         than the run's best so far."""
         X = np.ascontiguousarray(X, dtype=float)
-        n, k = X.shape[0], X.shape[1]
-        if self.budget.max_nfe is None:
-            take = np.full(n, k, dtype=np.int64) if live is None else np.where(live, k, 0)
-        else:  # nfe never exceeds max_nfe
-            take = np.minimum(k, self.budget.max_nfe - self.nfe)
-            if live is not None:
-                take = np.where(live, take, 0)
+        max_nfe = -1 if self.budget.max_nfe is None else self.budget.max_nfe
+        take, rows = _budget_rows(X, self._everyone if live is None else live, self.nfe, max_nfe)
         self._rows = take
-        if not np.count_nonzero(take):
-            return np.full((n, k), np.inf)
-        fk = yield X.reshape(n * k, X.shape[2]) if take.sum() == n * k else _budget_rows(X, take)
+        if not rows.shape[0]:
+            return np.full(X.shape[:2], np.inf)
+        fk = yield rows
         return _told(np.asarray(fk, dtype=float).reshape(-1), take, X, self.nfe, self.best_f,
                      self.best_x)  # fmt: skip
 
@@ -373,17 +387,11 @@ class Runs:
         return X, f
 
     # --- clocks and results -------------------------------------------------------------------
-    def charge_moves(self, seconds: float, runs: np.ndarray) -> None:
-        """Split the algorithm's time of one step equally over the runs it moved."""
-        k = np.count_nonzero(runs)
-        if k:
-            np.add(self.elapsed, seconds / k, out=self.elapsed, where=runs)
-
-    def charge_rows(self, seconds: float) -> None:
-        """Split an evaluation's time over the runs in proportion to the rows each asked."""
-        total = self._rows.sum()
-        if total:
-            self.elapsed += self._rows * (seconds / total)
+    def charge(self, done: np.ndarray, move_s: float, eval_s: float) -> None:
+        """One step's clocks: the algorithm's time ``move_s`` split equally over the runs it
+        moved (those not ``done`` before it), the evaluation's time ``eval_s`` over the runs in
+        proportion to the rows each asked."""
+        _charge(self.elapsed, done, move_s, self._rows, eval_s)
 
     def result(self, s: int) -> OptimResult:
         """Run ``s``'s result; evaluations after its last closed iteration (a partial one at
@@ -412,17 +420,16 @@ def drive(runs: Runs, steps: Steps) -> None:
     in one objective call, the clocks charged as :class:`Runs` says."""
     values = None
     while True:
-        moving = ~runs.done
+        done = runs.done
         t0 = time.perf_counter()
         try:
             rows = steps.send(values)
         except StopIteration:
-            runs.charge_moves(time.perf_counter() - t0, moving)
+            runs.charge(done, time.perf_counter() - t0, 0.0)
             return
-        runs.charge_moves(time.perf_counter() - t0, moving)
-        t0 = time.perf_counter()
+        t1 = time.perf_counter()
         values = evaluate_rows(runs.objective, runs.objective_one, rows)
-        runs.charge_rows(time.perf_counter() - t0)
+        runs.charge(done, t1 - t0, time.perf_counter() - t1)
 
 
 def minimize_together(
