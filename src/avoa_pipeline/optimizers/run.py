@@ -524,7 +524,7 @@ def run(
 
     starting, asking = ~runs.done, 0
     while True:
-        if starting is not None and starting.any():  # these seeds begin an iteration
+        if starting is not None and np.count_nonzero(starting):  # these begin an iteration
             seeds = np.flatnonzero(starting)
             status[seeds] = _START
             tau[seeds] = runs.progress(count_initial=True, which=starting)  # it/MaxIt
@@ -534,9 +534,8 @@ def run(
             asking, _ = step(_START, runs.done)
         if not asking:
             return
-        F = yield from runs.ask(cand, status == _CANDIDATE)
+        F = yield from runs.ask(cand, status == _CANDIDATE)  # copies the rows it yields
         f[:] = F[:, 0]
-        cand = np.empty((S, 1, D))  # the asked rows stay the caller's
         asking, ended = step(_CANDIDATE, runs.done)
         starting = None
         if ended:  # these seeds close their iteration and, budget left, begin the next
