@@ -447,10 +447,11 @@ def _advance(
                 for t, field in enumerate((_KEYS1, _KEYS2)):
                     keys = u[o[field] + i * P : o[field] + (i + 1) * P]
                     rndx(keys, i, partners[s, t, i])
-            x_mean[s] = X[s, 0]  # the population mean, summed in numpy's order (row by row)
-            for p in range(1, P):
-                x_mean[s] += X[s, p]
-            x_mean[s] /= P
+            for j in range(X.shape[2]):  # the population mean, summed in numpy's order (row by
+                acc = X[s, 0, j]  # row); element by element: a vector `+=` allocated a temporary
+                for p in range(1, P):
+                    acc += X[s, p, j]
+                x_mean[s, j] = acc / P
             i = 0
         else:
             i = agent[s]
