@@ -207,11 +207,14 @@ def test_runs_answer_their_own_asks():
 
 @pytest.mark.parametrize(("scenario", "case"), [(s, c) for s in (1, 2, 3, 4) for c in (1, 2, 3, 4)])
 def test_rows_of_a_large_kernel_call_equal_one_candidate_calls(cfg, scenario, case):
-    # the population kernel steps its rows in SIMD lanes and a scalar remainder loop; the
-    # single-candidate kernel in scalars: every row must get the same value either way
+    # the population kernel steps its rows in SIMD lanes, padded with copies of the last row
+    # (kernel.LANES; fewer rows one by one in scalars), the single-candidate kernel in scalars:
+    # every row must get the same value either way
     prob = problem.build(cfg, scenario, case)
     rng = np.random.default_rng(scenario)
-    X = prob.lb + rng.random((203, prob.lb.size)) * (prob.ub - prob.lb)  # odd: SIMD remainders
+    X = prob.lb + rng.random((203, prob.lb.size)) * (prob.ub - prob.lb)  # odd: padded
     block = prob.objective(X)
     np.testing.assert_array_equal(block, [prob.objective_one(x) for x in X])
-    np.testing.assert_array_equal(block[17:60], prob.objective(X[17:60]))
+    # 43 rows padded to 48, 9 to 16, 5 (fewer than LANES) not padded
+    for lo, hi in ((17, 60), (60, 69), (69, 74)):
+        np.testing.assert_array_equal(block[lo:hi], prob.objective(X[lo:hi]))

@@ -1,14 +1,25 @@
 """RUN (Runge-Kutta optimizer): evaluations per iteration, NaN objectives, the mean variant, the
-partner choice, seeds out of phase under an evaluation budget.
+partner choice, seeds out of phase under an evaluation budget, the compiled draws against
+numpy's calls.
 
 The contract it shares with the other optimizers (bounds, budgets, reproducibility, history,
 convergence, smallest population) is in test_optimizer_contract.py.
 """
 
 import numpy as np
+import pytest
 
 from avoa_pipeline.optimizers import Budget, minimize, minimize_together
-from avoa_pipeline.optimizers.run import rndx
+from avoa_pipeline.optimizers.run import (
+    _ESQ_NORMAL,
+    _MU,
+    _RK1_INT,
+    _RK2_INT,
+    _W_COORD,
+    DRAWN_AHEAD,
+    _Draws,
+    rndx,
+)
 from avoa_pipeline.optimizers.testfunctions import sphere
 
 
@@ -88,3 +99,40 @@ def test_an_evaluation_budget_ends_each_seed_inside_its_own_iteration():
     assert len(ends) > 1  # out of phase indeed
     # fewer evaluations than any whole iteration costs: iterations cut short by the budget
     assert any(r.history_nfe[-1] - r.history_nfe[-2] < P for r in block)
+
+
+def _numpy_draws(draws: _Draws, rng: np.random.Generator):
+    """One iteration's numbers by numpy's own calls, in the order the one-seed code drew them."""
+    P, D = draws.P, draws.normals.shape[-1]
+    u = np.empty(draws.uniform.shape[1])
+    ints, normals = np.empty((3, P), dtype=np.int64), np.empty((2, P, D))
+    for g, (a, b) in enumerate(draws.calls):
+        rng.random(out=u[a:b])
+        if g == 0:
+            ints[_RK1_INT] = rng.integers(1, 3, size=P)
+        elif g == 1:
+            ints[_RK2_INT] = rng.integers(1, 3, size=P)
+        elif g == 2:
+            rng.standard_normal(out=normals[_MU])
+        elif g == 3:
+            rng.standard_normal(out=normals[_ESQ_NORMAL])
+        elif g == 4:
+            ints[_W_COORD] = rng.integers(D, size=P)
+    return u, ints, normals
+
+
+@pytest.mark.parametrize(("P", "D"), [(20, 6), (5, 3), (7, 1)])
+def test_compiled_draws_are_numpys_calls(P, D):
+    # numba's generator methods on the generator's own bit generator, several banks in a row
+    # (odd P: integer draws leave half of a 64-bit word in the generator between calls; a
+    # random 32-bit word never, or rarely, rejected by Lemire's method of a range of 2 or D)
+    for seed in range(4):
+        draws, rng = _Draws(1, P, D), np.random.default_rng(seed)
+        want = np.random.default_rng(seed)
+        rng.random(3), want.random(3)  # a used generator, as after the initial population
+        for _ in range(2 * DRAWN_AHEAD + 3):
+            draws.draw(0, rng)
+            u, ints, normals = _numpy_draws(draws, want)
+            np.testing.assert_array_equal(draws.uniform[0], u)
+            np.testing.assert_array_equal(draws.ints[0], ints)
+            np.testing.assert_array_equal(draws.normals[0], normals)

@@ -18,13 +18,22 @@ and stacked the seeds' one-point asks into one kernel call, and scipy's per-iter
 greenlet switches and the per-seed accounting cost several times the kernel's time. This module
 re-implements scipy's algorithm over arrays of seeds (simplexes shaped seeds × (D + 1) × D, one
 generator for all seeds): at each step every live seed asks exactly the next point scipy would
-evaluate, and which branch each seed takes is a mask over seeds. The arithmetic is scipy's,
-expression for expression (the same coefficients applied in the same order, the centroid as
-``np.add.reduce`` over the vertices, the same non-stable ``np.argsort`` on each seed's values), so
-a seed's points and values are scipy's bit for bit: ``tests/unit/test_nelder_mead.py`` holds it to
-``scipy.optimize.minimize`` itself, driven one seed at a time, on bounded test functions, with
-budgets that end inside a restart's initial simplex and inside a shrink, with the ``adaptive``
-option and with starts on a bound.
+evaluate. The arithmetic is scipy's, expression for expression (the same coefficients applied in
+the same order, the centroid added vertex after vertex as ``np.add.reduce`` adds, ``np.clip``'s
+comparisons), so a seed's points and values are scipy's bit for bit:
+``tests/unit/test_nelder_mead.py`` holds it to ``scipy.optimize.minimize`` itself, driven one
+seed at a time, on bounded test functions, with budgets that end inside a restart's initial
+simplex and inside a shrink, with the ``adaptive`` option and with starts on a bound.
+
+Why compiled. Written as numpy operations over the seeds (every branch computed for every seed,
+kept where a mask says), a step cost about 100 small array operations: 30 seeds on a cheap
+objective spent 218 us a step outside it, 97 us with the compiled step (loaded machine), where
+the kernel takes about 170 us for their 30 points (Nelder–Mead ran at 3.0× its kernel bound).
+The step is one numba call (:func:`_step`) that takes each live seed through scipy's branch
+in scalars. scipy orders a simplex by ``np.argsort``, which is not stable and whose order of
+tied values is numpy's own (AVX-512 sorts on some machines): the compiled step sorts a simplex
+whose values are all distinct (any sort gives that one order) and leaves one with tied values
+(vertices clipped onto one face, failed simulations at +inf) to ``np.argsort`` itself.
 
 One local search (scipy's, with ``N = D``; ``rho, chi, psi, sigma = 1, 2, 1/2, 1/2``, or with
 ``adaptive`` ``1, 1 + 2/N, 3/4 - 1/(2N), 1 - 1/N``)::
@@ -81,6 +90,7 @@ methods get), and bounds (``fminsearch`` is unconstrained). mealpy has no Nelder
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from .base import Runs, Steps, register, uniform_in_box
@@ -116,13 +126,211 @@ def scipy_limits(n: int, maxiter, maxfev) -> tuple[float, float]:
     return maxiter, maxfev
 
 
+@nb.njit(cache=True, inline="always")
+def _clip(x, lo, hi):
+    """``np.clip`` of one coordinate as numpy computes it: the bound when equal to it (a signed
+    zero takes the bound's sign), a NaN kept."""
+    if x == x and not x > lo:
+        x = lo
+    if x == x and not x < hi:
+        x = hi
+    return x
+
+
+@nb.njit(cache=True, inline="always")
+def _copy(src, dst):
+    """``dst[:] = src`` of two vectors element by element (numba's slice assignment checks for
+    overlap and may copy through a temporary: a few times this step's arithmetic)."""
+    for j in range(dst.size):
+        dst[j] = src[j]
+
+
+@nb.njit(cache=True, inline="always")
+def _centroid_of(sim, out):
+    """scipy's centroid ``np.add.reduce(sim[:-1], 0) / N`` of one simplex (``sim``: (N + 1) ×
+    N, sorted) into ``out``: the vertices added one after the other, x_0 + x_1 first, as numpy
+    adds along an axis that is not the contiguous one (tested on sums whose rounding depends on
+    the order)."""
+    N = sim.shape[1]
+    for j in range(N):
+        acc = sim[0, j]
+        for i in range(1, N):
+            acc += sim[i, j]
+        out[j] = acc / N
+
+
+@nb.njit(cache=True)
 def centroid(sim: np.ndarray) -> np.ndarray:
     """Each seed's scipy centroid of its ``N`` best vertices (``sim``: seeds × (N + 1) × N,
-    sorted): ``np.add.reduce(sim[:-1], 0) / N`` adds the vertices one after the other, x_0 + x_1
-    first (numpy's pairwise summation is along a contiguous reduced axis only), and so does this
-    reduction over the vertex axis of every seed at once (tested on sums whose rounding depends
-    on the order)."""
-    return np.add.reduce(sim[:, :-1], 1) / (sim.shape[1] - 1)
+    sorted), as the compiled step computes it."""
+    out = np.empty((sim.shape[0], sim.shape[2]))
+    for s in range(sim.shape[0]):
+        _centroid_of(sim[s], out[s])
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _sort_distinct(sim, fsim, order, fbuf, xbuf) -> bool:
+    """Sort one seed's simplex ``sim`` by its values ``fsim`` if they are pairwise distinct:
+    then every sort gives the one order, numpy's unstable argsort included. On a tie it leaves
+    both untouched and returns False (numpy must order the ties: :meth:`Simplexes._numpy_sort`).
+    ``order``, ``fbuf``, ``xbuf``: scratch of the simplex's shapes."""
+    n = fsim.shape[0]
+    for i in range(n):  # insertion sort of the vertex indices
+        k, v, j = i, fsim[i], i - 1
+        while j >= 0 and fsim[order[j]] > v:
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = k
+    for i in range(n - 1):
+        if not fsim[order[i]] < fsim[order[i + 1]]:
+            return False
+    for i in range(n):
+        fbuf[i] = fsim[order[i]]
+        _copy(sim[order[i]], xbuf[i])
+    for i in range(n):
+        fsim[i] = fbuf[i]
+        _copy(xbuf[i], sim[i])
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _next_point(s, phase, sim, xbar, xr, point, coef, lb, ub):
+    """Seed ``s``'s next point in its branch ``phase``: scipy's xr, xe, xc or xcc, a xbar + b x_N
+    (the coefficients of ``coef[phase]``), clipped."""
+    a, b = coef[phase, 0], coef[phase, 1]
+    N = xbar.shape[1]
+    for j in range(N):
+        point[s, j] = _clip(a * xbar[s, j] + b * sim[s, N, j], lb[j], ub[j])
+        if phase == REFLECT:
+            xr[s, j] = point[s, j]
+
+
+@nb.njit(cache=True, inline="always")
+def _begin(s, sim, fsim, xbar, xr, point, phase, fcalls, iterations, limits, coef, lb, ub):
+    """The head of scipy's loop for seed ``s``, its simplex sorted: the loop's condition, the
+    convergence test, then the centroid and the reflected point. Returns False if the search
+    stopped. ``limits``: xatol, fatol, maxiter, maxfev."""
+    xatol, fatol, maxiter, maxfev = limits
+    if not (fcalls[s] < maxfev and iterations[s] < maxiter):
+        return False
+    N = xbar.shape[1]
+    converged = True  # max |x_i - x_0| <= xatol and max |f_0 - f_i| <= fatol (a NaN: not)
+    for i in range(1, N + 1):
+        if not np.abs(fsim[s, 0] - fsim[s, i]) <= fatol:
+            converged = False
+        for j in range(N):
+            if not np.abs(sim[s, i, j] - sim[s, 0, j]) <= xatol:
+                converged = False
+    if converged:
+        return False
+    _centroid_of(sim[s], xbar[s])
+    phase[s] = REFLECT
+    _next_point(s, REFLECT, sim, xbar, xr, point, coef, lb, ub)
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _told_vertex(s, fs, sim, fsim, point, phase, idx, iterations) -> int:
+    """The value ``fs`` of a vertex of seed ``s``'s initial simplex or shrink: returns 0 if a
+    vertex is left (now its ``point``), else 2 (the simplex was initial) or 1 (a shrink: its
+    iteration ended)."""
+    N = point.shape[1]
+    k = idx[s]
+    fsim[s, k] = fs
+    k += 1
+    idx[s] = k
+    if k <= N:
+        _copy(sim[s, k], point[s])
+        return 0
+    if phase[s] == INIT:
+        return 2
+    iterations[s] += 1
+    return 1
+
+
+@nb.njit(cache=True, inline="always")
+def _told_move(s, fs, sim, fsim, xr, fxr, point, phase, idx, iterations, sigma, lb, ub):
+    """The value ``fs`` of seed ``s``'s reflected, expanded or contracted point: returns 1 if
+    its worst vertex was replaced (the iteration ended), 0 if a second point follows (expansion,
+    contraction: ``phase`` set) or a shrink begins (its first vertex is the ``point``)."""
+    N = point.shape[1]
+    ph = phase[s]
+    if ph == REFLECT:
+        fxr[s] = fs
+        if fs < fsim[s, 0]:
+            phase[s] = EXPAND
+            return 0
+        if not fs < fsim[s, N - 1]:
+            phase[s] = CONTRACT_OUT if fs < fsim[s, N] else CONTRACT_IN
+            return 0
+        take, x = True, xr[s]
+    elif ph == EXPAND:  # xe if f(xe) < f(xr), else xr
+        take = True
+        if fs < fxr[s]:
+            x = point[s]
+        else:
+            x, fs = xr[s], fxr[s]
+    else:  # xc if f(xc) <= f(xr); xcc if f(xcc) < f_N; else shrink
+        take = fs <= fxr[s] if ph == CONTRACT_OUT else fs < fsim[s, N]
+        x = point[s]
+    if take:
+        _copy(x, sim[s, N])
+        fsim[s, N] = fs
+        iterations[s] += 1
+        return 1
+    for i in range(1, N + 1):  # shrink: each vertex depends on x_0 and itself only
+        for j in range(N):
+            best = sim[s, 0, j]
+            sim[s, i, j] = _clip(best + sigma * (sim[s, i, j] - best), lb[j], ub[j])
+    phase[s] = SHRINK
+    idx[s] = 1
+    _copy(sim[s, 1], point[s])
+    return 0
+
+
+@nb.njit(cache=True)
+def _step(f, alive, sim, fsim, xbar, xr, fxr, point, phase, idx, fcalls, iterations, limits,
+          coef, sigma, lb, ub, ended, tied, order, fbuf, xbuf):  # fmt: skip
+    """Every live seed's value ``f`` of its ``point`` taken through scipy's loop to the seed's
+    next point (:meth:`Simplexes.advance`); ``ended`` marks the seeds whose search ended. A seed
+    whose simplex, to be sorted, has tied values waits with ``tied`` 1 (sort once) or 2 (an
+    initial simplex: scipy sorts it twice) for numpy's sort and :func:`_begin_seeds`; returns
+    how many wait."""
+    n_tied = 0
+    for s in range(f.size):
+        ended[s] = False
+        tied[s] = 0
+        if not alive[s]:
+            continue
+        if phase[s] == INIT or phase[s] == SHRINK:
+            told = _told_vertex(s, f[s], sim, fsim, point, phase, idx, iterations)
+        else:
+            told = _told_move(s, f[s], sim, fsim, xr, fxr, point, phase, idx, iterations,
+                              sigma, lb, ub)  # fmt: skip
+            if not told and phase[s] != SHRINK:  # the expansion or contraction follows
+                _next_point(s, phase[s], sim, xbar, xr, point, coef, lb, ub)
+        if told:  # an iteration begins: sort, then the head of the loop
+            if _sort_distinct(sim[s], fsim[s], order, fbuf, xbuf):
+                ended[s] = not _begin(s, sim, fsim, xbar, xr, point, phase, fcalls, iterations,
+                                      limits, coef, lb, ub)  # fmt: skip
+            else:
+                tied[s] = told
+                n_tied += 1
+        if fcalls[s] >= limits[3]:  # a call past maxfev ends the search instead
+            ended[s] = True
+    return n_tied
+
+
+@nb.njit(cache=True)
+def _begin_seeds(seeds, sim, fsim, xbar, xr, point, phase, fcalls, iterations, limits, coef,
+                 lb, ub, ended):  # fmt: skip
+    """:func:`_begin` for the ``seeds`` whose simplexes numpy sorted; a stopped one is
+    ``ended``."""
+    for s in seeds:
+        if not _begin(s, sim, fsim, xbar, xr, point, phase, fcalls, iterations, limits, coef,
+                      lb, ub):  # fmt: skip
+            ended[s] = True
 
 
 class Simplexes:
@@ -143,18 +351,19 @@ class Simplexes:
         maxfev: float | None = None,
         adaptive: bool = False,
     ):
-        self.lb, self.ub = lb, ub
+        self.lb = np.ascontiguousarray(lb, dtype=float)
+        self.ub = np.ascontiguousarray(ub, dtype=float)
         N = self.N = lb.size
-        self.xatol, self.fatol = xatol, fatol
-        self.maxiter, self.maxfev = scipy_limits(N, maxiter, maxfev)
-        if not self.maxfev >= 1:
+        maxiter, maxfev = scipy_limits(N, maxiter, maxfev)
+        if not maxfev >= 1:
             raise ValueError(f"maxfev must be at least 1, got {maxfev}")  # else restarts forever
+        self.limits = np.array([xatol, fatol, maxiter, maxfev], dtype=float)
         if adaptive:  # scipy's expressions, so the coefficients round as scipy's do
             dim = float(N)
             rho, chi, psi, sigma = 1, 1 + 2 / dim, 0.75 - 1 / (2 * dim), 1 - 1 / dim
         else:
             rho, chi, psi, sigma = 1, 2, 0.5, 0.5
-        self.sigma = sigma
+        self.sigma = float(sigma)
         # each branch's new point as a xbar + b x_N, a row per branch: scipy's expressions, as
         # x - c y is x + (-c) y bit for bit and the coefficients are computed as scipy's
         self.coef = np.zeros((SHRINK + 1, 2))
@@ -168,10 +377,13 @@ class Simplexes:
         self.xr = np.empty((n_seeds, N))
         self.fxr = np.full(n_seeds, np.inf)
         self.point = np.empty((n_seeds, N))
-        self.phase = np.full(n_seeds, INIT)
+        self.phase = np.full(n_seeds, INIT, dtype=np.int64)
         self.idx = np.zeros(n_seeds, dtype=np.int64)
         self.fcalls = np.zeros(n_seeds, dtype=np.int64)
         self.iterations = np.ones(n_seeds, dtype=np.int64)
+        self._ended = np.zeros(n_seeds, dtype=bool)
+        self._tied = np.zeros(n_seeds, dtype=np.int64)
+        self._scratch = (np.empty(N + 1, dtype=np.int64), np.empty(N + 1), np.empty((N + 1, N)))
 
     def clip(self, X: np.ndarray) -> np.ndarray:
         return np.clip(X, self.lb, self.ub)
@@ -194,128 +406,37 @@ class Simplexes:
         self.iterations[s] = 1
         self.point[s] = sim[:, 0]
 
-    def _sort(self, which: np.ndarray) -> None:
-        """scipy's ``np.argsort`` of the values of each seed in the mask ``which``, the vertices
-        in that order. The sort is not stable: tied values keep scipy's order because each seed's
-        row is sorted by the same call on the same values (a row's order does not depend on the
-        other rows of the call)."""
-        ind = np.argsort(self.fsim, axis=1)
-        rows = np.arange(ind.shape[0])[:, None]
-        self.fsim = np.where(which[:, None], self.fsim[rows, ind], self.fsim)
-        self.sim = np.where(which[:, None, None], self.sim[rows, ind], self.sim)
-
-    @np.errstate(invalid="ignore", over="ignore")  # inf - inf of failed simulations: harmless
     def advance(self, f: np.ndarray, alive: np.ndarray) -> np.ndarray:
         """Take each live seed's value ``f`` of its ``point`` through scipy's loop to the seed's
-        next point. Returns the seeds whose search has ended (converged, or at its ``maxiter`` /
-        ``maxfev``): they need a restart.
+        next point (one compiled call, :func:`_step`). Returns the seeds whose search has ended
+        (converged, or at its ``maxiter`` / ``maxfev``): they need a restart.
 
-        Every branch is computed for every seed (a few dozen seeds: an operation on all of them
-        costs what one on a few does) and kept where the seed is in it."""
-        code = np.where(alive, self.phase, -1)  # the branch each live seed was in when it asked
-        completed, initialised = self._vertex_told(f, code)
-        replaced, moving = self._move_told(f, code)
-        completed |= replaced
-        self.iterations += completed
-        stopped, reflecting = self._begin_iterations(completed | initialised, initialised)
-        moving |= reflecting
-        if moving.any():
-            self._next_points(moving)
-        # a call past maxfev ends the search instead (scipy's _MaxFuncCallError)
-        return alive & (stopped | (self.fcalls >= self.maxfev))
+        scipy sorts each simplex by ``np.argsort``, which is not stable: the compiled step sorts
+        a simplex whose values are distinct (one order only), numpy sorts one with tied values
+        (:meth:`_numpy_sort`), as scipy would."""
+        ended, tied = self._ended, self._tied
+        state = (self.sim, self.fsim, self.xbar, self.xr, self.fxr, self.point, self.phase,
+                 self.idx, self.fcalls, self.iterations)  # fmt: skip
+        f = np.ascontiguousarray(f, dtype=float)
+        if _step(f, alive, *state, self.limits, self.coef, self.sigma, self.lb, self.ub, ended,
+                 tied, *self._scratch):  # fmt: skip
+            seeds = np.flatnonzero(tied)
+            self._numpy_sort(seeds[tied[seeds] == 2])  # scipy sorts the initial simplex twice
+            self._numpy_sort(seeds)
+            _begin_seeds(seeds, self.sim, self.fsim, self.xbar, self.xr, self.point, self.phase,
+                         self.fcalls, self.iterations, self.limits, self.coef, self.lb, self.ub,
+                         ended)  # fmt: skip
+        return ended.copy()
 
-    def _vertex_told(self, f: np.ndarray, code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Vertex by vertex, the initial simplex and a shrink: the seeds whose simplex is now
-        evaluated, those of a shrink (``completed``: the iteration ended) and those of an
-        initial simplex (``initialised``); the others' next vertex is their ``point``."""
-        N, sim, fsim, point = self.N, self.sim, self.fsim, self.point
-        completed = np.zeros(code.size, dtype=bool)
-        initialised = np.zeros(code.size, dtype=bool)
-        vertex = (code == INIT) | (code == SHRINK)
-        if vertex.any():
-            s = np.flatnonzero(vertex)
-            k = self.idx[s]
-            fsim[s, k] = f[s]
-            k += 1
-            self.idx[s] = k
-            more = k <= N
-            point[s[more]] = sim[s[more], k[more]]
-            last = s[~more]
-            init = code[last] == INIT
-            initialised[last[init]] = True
-            completed[last[~init]] = True
-        return completed, initialised
-
-    def _move_told(self, f: np.ndarray, code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The value of a reflected, expanded or contracted point: the seeds whose worst vertex
-        was replaced (their iteration ended) and those that go on to a second point (expansion
-        or contraction); a failed contraction starts the shrink."""
-        sim, fsim, point = self.sim, self.fsim, self.point
-        # reflection: expand if f(xr) < f_0, take xr if f(xr) < f_{N-1}, else contract, outside
-        # if f(xr) < f_N, inside otherwise
-        reflect = code == REFLECT
-        below_best = f < fsim[:, 0]
-        take_xr = reflect & ~below_best & (f < fsim[:, -2])
-        contraction = np.where(f < fsim[:, -1], CONTRACT_OUT, CONTRACT_IN)
-        moving = reflect & ~take_xr
-        # the second evaluation of an iteration: xe replaces the worst vertex if f(xe) < f(xr),
-        # else xr does; xc if f(xc) <= f(xr); xcc if f(xcc) < f_N; else the simplex shrinks
-        fxr = self.fxr
-        take = np.where(
-            code == EXPAND,
-            f < fxr,
-            np.where(code == CONTRACT_OUT, f <= fxr, (code == CONTRACT_IN) & (f < fsim[:, -1])),
-        )
-        expanded = code == EXPAND
-        replace = take_xr | take | expanded
-        np.copyto(sim[:, -1], np.where(take[:, None], point, self.xr), where=replace[:, None])
-        fsim[:, -1] = np.where(replace, np.where(take | take_xr, f, fxr), fsim[:, -1])
-        shrink = (code >= CONTRACT_OUT) & (code <= CONTRACT_IN) & ~take
-        self.fxr = np.where(reflect, f, fxr)
-        self.phase = np.where(moving, np.where(below_best, EXPAND, contraction), self.phase)
-
-        if shrink.any():  # every shrunk vertex at once: each depends on x_0 and itself only
-            s = np.flatnonzero(shrink)
-            best = sim[s, :1]
-            sim[s, 1:] = self.clip(best + self.sigma * (sim[s, 1:] - best))
-            self.phase[s] = SHRINK
-            self.idx[s] = 1
-            point[s] = sim[s, 1]
-        return replace, moving
-
-    def _begin_iterations(
-        self, starting: np.ndarray, initialised: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The head of scipy's loop for the seeds ``starting`` an iteration: sort, its
-        condition, the convergence test, then the centroid of the reflection. Returns the seeds
-        that stopped and those that reflect."""
-        stopped = np.zeros(starting.size, dtype=bool)
-        go = np.zeros(starting.size, dtype=bool)
-        if not starting.any():
-            return stopped, go
-        if initialised.any():  # scipy sorts the initial simplex twice
-            self._sort(initialised)
-        self._sort(starting)
-        sim, fsim = self.sim, self.fsim
-        go = starting & (self.fcalls < self.maxfev) & (self.iterations < self.maxiter)
-        spread_x = np.abs((sim[:, 1:] - sim[:, :1]).reshape(len(sim), -1)).max(axis=1)
-        spread_f = np.abs(fsim[:, :1] - fsim[:, 1:]).max(axis=1)
-        go &= ~((spread_x <= self.xatol) & (spread_f <= self.fatol))
-        stopped = starting & ~go
-        if go.any():
-            xbar = centroid(sim)
-            self.xbar = np.where(go[:, None], xbar, self.xbar)
-            self.phase = np.where(go, REFLECT, self.phase)
-        return stopped, go
-
-    def _next_points(self, moving: np.ndarray) -> None:
-        """The next point of the seeds ``moving``: scipy's xr, xe, xc, xcc of their branch, a
-        xbar + b x_N, clipped."""
-        coef = self.coef[self.phase]
-        new = self.clip(coef[:, :1] * self.xbar + coef[:, 1:] * self.sim[:, -1])
-        self.point = np.where(moving[:, None], new, self.point)
-        reflecting = moving & (self.phase == REFLECT)
-        self.xr = np.where(reflecting[:, None], new, self.xr)
+    def _numpy_sort(self, seeds: np.ndarray) -> None:
+        """scipy's ``np.argsort`` of the values of each of the ``seeds``, the vertices in that
+        order. Tied values keep scipy's order: each seed's row is sorted by the same numpy sort
+        on the same values (a row's order does not depend on the other rows of the call)."""
+        if seeds.size:
+            ind = np.argsort(self.fsim[seeds], axis=1)
+            rows = np.arange(seeds.size)[:, None]
+            self.fsim[seeds] = self.fsim[seeds][rows, ind]
+            self.sim[seeds] = self.sim[seeds][rows, ind]
 
 
 @register("nelder_mead")
@@ -335,11 +456,14 @@ def nelder_mead(runs: Runs, rngs: list[np.random.Generator], pop_size: int, **se
 
     alive = ~runs.done
     restart(alive)
-    while alive.any():
-        f = (yield from runs.ask(search.point.copy()[:, None, :], alive))[:, 0]
+    # count_nonzero for .any(): a quarter of its cost on a few dozen seeds, paid every step
+    while np.count_nonzero(alive):
+        # the asked rows are copied by the ask; the points are read again (the best point) before
+        # advance moves them
+        f = (yield from runs.ask(search.point[:, None, :], alive))[:, 0]
         search.fcalls += alive
         runs.close_spent(pop_size)  # an iteration per pop_size evaluations
         alive &= ~runs.done
         ended = search.advance(f, alive)
-        if ended.any():
+        if np.count_nonzero(ended):
             restart(ended)

@@ -68,8 +68,9 @@ that agent's next candidate (0: Eq. 18, 1: ESQ, 2: Eq. 20). The agent loop is a 
 told value (greedy replacement, and at the agent's end the refresh of x*) and moves the seed on to
 its next candidate or to the end of its iteration. The seeds at the end of their iteration close
 it (``runs.end_iteration``) and, budget left, begin the next one: τ
-(``runs.progress(count_initial=True)``) and the random numbers (Python, each seed from its own
-generator, in the order the one-seed code drew them: :class:`_Draws`), then a second call of
+(``runs.progress(count_initial=True)``) and the random numbers (each seed from its own
+generator, in the order the one-seed code drew them, compiled and several iterations ahead:
+:class:`_Draws`, :func:`_draw_ahead`), then a second call of
 :func:`_advance` gives their first candidates. A seed whose budget is spent stops before asking,
 as the one-seed loop checked ``tracker.done`` before every evaluation, so a last iteration cut by
 an evaluation budget stays open (the history's partial last entry). One run is the same state
@@ -194,52 +195,86 @@ _STOPPED, _CANDIDATE, _ENDED, _START = range(4)
 _MAIN, _ESQ, _EQ20 = range(3)
 
 
+# Iterations of random numbers a seed draws per call of :func:`_draw_ahead`. numpy's calls cost
+# about 45 us a seed and iteration (three ``rng.integers`` at 10 us each, measured), the compiled
+# draws a few us; handing a generator to numba costs about 18 us (its unboxing), paid once for
+# this many iterations. The numbers drawn ahead are those the iterations would draw (the
+# generator serves nothing else during the run); a run ending early leaves some unused.
+DRAWN_AHEAD = 8
+
+
 class _Draws:
     """The random numbers of every seed's running iteration: ``uniform`` (seeds × the fields
     above, flat), ``ints`` (seeds × 3 × P), ``normals`` (seeds × 2 × P × D), and the partners
     :func:`_advance` chooses from the keys, ``partners`` (seeds × 2 × P × 3: a, b, c; ESQ's
-    three)."""
+    three). Each seed's next :data:`DRAWN_AHEAD` iterations wait in a bank of the same fields."""
 
     def __init__(self, S: int, P: int, D: int):
         width = {"1": 1, "D": D, "4": 4, "P": P}
         self.offset = np.zeros(_X3_RAND + 1, dtype=np.int64)
-        self.calls, pos = [], 0
+        calls, pos = [], 0
         for group in _UNIFORM_GROUPS:
             start = pos
             for field, unit in group:
                 self.offset[field] = pos
                 pos += P * width[unit]
-            self.calls.append((start, pos))
+            calls.append((start, pos))
+        self.calls = np.array(calls, dtype=np.int64)
         self.P = P
         self.uniform = np.empty((S, pos))
         self.ints = np.empty((S, 3, P), dtype=np.int64)
         self.normals = np.empty((S, 2, P, D))
         self.partners = np.empty((S, 2, P, 3), dtype=np.int64)
+        K = DRAWN_AHEAD
+        self._bank = (np.empty((S, K, pos)), np.empty((S, K, 3, P), dtype=np.int64),
+                      np.empty((S, K, 2, P, D)))  # fmt: skip
+        self._next = np.full(S, K)  # each seed's next iteration in its bank (K: none left)
 
     def draw(self, s: int, rng: np.random.Generator) -> None:
-        """Seed ``s``'s numbers for one iteration from its generator ``rng``.
+        """Seed ``s``'s numbers for one iteration from its generator ``rng`` (its bank, refilled
+        by :func:`_draw_ahead` when empty)."""
+        uniform, ints, normals = self._bank
+        if self._next[s] == DRAWN_AHEAD:
+            _draw_ahead(rng, self.calls, uniform[s], ints[s], normals[s])
+            self._next[s] = 0
+        k = self._next[s]
+        self.uniform[s] = uniform[s, k]
+        self.ints[s] = ints[s, k]
+        self.normals[s] = normals[s, k]
+        self._next[s] = k + 1
 
-        The one-seed code drew, one call per use, in this order: SF's rand(P); the main RK's
-        randi([1, 2]), then its rand(P), r1, r2 and K-factors; the same for Eq. 20's RK; the
-        partner keys rand(P, P); the rands of γ, Stp, g, the Eq. 18 branch and the ESQ gate; the
-        vectors of γ, Stp, Δx, L and the sign r; μ's randn; ESQ's u, w, β; ESQ's randn; Eq. 20's
-        rand(D); ESQ's decay and r; ESQ's partner keys; Eq. 20's gate; the randi of w's
-        coordinate; x3's rand. Here consecutive uniform draws are one call (a stream gives the
-        same doubles whether drawn by one call or several); every integer and normal draw is the
-        call it was."""
-        u, ints, normals, P = self.uniform[s], self.ints[s], self.normals[s], self.P
-        (a, b), (c, d), (e, f), (g, h), (i, j), (k, m) = self.calls
-        rng.random(out=u[a:b])
-        ints[_RK1_INT] = rng.integers(1, 3, size=P)
-        rng.random(out=u[c:d])
-        ints[_RK2_INT] = rng.integers(1, 3, size=P)
-        rng.random(out=u[e:f])
-        rng.standard_normal(out=normals[_MU])
-        rng.random(out=u[g:h])
-        rng.standard_normal(out=normals[_ESQ_NORMAL])
-        rng.random(out=u[i:j])
-        ints[_W_COORD] = rng.integers(self.normals.shape[-1], size=P)
-        rng.random(out=u[k:m])
+
+@nb.njit(cache=True)
+def _draw_ahead(rng, calls, uniform, ints, normals):
+    """One seed's numbers for the next ``K`` iterations from its generator ``rng``, iteration
+    after iteration: ``uniform`` (K × fields), ``ints`` (K × 3 × P), ``normals`` (K × 2 × P ×
+    D); ``calls``: the uniform fields' groups (start, end).
+
+    The one-seed code drew, one call per use, in this order: SF's rand(P); the main RK's
+    randi([1, 2]), then its rand(P), r1, r2 and K-factors; the same for Eq. 20's RK; the partner
+    keys rand(P, P); the rands of γ, Stp, g, the Eq. 18 branch and the ESQ gate; the vectors of
+    γ, Stp, Δx, L and the sign r; μ's randn; ESQ's u, w, β; ESQ's randn; Eq. 20's rand(D); ESQ's
+    decay and r; ESQ's partner keys; Eq. 20's gate; the randi of w's coordinate; x3's rand. Here
+    consecutive uniform draws are one call (a stream gives the same doubles whether drawn by one
+    call or several); every integer and normal draw is the call it was. numba's generator
+    methods are numpy's algorithms on the same bit generator, so the numbers are numpy's
+    (``tests/unit/test_run.py`` holds them to numpy's calls)."""
+    K, P, D = ints.shape[0], ints.shape[2], normals.shape[3]
+    for k in range(K):
+        u = uniform[k]
+        for g in range(calls.shape[0]):
+            a, b = calls[g, 0], calls[g, 1]
+            u[a:b] = rng.random(b - a)
+            if g == 0:
+                ints[k, _RK1_INT] = rng.integers(1, 3, size=P)
+            elif g == 1:
+                ints[k, _RK2_INT] = rng.integers(1, 3, size=P)
+            elif g == 2:
+                normals[k, _MU] = rng.standard_normal(P * D).reshape(P, D)
+            elif g == 3:
+                normals[k, _ESQ_NORMAL] = rng.standard_normal(P * D).reshape(P, D)
+            elif g == 4:
+                ints[k, _W_COORD] = rng.integers(0, D, size=P)
 
 
 # The moves below are the reference's vector expressions written per coordinate (every one of
@@ -412,10 +447,11 @@ def _advance(
                 for t, field in enumerate((_KEYS1, _KEYS2)):
                     keys = u[o[field] + i * P : o[field] + (i + 1) * P]
                     rndx(keys, i, partners[s, t, i])
-            x_mean[s] = X[s, 0]  # the population mean, summed in numpy's order (row by row)
-            for p in range(1, P):
-                x_mean[s] += X[s, p]
-            x_mean[s] /= P
+            for j in range(X.shape[2]):  # the population mean, summed in numpy's order (row by
+                acc = X[s, 0, j]  # row); element by element: a vector `+=` allocated a temporary
+                for p in range(1, P):
+                    acc += X[s, p, j]
+                x_mean[s, j] = acc / P
             i = 0
         else:
             i = agent[s]
@@ -489,7 +525,7 @@ def run(
 
     starting, asking = ~runs.done, 0
     while True:
-        if starting is not None and starting.any():  # these seeds begin an iteration
+        if starting is not None and np.count_nonzero(starting):  # these begin an iteration
             seeds = np.flatnonzero(starting)
             status[seeds] = _START
             tau[seeds] = runs.progress(count_initial=True, which=starting)  # it/MaxIt
@@ -499,9 +535,8 @@ def run(
             asking, _ = step(_START, runs.done)
         if not asking:
             return
-        F = yield from runs.ask(cand, status == _CANDIDATE)
+        F = yield from runs.ask(cand, status == _CANDIDATE)  # copies the rows it yields
         f[:] = F[:, 0]
-        cand = np.empty((S, 1, D))  # the asked rows stay the caller's
         asking, ended = step(_CANDIDATE, runs.done)
         starting = None
         if ended:  # these seeds close their iteration and, budget left, begin the next
