@@ -31,11 +31,14 @@ avoa_config.check(config, "snakemake config")
 # Threads of a job (`threads:`): the job uses exactly these (avoa_pipeline.jobs.start gives them to
 # numba and to a diagnosis's independent fits, avoa_pipeline.threads), and Snakemake lowers them to
 # --cores. Most jobs take 1: many run side by side, which keeps every core busy. The long
-# diagnoses that run nearly alone (the Panasonic joint fit, the Samsung diagnoses) take 2 for
-# their independent fits (selection.each; the joint fit's first rung 38.8 s on two threads against
-# 48.2 s on one, at load 5-6, docs/real-data.md). The many short ones (withheld effects, per
-# temperature) take 1: a withheld-effect diagnosis took 21.2 s on two free cores against 22.5 s
-# on one, for 1.5x the CPU time (docs/benchmarks.md, "A thread policy").
+# diagnoses, minutes each and often the last jobs running (the Panasonic joint fit and each
+# temperature's diagnosis, the Samsung diagnoses), take 2 for their independent fits
+# (selection.each; the joint fit's first rung 38.8 s on two threads against 48.2 s on one, at
+# load 5-6, docs/real-data.md; on one thread the 25 degC diagnosis, the last job of
+# tests/workflow/test_real.py, ran past that test's limit on a loaded machine). The many short
+# ones (the withheld effects, the gap rows) take 1: a withheld-effect diagnosis took 21.2 s on two
+# free cores against 22.5 s on one, for 1.5x the CPU time (docs/benchmarks.md, "A thread
+# policy").
 LONG_DIAGNOSIS_THREADS = 2
 
 

@@ -117,7 +117,7 @@ rule panasonic_diagnose:
         ptemp=PAN_EXP_TEMP_RE,
     params:
         tests=lambda w: pan_tests(w.ptemp),
-    threads: 1
+    threads: LONG_DIAGNOSIS_THREADS
     script:
         "../scripts/panasonic_diagnose.py"
 
