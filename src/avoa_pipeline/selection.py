@@ -45,7 +45,6 @@ HPPC record a diagnosis took twice the CPU time with the same selection (docs/ga
 
 from __future__ import annotations
 
-import copy
 import pickle
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -248,7 +247,7 @@ class Context:
         self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
         self.fits = 0
         self._lock = threading.Lock()  # fits are counted from several threads (:func:`each`)
-        self._made: dict[bytes, Candidate] = {}  # the fits made (:meth:`fit`)
+        self._made: dict[bytes, tuple] = {}  # the fits made: rows and check (:meth:`fit`)
         self.progress = None  # called with a short phrase after each stage (``diagnose.Progress``)
 
     def subset(self, idx: list[int]) -> Context:
@@ -298,19 +297,19 @@ class Context:
         (``fitting.check_fit``, restarting the time constants ``taus``, None: all; the check's
         restarts are not counted among the fits). A fit asked for again (the same structure,
         starts and restarts: the hand-over's second RC branch is a rung the ladder climbed) is
-        not made again: the fit is deterministic, so its candidate is returned (a copy, with
-        whatever was held out of it so far)."""
+        not made again: the fit is deterministic, so its rows and check are kept (a few numbers
+        a fit, not its voltage: on a long record that is 8 bytes a sample a candidate) and only
+        its voltage is simulated again."""
         key = pickle.dumps((st, [np.asarray(x, dtype=float) for x in starts], taus))
         with self._lock:
             made = self._made.get(key)
-        if made is not None:
-            return copy.copy(made)
-        self.count(len(starts))
-        res = fitting.best_of(self.recs, st, starts, taus=taus)
-        cand = replace(self.evaluate(st, res.X), check=res.checks[-1])
-        with self._lock:
-            self._made[key] = cand
-        return copy.copy(cand)
+        if made is None:
+            self.count(len(starts))
+            res = fitting.best_of(self.recs, st, starts, taus=taus)
+            made = (res.X, res.checks[-1])
+            with self._lock:
+                self._made[key] = made
+        return replace(self.evaluate(st, made[0]), check=made[1])
 
     def scheme(self, effect: str) -> str:
         """How a candidate adding ``effect`` is held out (docs/temperature-rule.md part 2): a
