@@ -226,6 +226,15 @@ class Candidate:
         return self.st.effects
 
 
+def _weights(recs: list[Record], n: int) -> np.ndarray:
+    """Per sample, its weight n/(R·n_r): every record's mean squared error counts once. Where
+    every record has one length, the weights are one value: a read-only broadcast of it (no
+    memory a sample; issue 42's long records), the same numbers wherever read."""
+    if len({r.n for r in recs}) == 1:
+        return np.broadcast_to(n / (len(recs) * recs[0].n), (n,))
+    return np.concatenate([np.full(r.n, n / (len(recs) * r.n)) for r in recs])
+
+
 class Context:
     """The training records, their layout and weights, and the fitting options shared by every
     candidate."""
@@ -242,10 +251,10 @@ class Context:
         self.fix_q = capacity_ah is not None
         self.fix_s = soc0 is not None
         self.layout = Layout.of([r.n for r in recs])
-        self.v = np.concatenate([r.v for r in recs])
+        # one record: its own voltage, not a copy (issue 42: 8 bytes a sample of a long record)
+        self.v = recs[0].v if len(recs) == 1 else np.concatenate([r.v for r in recs])
         self.n = self.v.size
-        # each sample weighs n/(R·n_r): every record's mean squared error counts once
-        self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
+        self.w = _weights(recs, self.n)
         self.fits = 0
         self._lock = threading.Lock()  # fits are counted from several threads (:func:`each`)
         self._made: dict[bytes, Candidate] = {}  # the fits made (:meth:`fit`)
