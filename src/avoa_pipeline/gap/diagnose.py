@@ -387,7 +387,6 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
 
     # 3. which, and the whole ladder: the one selection method
     lad = selection.ladder(ctx, base)
-    _drop_heldout(ctx, lad)
     base, cands, rows, final = lad.base, lad.candidates, lad.rows, lad.selected
     for r in rows:
         r["params"] = selection.parameters(ctx, cands[r["effect"]])
@@ -450,19 +449,6 @@ def _diagnose_records(train, capacity_ah, soc0, source, ocv_table, validate, war
         else:
             _validate_handed_over(ctx, report, ho, final, vframes, floor, capacity_ah)
     return _jsonable(report), _arrays(ctx, lad, rec, soc), model
-
-
-def _drop_heldout(ctx: selection.Context, lad) -> None:
-    """The first rung's held-out voltages that nothing reads once the ladder is climbed, let go
-    (issue 42: each is 8 bytes a sample, and a long record's first rung holds out most of its
-    ~12 candidates). Kept: the base's, the winner's and every rung's and the selection's (the
-    verdict, the figure, the ladder's rows), and the second RC's where the hand-over scores it
-    by record (``handover.score`` would hold it out again); the rows were judged already."""
-    keep = {id(lad.base), id(lad.selected), *map(id, lad.chosen)}
-    for e, c in lad.candidates.items():
-        if id(c) in keep or e == lad.winner or (e == handover.SECOND_RC and ctx.layout.by_record):
-            continue
-        c.ho = c.ho_t = None
 
 
 def _hand_over(ctx: selection.Context, lad, selected: dict, capacity_ah, soc0,
