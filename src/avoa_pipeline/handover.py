@@ -61,7 +61,7 @@ resistances change fastest (the two knees of a lithium-ion OCV), between them th
 ONE_OVER_E = float(np.exp(-1.0))
 """The correlation time is the lag at which the error's autocorrelation first falls below 1/e
 (an AR(1) error's time constant)."""
-SECOND_RC = "second_rc"
+SECOND_RC = selection.SECOND_RC
 
 
 @dataclass

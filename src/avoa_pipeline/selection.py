@@ -75,6 +75,8 @@ the residual's autocorrelation and give the tests 100 batches or more."""
 ALPHA = 0.05
 BIC_MAX = -10.0
 """ΔBIC below −10: "very strong" evidence on Kass and Raftery's (1995) scale."""
+SECOND_RC = "second_rc"
+"""The element the hand-over adds to its candidates (``handover.SECOND_RC``)."""
 RECORD, TEMPERATURE = "record", "temperature"
 """The two hold-outs (:meth:`Context.scheme`): by record (or block), and by test temperature."""
 LEAVE_ONE_TEMPERATURE_OUT = "leave one temperature out"
@@ -225,6 +227,15 @@ class Candidate:
         return self.st.effects
 
 
+def _weights(recs: list[Record], n: int) -> np.ndarray:
+    """Per sample, its weight n/(R·n_r): every record's mean squared error counts once. Where
+    every record has one length, the weights are one value: a read-only broadcast of it (no
+    memory a sample; issue 42's long records), the same numbers wherever read."""
+    if len({r.n for r in recs}) == 1:
+        return np.broadcast_to(n / (len(recs) * recs[0].n), (n,))
+    return np.concatenate([np.full(r.n, n / (len(recs) * r.n)) for r in recs])
+
+
 class Context:
     """The training records, their layout and weights, and the fitting options shared by every
     candidate."""
@@ -241,10 +252,10 @@ class Context:
         self.fix_q = capacity_ah is not None
         self.fix_s = soc0 is not None
         self.layout = Layout.of([r.n for r in recs])
-        self.v = np.concatenate([r.v for r in recs])
+        # one record: its own voltage, not a copy (issue 42: 8 bytes a sample of a long record)
+        self.v = recs[0].v if len(recs) == 1 else np.concatenate([r.v for r in recs])
         self.n = self.v.size
-        # each sample weighs n/(R·n_r): every record's mean squared error counts once
-        self.w = np.concatenate([np.full(r.n, self.n / (len(recs) * r.n)) for r in recs])
+        self.w = _weights(recs, self.n)
         self.fits = 0
         self._lock = threading.Lock()  # fits are counted from several threads (:func:`each`)
         self._made: dict[bytes, tuple] = {}  # the fits made: rows and check (:meth:`fit`)
@@ -718,6 +729,18 @@ def _without(ctx: Context, final: Candidate, e: str) -> tuple[str, Candidate, di
     return e, reduced, row
 
 
+def _let_go(ctx: Context, cands: dict[str, Candidate], winner: str | None) -> None:
+    """The first rung's held-out voltages that nothing reads once its winner is chosen, let go
+    before the climb (issue 42: each is 8 bytes a sample, and a long record's first rung holds
+    out most of its ~12 candidates while the later rungs hold out theirs). Kept: the winner's
+    (the climb's first row, the verdict, the figure) and the second RC's where the hand-over
+    scores it by record (``handover.score`` would hold it out again); the base is no candidate.
+    The rung's rows are judged already."""
+    for e, c in cands.items():
+        if e != winner and not (e == SECOND_RC and ctx.layout.by_record):
+            c.ho = c.ho_t = None
+
+
 def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
     """Every applicable element tried on ``base`` (fitted to all training data, then, where its
     fit can pay, held out), the base re-polished where a candidate found it a better optimum, the
@@ -756,6 +779,7 @@ def ladder(ctx: Context, base: Candidate, effects=ecm.EFFECTS) -> Ladder:
     each(hold_out, jobs)
     rows = judge(ctx, base, cands)
     winner = choose(ctx, rows, cands)
+    _let_go(ctx, cands, winner)
     ctx.say(f"rung 1: {len(cands)} candidates, {winner or 'none'} wins")
     skipped = [{"effect": e, "applicable": False,
                 "reason": applicable(ctx.recs, e, (), ctx.table)[1]}

@@ -123,3 +123,21 @@ def test_two_parameters_the_records_cannot_separate_have_a_correlation_within_on
     rho = intervals.correlation(cov, sd)
     assert rho[0, 1] == -1.0
     assert np.isnan(rho[2, 0])
+
+
+def test_long_run_one_row_at_a_time_is_the_whole_transform_bit_for_bit():
+    """``_long_run`` transforms the cross-spectra one row at a time (issue 42: memory); its
+    Newey–West sum is the one of all rows at once, bit for bit, and the brute-force sum's."""
+    rng = np.random.default_rng(4)
+    U = rng.standard_normal((3000, 7)) * np.linspace(1.0, 3.0, 7)
+    lags = 40
+    m = 1 << int(np.ceil(np.log2(2 * U.shape[0])))
+    F = np.fft.rfft(U, n=m, axis=0)
+    C = np.fft.irfft(F[:, :, None] * np.conjugate(F[:, None, :]), n=m, axis=0)[: lags + 1]
+    w = 1.0 - np.arange(lags + 1) / (lags + 1.0)
+    S = np.tensordot(w[1:], C[1:], axes=1)
+    whole = C[0] + S + S.T
+    got = intervals._long_run(U, lags)
+    assert np.array_equal(got.view(np.uint64), whole.view(np.uint64))
+    brute = U.T @ U + sum(w[k] * (U[k:].T @ U[:-k] + U[:-k].T @ U[k:]) for k in range(1, lags + 1))
+    np.testing.assert_allclose(got, brute, rtol=1e-9, atol=1e-9 * np.abs(brute).max())

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -202,41 +203,38 @@ def noise_floor(rec: Record, resid: np.ndarray) -> float:
 # where
 
 
-def region_masks(rec: Record, soc: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
-    """(group, region, mask) for every operating region of the localization."""
+def region_masks(rec: Record, soc: np.ndarray) -> Iterator[tuple[str, str, np.ndarray]]:
+    """(group, region, mask) for every operating region of the localization, one mask made at a
+    time (issue 42: the ~20 masks at once were 20 bytes a sample of a long record)."""
     imax = rec.imax()
     a = np.abs(rec.i)
     d = records.direction(rec.i, imax)
-    out = [
-        ("mode", "rest", d == 0),
-        ("mode", "load", d != 0),
-        ("direction", "discharge", d > 0),
-        ("direction", "charge", d < 0),
-    ]
+    yield "mode", "rest", d == 0
+    yield "mode", "load", d != 0
+    yield "direction", "discharge", d > 0
+    yield "direction", "charge", d < 0
     since, _ = steps_of(rec)
-    out += [
-        ("since_step", "since step < 10 s", since < 10.0),
-        ("since_step", "since step 10-600 s", (since >= 10.0) & (since < 600.0)),
-        ("since_step", "since step > 600 s", since >= 600.0),
-    ]
+    yield "since_step", "since step < 10 s", since < 10.0
+    yield "since_step", "since step 10-600 s", (since >= 10.0) & (since < 600.0)
+    yield "since_step", "since step > 600 s", since >= 600.0
+    del since
     edges = np.linspace(0.0, 1.0, 6)
     sc = np.clip(soc, 0.0, 1.0)
     for j in range(5):
         m = (sc >= edges[j]) & ((sc < edges[j + 1]) if j < 4 else (sc <= 1.0))
-        out.append(("soc", f"SOC {edges[j]:.1f}-{edges[j + 1]:.1f}", m))
+        yield "soc", f"SOC {edges[j]:.1f}-{edges[j + 1]:.1f}", m
+    del sc, m
     thr = REST_FRACTION * imax
     cut = [thr, imax / 3, 2 * imax / 3]
-    out.append(("current", f"|I| < {thr:.3g} A", a < thr))
-    out.append(("current", f"|I| {cut[0]:.3g}-{cut[1]:.3g} A", (a >= cut[0]) & (a < cut[1])))
-    out.append(("current", f"|I| {cut[1]:.3g}-{cut[2]:.3g} A", (a >= cut[1]) & (a < cut[2])))
-    out.append(("current", f"|I| >= {cut[2]:.3g} A", a >= cut[2]))
+    yield "current", f"|I| < {thr:.3g} A", a < thr
+    yield "current", f"|I| {cut[0]:.3g}-{cut[1]:.3g} A", (a >= cut[0]) & (a < cut[1])
+    yield "current", f"|I| {cut[1]:.3g}-{cut[2]:.3g} A", (a >= cut[1]) & (a < cut[2])
+    yield "current", f"|I| >= {cut[2]:.3g} A", a >= cut[2]
     if rec.temperature_varies:
         q = np.quantile(rec.temp_c, [0, 0.25, 0.5, 0.75, 1.0])
         for j in range(4):
             hi_ok = rec.temp_c <= q[j + 1] if j == 3 else rec.temp_c < q[j + 1]
-            m = (rec.temp_c >= q[j]) & hi_ok
-            out.append(("temperature", f"T {q[j]:.1f}-{q[j + 1]:.1f} °C", m))
-    return out
+            yield "temperature", f"T {q[j]:.1f}-{q[j + 1]:.1f} °C", (rec.temp_c >= q[j]) & hi_ok
 
 
 def steps_of(rec: Record) -> tuple[np.ndarray, np.ndarray]:
@@ -667,7 +665,7 @@ def _verdict(ctx, lad, rec: Record, soc: np.ndarray, gap: dict, noise_v: float, 
     verdict = {"effect": "none", "shrink": 0.0}
     rungs = {"base": base}
     if winner is not None:
-        gap_mask = {name: m for _, name, m in region_masks(rec, soc)}[gap["region"]]
+        gap_mask = next(m for _, name, m in region_masks(rec, soc) if name == gap["region"])
         w = cands[winner]
         row = next(r for r in rows if r["effect"] == winner)
         loss_b, loss_w = ctx.w * ctx.ho_loss(base), ctx.w * ctx.ho_loss(w)

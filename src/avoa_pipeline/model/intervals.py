@@ -64,12 +64,17 @@ def autocorrelation(e: np.ndarray) -> np.ndarray:
     n = e.size
     if n < 8:
         return np.ones(1)
-    e = e - e.mean()
-    f = np.fft.rfft(e, n=2 * n)
-    acf = np.fft.irfft(f * np.conjugate(f))[:n]
+    # each array let go once read (issue 42, a long record's residual: the centred copy, the
+    # spectrum and the doubled transform no longer live beside the later ones); the same
+    # operations, so the same bits (not squared in place: numpy's in-place complex product
+    # rounds differently)
+    f = np.fft.rfft(e - e.mean(), n=2 * n)
+    acf = np.fft.irfft(f * np.conjugate(f))
+    del f
     if not acf[0] > 0:
         return np.ones(1)
-    rho = acf / acf[0]
+    rho = acf[:n] / acf[0]
+    del acf
     taus = 2.0 * np.cumsum(rho) - 1.0
     window = np.arange(n) >= 5.0 * taus
     m = int(np.argmax(window)) if window.any() else n - 1
@@ -270,8 +275,14 @@ def _long_run(U: np.ndarray, lags: int) -> np.ndarray:
     lags = int(min(max(lags, 0), n - 1))
     m = 1 << int(np.ceil(np.log2(2 * n)))
     F = np.fft.rfft(U, n=m, axis=0)
-    # cross-correlations C_ab(k) = Σ_t U_a(t+k) U_b(t) for k = 0..lags
-    C = np.fft.irfft(F[:, :, None] * np.conjugate(F[:, None, :]), n=m, axis=0)[: lags + 1]
+    # cross-correlations C_ab(k) = Σ_t U_a(t+k) U_b(t) for k = 0..lags, one a at a time: all at
+    # once the spectra and their transforms were two (m, p, p) arrays, 40-80 MB each on a fit's
+    # 20,000 points, twice over when two threads check fits (issue 42: the peak of a long
+    # record's diagnosis); each line is transformed alone either way, so the bits are the same
+    C = np.empty((lags + 1, p, p))
+    conj = np.conjugate(F)
+    for a in range(p):
+        C[:, a, :] = np.fft.irfft(F[:, a, None] * conj, n=m, axis=0)[: lags + 1]
     w = 1.0 - np.arange(lags + 1) / (lags + 1.0)
     S = np.tensordot(w[1:], C[1:], axes=1) if lags > 0 else np.zeros((p, p))
     return C[0] + S + S.T

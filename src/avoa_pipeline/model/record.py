@@ -62,6 +62,12 @@ def load_window(t: np.ndarray, i: np.ndarray) -> int:
     return min(max(w, MIN_OPENING_SAMPLES), i.size)
 
 
+def _constant(a: np.ndarray) -> bool:
+    """Every element of float array ``a`` is its first, bit for bit (an empty array too)."""
+    bits = a.view(np.uint64)  # bits, not values: −0.0 and 0.0 differ, NaN equals itself
+    return a.size == 0 or bool(np.all(bits == bits[0]))
+
+
 @dataclass(frozen=True)
 class Record:
     """The inputs a simulation needs, prepared once per record."""
@@ -147,7 +153,13 @@ class Record:
         (the generated loop, ``model/loopgen.py``: a thermal model's hold needs the same
         temperature) at every sample. The Panasonic HPPC records rest 93 % of their ~90,000
         samples, and the thermocouple moves at 94 % of them. Held this way, a rest is one hold,
-        and every voltage is the same bit for bit (``tests/unit/test_long_records.py``)."""
+        and every voltage is the same bit for bit (``tests/unit/test_long_records.py``).
+
+        Where both are one value throughout (a record without a measured temperature), holding
+        changes nothing: the arrays themselves are returned, not 16 bytes a sample more (issue
+        42: a long record's memory)."""
+        if _constant(self.dinv_t) and _constant(self.two_rt_f):
+            return self.dinv_t, self.two_rt_f
         rest = self.i == 0.0
         start = rest & ~np.concatenate([[False], rest[:-1]])  # the first sample of each rest
         # per sample, the index of the last sample that is not inside a rest's tail
