@@ -35,11 +35,13 @@ were as fast as one at 6,400 candidate-samples (32 rows × 200 samples, 1.01) an
 busy, two threads lost at every size measured (2.2× at 600 rows × 5,701 samples): a job's
 threads should be cores it holds (``jobs.start``, Snakemake's ``threads:``)."""
 MIN_BLOCK_ROWS = 16
-"""Rows of a block at least. The kernel runs a block's candidates in SIMD lanes (8 doubles with
-AVX-512) and the rows past the last full vector one at a time, so blocks of 10-12 rows cost more
-than their half: 20 and 24 rows on two threads took 1.5-1.8× as long as on one, at every record
-length from 500 to 20,000 samples, while 32 rows (two blocks of 16) took 0.56-0.78× (same
-measurement). Earlier 4, which split a population of 20 in two."""
+"""Rows of a block at least. The kernel runs a block's candidates in SIMD lanes and ran the rows
+past the last full vector one at a time, so blocks of 10-12 rows cost more than their half: 20
+and 24 rows on two threads took 1.5-1.8× as long as on one, at every record length from 500 to
+20,000 samples, while 32 rows (two blocks of 16) took 0.56-0.78× (same measurement). Measured
+before the kernel padded its blocks to whole vectors (``kernel.LANES``, merged the same day),
+which makes short blocks cheaper; not measured again since. Earlier 4, which split a
+population of 20 in two."""
 
 _given: int | None = None  # set by use(); None: every core this process may run on
 
