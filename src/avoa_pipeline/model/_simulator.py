@@ -106,7 +106,10 @@ def simulate_core(P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, cur,
         dinv = dinv_t[k]
         rtf = two_rt_f[k]
         row = sel[k]
-        if not uniform:
+        # an uneven step's decays: made afresh only where the step differs from the last one (a
+        # rest merged into one step by ``ecm.simulate_physical``, an uneven logger); the same
+        # numbers where it does not
+        if not uniform and not (k > 0 and dtk == dt[k - 1]):
             for c in range(m):
                 a1[c] = np.exp(-dtk / tau1[c])
                 a2[c] = np.exp(-dtk / tau2[c])
@@ -360,7 +363,10 @@ def simulate_extras(P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, cu
         dinv = dinv_t[k]
         rtf = two_rt_f[k]
         row = sel[k]
-        if not uniform:
+        # an uneven step's decays: made afresh only where the step differs from the last one (a
+        # rest merged into one step by ``ecm.simulate_physical``, an uneven logger); the same
+        # numbers where it does not
+        if not uniform and not (k > 0 and dtk == dt[k - 1]):
             for c in range(m):
                 a1[c] = np.exp(-dtk / tau1[c])
                 a2[c] = np.exp(-dtk / tau2[c])

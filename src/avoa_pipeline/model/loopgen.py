@@ -131,7 +131,10 @@ while k < n:
     dinv = dinv_t[k]
     rtf = two_rt_f[k]
     row = sel[k]
-    if not uniform:
+    # an uneven step's decays: made afresh only where the step differs from the last one (a
+    # rest merged into one step by ``ecm.simulate_physical``, an uneven logger); the same
+    # numbers where it does not
+    if not uniform and not (k > 0 and dtk == dt[k - 1]):
         for c in range(m):
             a1[c] = np.exp(-dtk / tau1[c])
             @slot uneven
