@@ -7,7 +7,9 @@ A refactor of the model library, the fits or the diagnosis must leave every diag
 This runs ``python -m avoa_pipeline diagnose`` on the same five inputs with this checkout's
 ``src`` and with OTHER_CHECKOUT's ``src`` (the same interpreter), then compares ``diagnosis.json``
 (every key but the clocks: ``wall_s`` and any key ending in ``_s`` under ``timing``) and
-``model.json`` exactly (JSON floats round-trip, so equal numbers are equal bits). The five: four
+``model.json`` exactly (JSON floats round-trip, so equal numbers are equal bits), or with
+``--rtol`` floats within a relative difference (a change that rounds otherwise: every string,
+flag and count still exactly, so a verdict that flips shows). The five: four
 withheld-effect records (a workflow run's ``results/gap/data``: pulse hysteresis, pulse second RC,
 drive thermal, drive nothing withheld) and Panasonic 25 °C (the training cycle and HPPC with the
 C/20 test as ``--ocv`` and the unseen cycles as ``--validate``, as ``rules/real.smk`` runs it).
@@ -59,25 +61,39 @@ def _clockless(obj, key: str = ""):
     return obj
 
 
-def differences(a, b, path: str = "") -> list[str]:
-    """Paths (JSON pointers) where ``a`` and ``b`` differ (the first 20)."""
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def differences(a, b, path: str = "", rtol: float = 0.0, worst: list | None = None) -> list[str]:
+    """Paths (JSON pointers) where ``a`` and ``b`` differ (the first 20); with ``rtol``, two
+    floats within that relative difference count as equal, and ``worst`` (a one-element list)
+    keeps the largest relative difference met."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = [f"{path}/{k}: only in one" for k in sorted(set(a) ^ set(b))]
         for k in sorted(set(a) & set(b)):
-            out += differences(a[k], b[k], f"{path}/{k}")
+            out += differences(a[k], b[k], f"{path}/{k}", rtol, worst)
         return out[:20]
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         pairs = enumerate(zip(a, b, strict=True))
-        return [d for j, (x, y) in pairs for d in differences(x, y, f"{path}/{j}")][:20]
+        return [d for j, (x, y) in pairs
+                for d in differences(x, y, f"{path}/{j}", rtol, worst)][:20]  # fmt: skip
+    if rtol and _number(a) and _number(b) and (isinstance(a, float) or isinstance(b, float)):
+        rel = abs(a - b) / max(abs(a), abs(b), 1e-300)
+        if worst is not None and a != b:
+            worst[0] = max(worst[0], (rel, path))
+        return [] if rel <= rtol else [path or "/"]
     return [] if a == b else [path or "/"]
 
 
-def compare(out_a: Path, out_b: Path) -> list[str]:
-    diffs = []
+def compare(out_a: Path, out_b: Path, rtol: float = 0.0) -> tuple[list[str], tuple]:
+    """Paths that differ in the two outputs, and the largest relative difference of floats
+    (with ``rtol``; else (0, ""))."""
+    diffs, worst = [], [(0.0, "")]
     for name in ("diagnosis.json", "model.json"):
         a, b = (_clockless(json.loads((d / name).read_text())) for d in (out_a, out_b))
-        diffs += [f"{name}{p}" for p in differences(a, b)]
-    return diffs
+        diffs += [f"{name}{p}" for p in differences(a, b, "", rtol, worst)]
+    return diffs, worst[0]
 
 
 def main(argv=None) -> int:
@@ -87,6 +103,9 @@ def main(argv=None) -> int:
     p.add_argument("--panasonic", type=Path, required=True)
     p.add_argument("--out", type=Path, default=Path("/tmp/compare_diagnoses"))
     p.add_argument("--only", nargs="*", help="these reference diagnoses only")
+    p.add_argument("--rtol", type=float, default=0.0,
+                   help="floats within this relative difference count as equal (default 0: "
+                        "every number bit for bit); the largest one met is printed")  # fmt: skip
     p.add_argument(
         "--keep-other",
         action="store_true",
@@ -103,13 +122,14 @@ def main(argv=None) -> int:
                            and (outs[side] / "model.json").exists()
                            else run(src / "src", args, outs[side]))
                     for side, src in (("this", HERE), ("other", a.against))}  # fmt: skip
-            diffs = compare(outs["this"], outs["other"])
+            diffs, worst = compare(outs["this"], outs["other"], a.rtol)
         except (RuntimeError, OSError, ValueError) as e:
             print(f"{name}: failed: {e}")
             bad += 1
             continue
         bad += bool(diffs)
-        print(f"{name}: {'same' if not diffs else 'differs: ' + '; '.join(diffs)} "
+        near = f", floats within {worst[0]:.1e} ({worst[1]})" if a.rtol and worst[0] else ""
+        print(f"{name}: {'same' if not diffs else 'differs: ' + '; '.join(diffs)}{near} "
               f"({secs['this']:.0f} s here, {secs['other']:.0f} s there)")  # fmt: skip
     return 1 if bad else 0
 

@@ -12,11 +12,18 @@ from avoa_pipeline.cli import main
 from avoa_pipeline.gap import diagnose
 from avoa_pipeline.model import ecm, fitting
 
+MERGED_ATOL_V = 1e-12
+"""A merged rest decays its states by exp(−Σ Δt/τ) where the full pass multiplies the samples'
+factors one by one: each product rounds, so a state of at most a volt drifts by about one unit
+in the last place (1e-16) per sample stepped; 1e-12 V allows rests of 10⁴ samples."""
 
-def _held_record(n=30000, hz=10.0, temperature="constant", seed=0) -> ecm.Record:
-    """Currents held 1-30 s (as a cycler's steps), 10 Hz."""
+
+def _held_record(n=30000, hz=10.0, temperature="constant", seed=0, rest=True) -> ecm.Record:
+    """Currents held 1-30 s (as a cycler's steps), 10 Hz; a quarter of them rests (zero
+    current), or none (``rest=False``: a small current instead)."""
     rng = np.random.default_rng(seed)
-    cur = np.concatenate([np.full(int(rng.uniform(1, 30) * hz), rng.choice([0, 0.5, -1, 2.0]))
+    levels = [0.0 if rest else 0.1, 0.5, -1, 2.0]
+    cur = np.concatenate([np.full(int(rng.uniform(1, 30) * hz), rng.choice(levels))
                           for _ in range(n // 50)])[:n]  # fmt: skip
     t = np.arange(cur.size) / hz
     frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7})
@@ -43,16 +50,20 @@ def _rows(effects, m=7):
                                      ("capacity_temperature", "entropic",
                                       "hysteresis")])  # fmt: skip
 @pytest.mark.parametrize("temperature", ["constant", "steps"])
-def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature):
+@pytest.mark.parametrize("rest", [False, True])
+def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature, rest):
     """A fit asks for every s-th sample; the simulator then steps only the state between them
-    (held currents in tight loops). Those voltages must be the full pass's, bit for bit."""
-    rec = _held_record(temperature=temperature)
+    (held currents in tight loops). Those voltages must be the full pass's, bit for bit, where
+    no rest is merged (a record without rests), and within rounding where rests are
+    (:data:`MERGED_ATOL_V`)."""
+    rec = _held_record(temperature=temperature, rest=rest)
     X = _rows(effects)
     knots = ecm.Knots(0.5, 0.1)
     full = ecm.simulate_rows(rec, X, knots)
     for stride in (1, 7, 50, 1000):
         idx = np.arange(3, rec.n, stride)
-        np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx])
+        thin = ecm.simulate_rows(rec, X, knots, idx=idx)
+        np.testing.assert_allclose(thin, full[idx], rtol=0, atol=MERGED_ATOL_V if rest else 0)
 
 
 def _flickering_record(n=20000, seed=1) -> ecm.Record:
@@ -89,8 +100,60 @@ def test_a_rest_holds_its_temperature_and_every_voltage_is_the_same(effects):
     knots = ecm.Knots(0.5, 0.1)
     measured, _ = ecm.simulate_rows(rec, X, knots, traces=True)
     np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots), measured)
+    idx = np.arange(5, rec.n, 37)  # the rests between them merged: within rounding
+    np.testing.assert_allclose(ecm.simulate_rows(rec, X, knots, idx=idx), measured[idx],
+                               rtol=0, atol=MERGED_ATOL_V)  # fmt: skip
+
+
+def _resting_record(n=40000, seed=2) -> ecm.Record:
+    """An HPPC-like test at 1 Hz: pulses of 10-30 s between rests of 5-40 min (rest at about
+    nine samples in ten), a measured temperature that flickers and drifts."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    while sum(p.size for p in parts) < n:
+        parts += [np.full(int(rng.uniform(10, 30)), rng.choice([1.5, -1.0, 3.0])),
+                  np.zeros(int(rng.uniform(300, 2400)))]  # fmt: skip
+    cur = np.concatenate(parts)[:n]
+    t = np.arange(cur.size, dtype=float)
+    temp = 25.0 + 5.0 * np.sin(t / 4000.0) + 0.01 * rng.integers(-1, 2, t.size)
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
+    return ecm.Record.from_frame(frame, tref_k=298.15)
+
+
+@pytest.mark.parametrize("effects", [(), ("hysteresis", "diffusion", "second_rc"),
+                                     ("third_rc", "soc_resistance", "r1_soc"),
+                                     ("thermal", "coulombic_efficiency", "r0_charge"),
+                                     ("butler_volmer", "bv_arrhenius")])  # fmt: skip
+def test_a_thinned_pass_over_rests_merges_them_and_gives_the_full_pass(effects):
+    """On a record that rests most of the time each rest between returned samples is one
+    merged step (far fewer steps), and the voltages are the full pass's within rounding."""
+    rec = _resting_record()
+    X = _rows(effects)
+    knots = ecm.Knots(0.5, 0.1)
+    full = ecm.simulate_rows(rec, X, knots)
+    for stride in (1, 7, 50, 1000):
+        idx = np.arange(3, rec.n - 500, stride)
+        steps = ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx))
+        if stride > 1:  # every sample returned: only the record's tail goes
+            assert steps[0].size < 0.5 * rec.n
+            span = rec.t[idx[-1]] - rec.t[0] + rec.dt[idx[-1]]  # up to the last one returned
+            assert steps[1].sum() == pytest.approx(span)
+        np.testing.assert_allclose(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx],
+                                   rtol=0, atol=MERGED_ATOL_V)  # fmt: skip
+
+
+@pytest.mark.parametrize("effects", [("current_offset",), ("thermal", "thermal_tau"),
+                                     ("entropic",)])  # fmt: skip
+def test_rests_are_not_merged_where_something_acts_at_rest(effects):
+    """A current offset makes a current flow at rest, a temperature-dependent time constant or
+    an entropic term reads the temperature there: the rests are stepped sample by sample and
+    the voltages are the full pass's bit for bit."""
+    rec = _resting_record(n=20000)
+    X = _rows(effects)
+    knots = ecm.Knots(0.5, 0.1)
+    full, _ = ecm.simulate_rows(rec, X, knots, traces=True)  # the traced pass reads every sample
     idx = np.arange(5, rec.n, 37)
-    np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), measured[idx])
+    np.testing.assert_array_equal(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx])
 
 
 def test_thinned_output_under_a_load_is_the_full_pass():
