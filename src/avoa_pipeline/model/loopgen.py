@@ -227,7 +227,8 @@ while k < n:
 """The base's statement: the rational or table OCV, R0, RC branch 1, the capacity and the SOC,
 the held-current shortcut and the thinned voltage (issue 25); every element's code in its
 slots. Every state update is the same operations in the same order in the hold and in the full
-pass, so a thinned call returns the full pass's voltages bit for bit."""
+pass, so a thinned call returns the full pass's voltages bit for bit (on the same steps: where
+``ecm.simulate_physical`` merges a record's rests into single steps, within rounding)."""
 
 STEP_ARGS = ("P, table, tab_lo, tab_step, dudt_shape, nk, k_lo, k_step, grid, i_read, dtk, dinv, "
              "rtf, X, bias, need_v, update, ext, out")  # fmt: skip
