@@ -482,4 +482,4 @@ def test_a_selection_is_made_once_per_index_array_and_goes_with_it():
     key = id(other)
     del other
     gc.collect()
-    assert key not in ecm._SELECTIONS
+    assert not any(k[0] == key for k in ecm._PER_INDEX)

@@ -142,6 +142,24 @@ def test_a_thinned_pass_over_rests_merges_them_and_gives_the_full_pass(effects):
                                    rtol=0, atol=MERGED_ATOL_V)  # fmt: skip
 
 
+def test_merged_steps_are_made_once_per_record_and_index_array():
+    """The merged steps are reused for the same record and index array, made anew for another
+    record of the same length, and forgotten with their index array."""
+    import gc
+
+    rec, twin = _resting_record(n=5000), _resting_record(n=5000, seed=3)
+    idx = np.arange(3, 4000, 50)
+    first = ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx))
+    assert ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx)) is first
+    other = ecm._rests_merged(twin, idx, ecm._selection(twin.n, idx))
+    assert other is not first
+    assert not np.array_equal(other[1], first[1])  # its own rests
+    key = id(idx)
+    del idx
+    gc.collect()
+    assert not any(k[0] == key for k in ecm._PER_INDEX)
+
+
 @pytest.mark.parametrize("effects", [("current_offset",), ("thermal", "thermal_tau"),
                                      ("entropic",)])  # fmt: skip
 def test_rests_are_not_merged_where_something_acts_at_rest(effects):

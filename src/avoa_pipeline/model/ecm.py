@@ -207,75 +207,82 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     return (out, tr) if traces else out
 
 
-_SELECTIONS: dict[int, tuple] = {}
-_MERGED: dict[tuple[int, int], tuple] = {}
+_PER_INDEX: dict[tuple, tuple] = {}
+
+
+def _once_per_index(idx, tag: str, make, owner=None):
+    """``make()``, made once per index array ``idx`` (and ``owner``, an object it also depends
+    on: held by a weak reference and compared by identity) and held while the array lives: a fit
+    simulates its records hundreds of times with the same ``idx``. The entry goes with its
+    array (an id is reused only after that); an ``idx`` that is not an ndarray (a list) is not
+    held."""
+    key = (id(idx), tag, id(owner))
+    hit = _PER_INDEX.get(key)
+    if hit is not None and hit[0]() is idx and (hit[1] is None or hit[1]() is owner):
+        return hit[2]
+    value = make()
+    try:
+        ref = weakref.ref(idx, lambda _, k=key: _PER_INDEX.pop(k, None))
+    except TypeError:
+        return value
+    _PER_INDEX[key] = (ref, None if owner is None else weakref.ref(owner), value)
+    return value
 
 
 def _rests_merged(rec: Record, idx: np.ndarray, sel: np.ndarray):
     """The steps a thinned simulation needs, each rest between returned samples merged into one
     step (``cur, dt, dinv_t, two_rt_f, sel`` for the simulator), or None where no step would
-    go. Only for what :func:`simulate_physical` holds at
-    rest (:attr:`Record.rest_held`: no current offset, no load, no element that reads the
-    temperature at zero current): there, over a run of zero current, every state's update is a
-    decay by exp(−Δt/τ) (the RC branches, diffusion) or nothing (the SOC, hysteresis), with the
-    rest's first temperature throughout, so one step of the run's length gives the same states
-    as its samples stepped one by one, within rounding (exp(−Σ Δt/τ) for the product of the
-    samples' factors: a few units in the last place; no longer bit for bit, issue 42). Samples
-    after the last returned one are not stepped at all.
+    go. Only for what :func:`simulate_physical` holds at rest (:attr:`Record.rest_held`: no
+    current offset, no load, no element that reads the temperature at zero current): there,
+    over a run of zero current, every state's update is a decay by exp(−Δt/τ) (the RC
+    branches, diffusion) or nothing (the SOC, hysteresis), with the rest's first temperature
+    throughout, so one step of the run's length gives the same states as its samples stepped
+    one by one, within rounding (exp(−Σ Δt/τ) for the product of the samples' factors: a few
+    units in the last place; no longer bit for bit, issue 42). Samples after the last returned
+    one are not stepped at all.
 
     Why: the fits' multi-start trials and the fit check compare models on 2,500 samples but
     stepped every sample of the record between them; a Panasonic HPPC test rests at 93 % of its
     97,854 samples (1 s apart), so most of a thinned simulation's work was stepping rests. Made
-    once per record and ``idx`` array, like :func:`_selection`.
+    once per record and ``idx`` array (:func:`_once_per_index`).
 
     Merged always, not only where it removes many steps: the merged steps are uneven, but the
     simulator makes its decays afresh only where the step changes, so a drive cycle (2-6 % at
     rest) costs the same merged or not (measured on the four Panasonic 25 °C cycles, 1,250 and
     10,000 samples returned: within 3 % either way)."""
-    key = (id(rec), id(idx))
-    hit = _MERGED.get(key)
-    if hit is not None and hit[0]() is idx and hit[1]() is rec:
-        return hit[2]
-    last = int(idx[-1]) + 1 if idx.size else 1
-    zero = rec.i[:last] == 0.0
-    keep = np.ones(last, dtype=bool)
-    keep[1:] = ~(zero[1:] & zero[:-1])  # a rest's first sample starts its merged step
-    keep[idx] = True
-    steps = None
-    if last < rec.n or not keep.all():
+
+    def make():
+        last = int(idx[-1]) + 1 if idx.size else 1
+        zero = rec.i[:last] == 0.0
+        keep = np.ones(last, dtype=bool)
+        keep[1:] = ~(zero[1:] & zero[:-1])  # a rest's first sample starts its merged step
+        keep[idx] = True
+        if last == rec.n and keep.all():
+            return None
         dinv_t, two_rt_f = rec.rest_held
         at = np.flatnonzero(keep)
-        steps = (np.ascontiguousarray(rec.i[at]), np.add.reduceat(rec.dt[:last], at),
-                 np.ascontiguousarray(dinv_t[at]), np.ascontiguousarray(two_rt_f[at]),
-                 np.ascontiguousarray(sel[at]))  # fmt: skip
-    try:  # the entry goes with its index array (an id is reused only after that)
-        ref = weakref.ref(idx, lambda _, k=key: _MERGED.pop(k, None))
-        _MERGED[key] = (ref, weakref.ref(rec), steps)
-    except TypeError:  # not an ndarray: no cache
-        pass
-    return steps
+        return (np.ascontiguousarray(rec.i[at]), np.add.reduceat(rec.dt[:last], at),
+                np.ascontiguousarray(dinv_t[at]), np.ascontiguousarray(two_rt_f[at]),
+                np.ascontiguousarray(sel[at]))  # fmt: skip
+
+    return _once_per_index(idx, "rests merged", make, owner=rec)
 
 
 def _selection(n: int, idx: np.ndarray | None) -> np.ndarray:
     """Per sample, its place among the returned samples ``idx`` (−1: not returned); all of them
-    without ``idx``. A fit simulates its records hundreds of times with the same ``idx``, and on
-    a record of 10⁵ samples making the array took a tenth of a short simulation: made once per
-    ``idx`` array (held while that array lives; never written to: left writeable because numba
-    types a read-only array apart and would compile the simulator again for it)."""
+    without ``idx``. On a record of 10⁵ samples making the array took a tenth of a short
+    simulation: made once per ``idx`` array and length (:func:`_once_per_index`; never written
+    to: left writeable because numba types a read-only array apart and would compile the
+    simulator again for it)."""
     if idx is None:
         return np.arange(n)
-    key = id(idx)
-    hit = _SELECTIONS.get(key)
-    if hit is not None and hit[0]() is idx and hit[1] == n:
-        return hit[2]
-    sel = np.full(n, -1)
-    sel[idx] = np.arange(idx.size)
-    try:  # the entry goes with its array (an id is reused only after that)
-        ref = weakref.ref(idx, lambda _, k=key: _SELECTIONS.pop(k, None))
-    except TypeError:  # not an ndarray (a list): no cache
+
+    def make():
+        sel = np.full(n, -1)
+        sel[idx] = np.arange(idx.size)
         return sel
-    _SELECTIONS[key] = (ref, n, sel)
-    return sel
+
+    return _once_per_index(idx, f"selection of {n}", make)
 
 
 def simulate_rows(rec: Record, X: np.ndarray, knots: Knots, table: OcvTable | None = None,
