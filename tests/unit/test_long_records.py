@@ -142,6 +142,17 @@ def test_a_thinned_pass_over_rests_merges_them_and_gives_the_full_pass(effects):
                                    rtol=0, atol=MERGED_ATOL_V)  # fmt: skip
 
 
+def test_unsorted_samples_come_back_in_their_order():
+    """A thinned pass returns the samples in the order asked for, merged rests or not."""
+    rec = _resting_record(n=8000)
+    X = _rows(("second_rc",))
+    knots = ecm.Knots(0.5, 0.1)
+    full = ecm.simulate_rows(rec, X, knots)
+    idx = np.array([7000, 12, 3500, 6999, 40])
+    np.testing.assert_allclose(ecm.simulate_rows(rec, X, knots, idx=idx), full[idx], rtol=0,
+                               atol=MERGED_ATOL_V)  # fmt: skip
+
+
 def test_merged_steps_are_made_once_per_record_and_index_array():
     """The merged steps are reused for the same record and index array, made anew for another
     record of the same length, and forgotten with their index array."""

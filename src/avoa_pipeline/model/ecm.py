@@ -252,7 +252,7 @@ def _rests_merged(rec: Record, idx: np.ndarray, sel: np.ndarray):
     10,000 samples returned: within 3 % either way)."""
 
     def make():
-        last = int(idx[-1]) + 1 if idx.size else 1
+        last = int(idx.max()) + 1 if idx.size else 1  # idx need not be sorted
         zero = rec.i[:last] == 0.0
         keep = np.ones(last, dtype=bool)
         keep[1:] = ~(zero[1:] & zero[:-1])  # a rest's first sample starts its merged step
