@@ -176,7 +176,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     """Voltage (n, m) of physical rows ``P`` (m, NP); with traces, also (5, n) of row 0.
 
     ``idx``: return only these samples (sorted), shape (idx.size, m); the record is simulated
-    up to the last of them. Where no row carries a current offset (so that no current flows at
+    up to the latest of them. Where no row carries a current offset (so that no current flows at
     the record's zero-current samples), no element reads the temperature at rest
     (:func:`temperature_acts_at_rest`), no load and no traces: the temperature held through each
     rest (:attr:`Record.rest_held`; the same voltages, faster), and with ``idx`` each rest
