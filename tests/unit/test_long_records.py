@@ -66,16 +66,22 @@ def test_thinned_output_is_the_full_pass_at_those_samples(effects, temperature, 
         np.testing.assert_allclose(thin, full[idx], rtol=0, atol=MERGED_ATOL_V if rest else 0)
 
 
+def _logged_at_1_hz(cur: np.ndarray, rng) -> ecm.Record:
+    """Current ``cur`` at 1 Hz with a measured temperature that moves by a hundredth of a kelvin
+    at most samples (as the Panasonic thermocouple does) and drifts by kelvins."""
+    t = np.arange(cur.size, dtype=float)
+    temp = 25.0 + 5.0 * np.sin(t / 4000.0) + 0.01 * rng.integers(-1, 2, t.size)
+    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
+    return ecm.Record.from_frame(frame, tref_k=298.15)
+
+
 def _flickering_record(n=20000, seed=1) -> ecm.Record:
     """Rests and holds at 1 Hz, a measured temperature that moves by a hundredth of a kelvin at
     most samples (as the Panasonic thermocouple does) and drifts by kelvins."""
     rng = np.random.default_rng(seed)
     cur = np.concatenate([np.full(int(rng.uniform(5, 600)), rng.choice([0, 0, 1.5, -1, 3.0]))
                           for _ in range(n // 100)])[:n]  # fmt: skip
-    t = np.arange(cur.size, dtype=float)
-    temp = 25.0 + 5.0 * np.sin(t / 4000.0) + 0.01 * rng.integers(-1, 2, t.size)
-    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
-    return ecm.Record.from_frame(frame, tref_k=298.15)
+    return _logged_at_1_hz(cur, rng)
 
 
 @pytest.mark.parametrize("effects", [("thermal",), ("thermal", "hysteresis", "diffusion"),
@@ -114,10 +120,7 @@ def _resting_record(n=40000, seed=2) -> ecm.Record:
         parts += [np.full(int(rng.uniform(10, 30)), rng.choice([1.5, -1.0, 3.0])),
                   np.zeros(int(rng.uniform(300, 2400)))]  # fmt: skip
     cur = np.concatenate(parts)[:n]
-    t = np.arange(cur.size, dtype=float)
-    temp = 25.0 + 5.0 * np.sin(t / 4000.0) + 0.01 * rng.integers(-1, 2, t.size)
-    frame = pd.DataFrame({"time_s": t, "current_a": cur, "voltage_v": 3.7, "temperature_c": temp})
-    return ecm.Record.from_frame(frame, tref_k=298.15)
+    return _logged_at_1_hz(cur, rng)
 
 
 @pytest.mark.parametrize("effects", [(), ("hysteresis", "diffusion", "second_rc"),
@@ -133,7 +136,7 @@ def test_a_thinned_pass_over_rests_merges_them_and_gives_the_full_pass(effects):
     full = ecm.simulate_rows(rec, X, knots)
     for stride in (1, 7, 50, 1000):
         idx = np.arange(3, rec.n - 500, stride)
-        steps = ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx))
+        steps = ecm._rests_merged(rec, idx)
         if stride > 1:  # every sample returned: only the record's tail goes
             assert steps[0].size < 0.5 * rec.n
             span = rec.t[idx[-1]] - rec.t[0] + rec.dt[idx[-1]]  # up to the last one returned
@@ -160,9 +163,9 @@ def test_merged_steps_are_made_once_per_record_and_index_array():
 
     rec, twin = _resting_record(n=5000), _resting_record(n=5000, seed=3)
     idx = np.arange(3, 4000, 50)
-    first = ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx))
-    assert ecm._rests_merged(rec, idx, ecm._selection(rec.n, idx)) is first
-    other = ecm._rests_merged(twin, idx, ecm._selection(twin.n, idx))
+    first = ecm._rests_merged(rec, idx)
+    assert ecm._rests_merged(rec, idx) is first
+    other = ecm._rests_merged(twin, idx)
     assert other is not first
     assert not np.array_equal(other[1], first[1])  # its own rests
     key = id(idx)

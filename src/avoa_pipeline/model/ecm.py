@@ -191,7 +191,7 @@ def simulate_physical(rec: Record, P: np.ndarray, knots: Knots, table: OcvTable 
     if at_rest and not temperature_acts_at_rest(P):
         dinv_t, two_rt_f = rec.rest_held
         if idx is not None:
-            steps = _rests_merged(rec, idx, sel)
+            steps = _rests_merged(rec, idx)
             if steps is not None:
                 cur, dt, dinv_t, two_rt_f, sel = steps
                 uniform = False
@@ -229,7 +229,7 @@ def _once_per_index(idx, tag: str, make, owner=None):
     return value
 
 
-def _rests_merged(rec: Record, idx: np.ndarray, sel: np.ndarray):
+def _rests_merged(rec: Record, idx: np.ndarray):
     """The steps a thinned simulation needs, each rest between returned samples merged into one
     step (``cur, dt, dinv_t, two_rt_f, sel`` for the simulator), or None where no step would
     go. Only for what :func:`simulate_physical` holds at rest (:attr:`Record.rest_held`: no
@@ -253,9 +253,7 @@ def _rests_merged(rec: Record, idx: np.ndarray, sel: np.ndarray):
 
     def make():
         last = int(idx.max()) + 1 if idx.size else 1  # idx need not be sorted
-        zero = rec.i[:last] == 0.0
-        keep = np.ones(last, dtype=bool)
-        keep[1:] = ~(zero[1:] & zero[:-1])  # a rest's first sample starts its merged step
+        keep = ~rec.rest_tail(last)  # a rest's first sample starts its merged step
         keep[idx] = True
         if last == rec.n and keep.all():
             return None
@@ -263,7 +261,7 @@ def _rests_merged(rec: Record, idx: np.ndarray, sel: np.ndarray):
         at = np.flatnonzero(keep)
         return (np.ascontiguousarray(rec.i[at]), np.add.reduceat(rec.dt[:last], at),
                 np.ascontiguousarray(dinv_t[at]), np.ascontiguousarray(two_rt_f[at]),
-                np.ascontiguousarray(sel[at]))  # fmt: skip
+                np.ascontiguousarray(_selection(rec.n, idx)[at]))  # fmt: skip
 
     return _once_per_index(idx, "rests merged", make, owner=rec)
 

@@ -160,13 +160,20 @@ class Record:
         42: a long record's memory)."""
         if _constant(self.dinv_t) and _constant(self.two_rt_f):
             return self.dinv_t, self.two_rt_f
-        rest = self.i == 0.0
-        start = rest & ~np.concatenate([[False], rest[:-1]])  # the first sample of each rest
         # per sample, the index of the last sample that is not inside a rest's tail
-        src = np.where(rest & ~start, 0, np.arange(self.n))
+        src = np.where(self.rest_tail(), 0, np.arange(self.n))
         np.maximum.accumulate(src, out=src)
         return (np.ascontiguousarray(self.dinv_t[src]),
                 np.ascontiguousarray(self.two_rt_f[src]))  # fmt: skip
+
+    def rest_tail(self, end: int | None = None) -> np.ndarray:
+        """Per sample (of the first ``end``), whether it lies inside a run of zero current after
+        the run's first sample: what :attr:`rest_held` holds at the run's first values and a
+        thinned simulation merges into the run's first step (``ecm._rests_merged``)."""
+        zero = self.i[:end] == 0.0
+        tail = np.zeros_like(zero)
+        tail[1:] = zero[1:] & zero[:-1]
+        return tail
 
     @cached_property
     def opening_record(self) -> Record:
