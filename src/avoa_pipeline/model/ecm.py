@@ -248,8 +248,8 @@ def _rests_merged(rec: Record, idx: np.ndarray):
 
     Merged always, not only where it removes many steps: the merged steps are uneven, but the
     simulator makes its decays afresh only where the step changes, so a drive cycle costs about
-    the same merged or not (1,250 and 10,000 samples returned, one thread, merged ÷ unmerged:
-    the Panasonic 25 °C training cycle LA92, 2 % at rest, 0.98-1.00; two withheld-effect drive
+    the same merged or not (``benchmarks/bench_merged_rests.py``, merged ÷ unmerged: the
+    Panasonic 25 °C training cycle LA92, 2 % at rest, 0.98-1.00; two withheld-effect drive
     records, 13 % at rest, 1.03-1.08). A threshold would save at most those few per cent and
     need a constant of its own."""
 
