@@ -105,3 +105,30 @@ def test_the_check_is_deterministic_and_fit_model_reports_it(flat):
     assert a.checks[0].restarts >= 2 * fitting.CHECK_DIRECTIONS
     # fit_model's base is checked: at most the plain multi-start's cost
     assert a.cost_fit <= plain.cost_fit
+
+
+def test_restarts_back_in_the_fits_basin_stop_there(monkeypatch):
+    """A fit at its optimum (a clean record): restarts that come back to its basin are stopped
+    there (``fitting.Basin``, ``CHECK_BASIN_SD``), so the check spends fewer evaluations and
+    leaves the fit as it was; with a margin of 0 no restart is stopped (the check before issue
+    42), and it ends no lower by more than the margin."""
+    clean = ecm.Record.from_frame(with_voltage(profile_frame(), TRUTH, noise_v=1e-3, seed=4))
+    st = fitting.structure([clean], Config())
+    at_optimum = fitting.best_of([clean], st, [fitting.base_starts([clean], Config())[0]],
+                                 check=False)  # fmt: skip
+    idx_c = fitting.indices([clean], None, fitting.COARSE_POINTS)
+    basin = fitting.Basin.of(fitting.Problem([clean], st, at_optimum.X, idx_c),
+                             st.z_of(at_optimum.X), st.lo, st.hi)  # fmt: skip
+    assert basin.quadratic
+    assert basin.cost_min <= basin.cost  # one Gauss–Newton step from the fit predicts no rise
+    assert basin.holds(basin.zc, basin.model(basin.zc))
+    assert not basin.lower(basin.cost_min - 0.5 * basin.tol)  # within the margin: not lower
+    assert basin.lower(basin.cost_min - 2.0 * basin.tol)
+    checked = fitting.check_fit([clean], st, at_optimum)
+    monkeypatch.setattr(fitting, "CHECK_BASIN_SD", 0.0)
+    before = fitting.check_fit([clean], st, at_optimum)
+    assert checked.checks[-1].restarts == before.checks[-1].restarts
+    assert checked.checks[-1].nfev < before.checks[-1].nfev
+    assert checked.checks[-1].improved == 0
+    assert np.array_equal(checked.X, at_optimum.X)
+    assert checked.cost_fit - before.cost_fit <= basin.tol
