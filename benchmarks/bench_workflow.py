@@ -195,7 +195,7 @@ def main() -> None:
         f"Snakemake process CPU: {main_cpu:.0f} s"
         + (f" = {main_cpu / n_jobs * 1000:.0f} ms per job over {n_jobs} jobs" if n_jobs else "")
     )
-    print(f"CPU of all child processes: {children_cpu:.0f} s")
+    print(f"CPU of all child processes: {children_cpu:.0f} s (Snakemake's own included)")
     by_kind: dict[str, list[float]] = defaultdict(list)
     for kind, cpu in seen.values():
         if kind is not None:
@@ -204,7 +204,9 @@ def main() -> None:
     for kind, cpus in sorted(by_kind.items(), key=lambda kv: -sum(kv[1])):
         print(f"  {kind:28s} {len(cpus):5d} {sum(cpus):8.1f}")
     attributed = sum(sum(c) for c in by_kind.values())
-    print(f"  {'(between samples, shells)':28s} {'':5s} {children_cpu - attributed:8.1f}")
+    # Snakemake is this process's child: its own CPU is in children_cpu too, beside its jobs'
+    unattributed = children_cpu - attributed - main_cpu
+    print(f"  {'(between samples, shells)':28s} {'':5s} {unattributed:8.1f}")
 
     cs = fits_run_since(wd, t_start)
     bound = sum(cs[s] * ns.get(s, max(ns.values())) * 1e-9 for s in cs) if cs else 0.0
@@ -224,8 +226,8 @@ def main() -> None:
     if split.get("other"):
         rows.append(("other", len(split["other"]), sum(split["other"])))
     rows += [("Snakemake itself", 1, main_cpu),
-             ("unattributed", 0, children_cpu - attributed)]  # fmt: skip
-    total = children_cpu + main_cpu
+             ("unattributed", 0, unattributed)]  # fmt: skip
+    total = children_cpu
     print(f"the run by job kind (CPU {total:.0f} s over {cores} cores = {total / cores:.0f} s "
           f"of the {wall:.0f} s wall):")  # fmt: skip
     print(f"  {'kind':18s} {'procs':>5s} {'CPU s':>8s} {'share':>6s} {'bound s':>8s} "

@@ -412,3 +412,44 @@ def test_a_job_whose_announced_snakemake_is_gone_stops_at_once(monkeypatch):
     assert subprocess.run(cmd, timeout=60).returncode == 0
     monkeypatch.delenv(jobguard.ENV)
     assert subprocess.run(cmd, timeout=60).returncode == 0
+
+
+def test_snakemakes_reevaluation_timers_are_coalesced(monkeypatch):
+    """``snakemake_compat.coalesce_reevaluation``: however many rounds ask for a re-evaluation,
+    one timer is pending, a daemon (it never delays the exit); when it fires it opens the
+    scheduler's loop once, and the next request starts a new one. Snakemake's own method starts a
+    timer per request."""
+    import threading
+    import time
+
+    from snakemake.scheduling import job_scheduler
+
+    cls = job_scheduler.JobScheduler
+    monkeypatch.setattr(cls, "_schedule_reevalutation", cls._schedule_reevalutation)
+    sched = cls.__new__(cls)  # only what the timer touches
+    sched._open_jobs = threading.Semaphore(0)
+
+    def pending():
+        return [t for t in threading.enumerate()
+                if isinstance(t, threading.Timer) and t.is_alive()]  # fmt: skip
+
+    before = len(pending())
+    for _ in range(5):  # Snakemake's own: one timer each
+        cls._schedule_reevalutation(sched, 0.3)
+    assert len(pending()) - before == 5
+    time.sleep(0.6)
+    assert all(sched._open_jobs.acquire(blocking=False) for _ in range(5))
+
+    assert snakemake_compat.coalesce_reevaluation()
+    assert snakemake_compat.coalesce_reevaluation()  # applied once
+    for _ in range(5):
+        cls._schedule_reevalutation(sched, 0.3)
+    timers = pending()
+    assert len(timers) - before == 1
+    assert [t for t in timers if t.daemon]  # the new one; Snakemake starts none as daemons
+    time.sleep(0.6)
+    assert sched._open_jobs.acquire(blocking=False)
+    assert not sched._open_jobs.acquire(blocking=False)  # released once, not five times
+    cls._schedule_reevalutation(sched, 0.05)  # the next request arms a new timer
+    time.sleep(0.3)
+    assert sched._open_jobs.acquire(blocking=False)

@@ -15,6 +15,11 @@ for _lock in snakemake_compat.clear_stale_locks_of(workflow):
     print(f"removed stale Snakemake lock .snakemake/locks/{_lock} (no live run here)",
           file=sys.stderr)
 
+# At most one of the scheduler's re-evaluation timers pending: Snakemake 9 adds one that re-arms
+# itself each second for every finished job, and its rounds took a third of a core in the whole
+# study (avoa_pipeline.snakemake_compat; which jobs run is unchanged).
+snakemake_compat.coalesce_reevaluation()
+
 # `localrule: True` marks the jobs of a few seconds (notebooks, aggregates, tables, datasets and
 # imports): on a cluster the submitting Snakemake runs them itself, as Snakemake's docs advise for
 # short jobs, since a submission costs more than they do (a job step and a second Snakemake
