@@ -424,16 +424,22 @@ restart, mostly one back in the fit's own basin (the fit, optimal on the fitted 
 rounds gained something, three of them more than 0.3 standard deviations, nine less than 0.1."""
 
 
+def cost_sd(r: np.ndarray) -> float:
+    """The standard deviation of the cost ½·Σr² of m residuals of variance σ² (estimated from
+    ``r``): σ²·√(m/2), the sum of m squared Gaussian residuals having variance 2mσ⁴, halved."""
+    return float(r @ r) / r.size * np.sqrt(r.size / 2.0)
+
+
 @dataclass
 class Basin:
     """The fit's own basin on the restarts' samples: the residuals ``r`` and Jacobian ``J`` at
     the fit ``z`` and its cost ``cost``; the minimiser ``zc`` of their linear model within the
     bounds (one bounded Gauss–Newton step) and the model's cost there, ``cost_min``; the margin
-    ``tol`` (``CHECK_BASIN_SD`` standard deviations of the cost, σ²·√(m/2) for m residuals as
-    ``restart_points``); and whether the model holds at ``zc`` (``quadratic``: its cost there
-    within ``tol`` of the model's). Where it does not (a stall on a rough objective: a flat OCV
-    table's staircase), the model says nothing about the basin's optimum: no restart is stopped
-    and a restart counts as lower below the fit's own cost (by ``CHECK_RTOL``), as before."""
+    ``tol`` (``CHECK_BASIN_SD`` standard deviations of the cost, :func:`cost_sd`); and whether
+    the model holds at ``zc`` (``quadratic``: its cost there within ``tol`` of the model's).
+    Where it does not (a stall on a rough objective: a flat OCV table's staircase), the model
+    says nothing about the basin's optimum: no restart is stopped and a restart counts as lower
+    below the fit's own cost (by ``CHECK_RTOL``), as before."""
 
     z: np.ndarray
     r: np.ndarray
@@ -451,8 +457,7 @@ class Basin:
         zc = z + lsq_linear(J, -r, bounds=(lo - z, hi - z), method="bvls").x
         e = r + J @ (zc - z)
         cost_min = 0.5 * float(e @ e)
-        sd = float(r @ r) / r.size * np.sqrt(r.size / 2.0)
-        tol = CHECK_BASIN_SD * sd
+        tol = CHECK_BASIN_SD * cost_sd(r)
         rz = prob.residuals(zc)
         quadratic = abs(0.5 * float(rz @ rz) - cost_min) <= tol
         return cls(z, r, J, 0.5 * float(r @ r), zc, cost_min, tol, quadratic)
@@ -533,10 +538,10 @@ def check_fit(recs, st: Structure, fit: Fit, masks=None, max_nfev_coarse=60,
     2·CHECK_DIRECTIONS coarse fits (≤ ``max_nfev_coarse`` evaluations each, fewer where they
     come back to the fit's basin; in the first round also up to ``len(TAU_STARTS_S)`` per time
     constant), and one refinement on the fitted samples (≤ ``max_nfev``) only when a restart
-    landed lower. Measured on the transfer benchmark's LFP
-    record (1RC, a table; 5,715 samples): the first round (7 restarts) moved the fit from 7.2 to
-    5.9 mV, a second (4) found nothing, 341 evaluations in all; a whole diagnosis took 2 to 6
-    times the CPU time (docs/gap-diagnosis.md, "Fit check").
+    landed lower. Measured on the transfer benchmark's LFP record (1RC, a table; 5,715 samples):
+    the first round (7 restarts) moved the fit from 7.2 to 5.9 mV, a second (4) found nothing,
+    341 evaluations in all; a whole diagnosis took 2 to 6 times the CPU time
+    (docs/gap-diagnosis.md, "Fit check").
     """
     if st.k == 0:
         return fit
@@ -590,7 +595,7 @@ def restart_points(recs, st: Structure, X: np.ndarray, idxs,
     norms = np.linalg.norm(J, axis=0)
     norms[norms == 0] = 1.0  # as least_squares' scaling: a column without effect keeps scale 1
     _, sv, vt = np.linalg.svd(J / norms, full_matrices=False)
-    sd_cost = float(r @ r) / r.size * np.sqrt(r.size / 2.0)
+    sd_cost = cost_sd(r)
     span = st.hi - st.lo
     out = []
     for k in range(1, min(CHECK_DIRECTIONS, sv.size) + 1):
