@@ -347,19 +347,22 @@ def fit_structure(recs, st: Structure, X0: np.ndarray, idxs: list[np.ndarray],
     return Fit(complete(st, recs, st.rows(res.x, X0)), float(res.cost), int(res.nfev))
 
 
+def best_start(recs, st: Structure, starts, masks=None, max_nfev_coarse=60) -> Fit:
+    """The multi-start trials: each start fitted on the thinned records (``COARSE_POINTS``), the
+    lowest returned as it is (not refined on the fitted samples)."""
+    idx_c = indices(recs, masks, COARSE_POINTS)
+    trials = [fit_structure(recs, st, x0, idx_c, max_nfev=max_nfev_coarse) for x0 in starts]
+    return min(trials, key=lambda r: r.cost_fit)
+
+
 def best_of(recs, st: Structure, starts, masks=None, max_nfev_coarse=60, max_nfev=200,
             check: bool = True, taus=None) -> Fit:  # fmt: skip
-    """Multi-start: each start on thinned records, the best refined on the fitted samples; then,
-    with ``check``, the fit check (:func:`check_fit`; ``taus``: the time constants it restarts,
-    None for every one)."""
+    """Multi-start: each start on thinned records, the best refined on the fitted samples
+    (:func:`best_start`; one start is refined as it is); then, with ``check``, the fit check
+    (:func:`check_fit`; ``taus``: the time constants it restarts, None for every one)."""
     idx_full = indices(recs, masks, MAX_FIT_POINTS)
-    if len(starts) == 1:
-        fit = fit_structure(recs, st, starts[0], idx_full, max_nfev=max_nfev)
-    else:
-        idx_c = indices(recs, masks, COARSE_POINTS)
-        trials = [fit_structure(recs, st, x0, idx_c, max_nfev=max_nfev_coarse) for x0 in starts]
-        best = min(trials, key=lambda r: r.cost_fit)
-        fit = fit_structure(recs, st, best.X, idx_full, max_nfev=max_nfev)
+    x0 = starts[0] if len(starts) == 1 else best_start(recs, st, starts, masks, max_nfev_coarse).X
+    fit = fit_structure(recs, st, x0, idx_full, max_nfev=max_nfev)
     return check_fit(recs, st, fit, masks, max_nfev_coarse, max_nfev, taus) if check else fit
 
 
