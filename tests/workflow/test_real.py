@@ -171,6 +171,10 @@ def test_every_temperature_is_wired_and_tiny_narrows_it(tmp_path):
     # the SOC estimation: on in the full config, off in tiny (and in the small run above)
     assert "results/real/soc_estimation.csv" in full
     assert "results/real/soc_estimation.csv" not in tiny
+    # the Samsung diagnoses (minutes each): in the full config, not in tiny
+    for sfit in ("joint", "20degC", "40degC"):
+        assert f"results/real/samsung/diagnosis/{sfit}/diagnosis.json" in full, sfit
+        assert f"results/real/samsung/diagnosis/{sfit}/diagnosis.json" not in tiny, sfit
     cold = ("-10degC_udds", "-10degC_us06", "-20degC_udds", "-20degC_us06")
     for rec in ("10degC_hwfet", "10degC_us06", *cold):
         assert f"results/real/canonical/panasonic_{rec}.csv" in full
